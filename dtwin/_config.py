@@ -1,0 +1,36 @@
+"""Process-wide JAX configuration: float64 and a persistent compilation cache.
+
+Imported first by :mod:`dtwin`. float64 is required (reference.md §6: in float32 the adaptive
+solver stalls on kHz mesh forcing). The compilation cache lives inside the project's virtual
+environment (``$VIRTUAL_ENV/jax-cache`` or ``sys.prefix/jax-cache``) unless ``DTWIN_JAX_CACHE``
+names another folder; set ``DTWIN_JAX_CACHE=off`` to disable it.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+
+def _cache_dir() -> str | None:
+    env = os.environ.get("DTWIN_JAX_CACHE")
+    if env is not None:
+        return None if env.lower() in ("", "off", "0", "none") else env
+    if sys.prefix != sys.base_prefix:  # inside a venv
+        return os.path.join(sys.prefix, "jax-cache")
+    return None
+
+
+_dir = _cache_dir()
+if _dir is not None:
+    try:
+        os.makedirs(_dir, exist_ok=True)
+        jax.config.update("jax_compilation_cache_dir", _dir)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+        jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    except (OSError, AttributeError):  # read-only prefix or an older jax: run without a cache
+        pass

@@ -1,0 +1,24 @@
+"""The typer application shared by every command module of the CLI.
+
+Each command lives in its own module ``dtwin/cli/cmd_<name>.py`` that imports :data:`app` and
+decorates its function with ``@app.command()`` (or adds a sub-app with ``app.add_typer``).
+:func:`dtwin.cli.main` imports every such module, so a new command needs no edit elsewhere.
+Commands that need :mod:`identify` import it inside the function (the twin never depends on the
+identification package).
+
+CLI convention (every command): a readable table on the terminal; ``--json`` prints the results
+as JSON on stdout (nothing else on stdout); ``--out DIR`` writes result files (JSON, PNG and a
+manifest) atomically into DIR, see :mod:`dtwin.io.output`.
+"""
+
+from __future__ import annotations
+
+import typer
+
+app = typer.Typer(
+    name="dtwin",
+    help="dtwin: a differentiable digital twin of planetary gearboxes.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)

@@ -1,0 +1,224 @@
+"""Result folders: atomic writes and a manifest of inputs, versions and parameters.
+
+Every output of dtwin goes through :class:`OutputFolder`:
+
+- files are written to a temporary name in the same folder, flushed, then renamed
+  (``os.replace``), so a run that fails half-way leaves no partial file;
+- an existing result file is never overwritten unless ``force=True``
+  (:class:`~dtwin.errors.OutputExistsError` otherwise);
+- ``manifest.json`` records the command line, the SHA-256 of every input file, the spec, the
+  versions of dtwin and its main dependencies, the seed and any parameters, and lists the files
+  written. It is rewritten (atomically) after each file, so it is always complete.
+
+Inputs are only ever opened for reading.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import os
+import platform
+import sys
+import tempfile
+from collections.abc import Iterable, Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from ..errors import OutputExistsError
+
+_MAIN_PACKAGES = (
+    "dtwin", "jax", "jaxlib", "diffrax", "optimistix", "equinox", "lineax", "numpy", "scipy",
+)
+
+
+def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
+    """SHA-256 hex digest of a file, read in chunks (read-only)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while block := f.read(chunk):
+            h.update(block)
+    return h.hexdigest()
+
+
+def versions() -> dict[str, str]:
+    """Installed versions of dtwin and its main dependencies."""
+    out = {"python": platform.python_version()}
+    for name in _MAIN_PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def to_jsonable(obj: Any) -> Any:
+    """Convert numpy/JAX arrays and scalars, paths and dataclasses to JSON-compatible values."""
+    import dataclasses
+
+    import numpy as np
+
+    if isinstance(obj, Mapping):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (str, bool)) or obj is None:
+        return obj
+    if isinstance(obj, int):
+        return obj
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else str(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return to_jsonable(dataclasses.asdict(obj))
+    if hasattr(obj, "__array__") or isinstance(obj, np.generic):
+        arr = np.asarray(obj)
+        if arr.dtype.kind in "fc":
+            arr = np.where(np.isfinite(arr), arr, np.nan) if arr.dtype.kind == "f" else arr
+        val = arr.tolist()
+        return _nan_to_str(val)
+    if isinstance(obj, Iterable):
+        return [to_jsonable(v) for v in obj]
+    return str(obj)
+
+
+def _nan_to_str(val: Any) -> Any:
+    if isinstance(val, float):
+        return val if val == val and abs(val) != float("inf") else str(val)
+    if isinstance(val, list):
+        return [_nan_to_str(v) for v in val]
+    if isinstance(val, complex):
+        return [val.real, val.imag]
+    return val
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, force: bool = False) -> Path:
+    """Write `data` to `path` atomically (temporary file in the same folder, then rename).
+
+    Raises `OutputExistsError` if `path` exists and `force` is false.
+    """
+    path = Path(path)
+    if path.exists() and not force:
+        raise OutputExistsError(
+            f"{path} already exists; choose another output folder or pass --force to overwrite"
+        )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+class OutputFolder:
+    """A folder of results written atomically, with a manifest.
+
+    **Arguments:**
+
+    - `path`: the folder (created if missing).
+    - `force`: overwrite existing result files (otherwise `OutputExistsError`).
+    - `command`: the command line (defaults to ``sys.argv``).
+    - `inputs`: input files to hash into the manifest.
+    - `spec`: the spec (a mapping) used.
+    - `seed`: random seed, if any.
+    - `parameters`: further parameters of the run.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        *,
+        force: bool = False,
+        command: list[str] | None = None,
+        inputs: Iterable[str | os.PathLike] = (),
+        spec: Mapping[str, Any] | None = None,
+        seed: int | None = None,
+        parameters: Mapping[str, Any] | None = None,
+    ):
+        self.path = Path(path)
+        self.force = force
+        self.path.mkdir(parents=True, exist_ok=True)
+        self.manifest: dict[str, Any] = {
+            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "command": list(sys.argv if command is None else command),
+            "inputs": {},
+            "spec": to_jsonable(spec) if spec is not None else None,
+            "seed": seed,
+            "parameters": to_jsonable(parameters or {}),
+            "versions": versions(),
+            "files": [],
+        }
+        for p in inputs:
+            self.add_input(p)
+        if (self.path / "manifest.json").exists() and not force:
+            raise OutputExistsError(
+                f"{self.path} already holds a result (manifest.json); choose another --out "
+                "folder or pass --force to overwrite"
+            )
+        self._write_manifest()
+
+    def add_input(self, p: str | os.PathLike) -> None:
+        p = Path(p)
+        self.manifest["inputs"][str(p)] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}
+
+    def set(self, key: str, value: Any) -> None:
+        """Record a further item in the manifest."""
+        self.manifest[key] = to_jsonable(value)
+        self._write_manifest()
+
+    def _write_manifest(self) -> None:
+        data = json.dumps(self.manifest, indent=2, sort_keys=False).encode()
+        atomic_write_bytes(self.path / "manifest.json", data, force=True)
+
+    def _register(self, name: str) -> Path:
+        if name not in self.manifest["files"]:
+            self.manifest["files"].append(name)
+        self._write_manifest()
+        return self.path / name
+
+    def write_bytes(self, name: str, data: bytes) -> Path:
+        atomic_write_bytes(self.path / name, data, force=self.force)
+        return self._register(name)
+
+    def write_text(self, name: str, text: str) -> Path:
+        return self.write_bytes(name, text.encode())
+
+    def write_json(self, name: str, obj: Any) -> Path:
+        return self.write_bytes(name, json.dumps(to_jsonable(obj), indent=2).encode())
+
+    def savefig(self, name: str, fig: Any, **kwargs: Any) -> Path:
+        """Save a matplotlib figure atomically (PNG unless the name says otherwise)."""
+        import io
+
+        buf = io.BytesIO()
+        fmt = Path(name).suffix.lstrip(".") or "png"
+        kwargs.setdefault("dpi", 120)
+        kwargs.setdefault("bbox_inches", "tight")
+        fig.savefig(buf, format=fmt, **kwargs)
+        return self.write_bytes(name, buf.getvalue())
+
+    def write_with(self, name: str, writer: Any) -> Path:
+        """Atomically write a file produced by ``writer(tmp_path)`` (for formats with own writers)."""
+        target = self.path / name
+        if target.exists() and not self.force:
+            raise OutputExistsError(f"{target} already exists; pass --force to overwrite")
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=target.suffix, dir=self.path)
+        os.close(fd)
+        try:
+            writer(tmp)
+            os.replace(tmp, target)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+        return self._register(name)
