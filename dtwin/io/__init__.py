@@ -3,3 +3,4 @@
 from .output import OutputFolder as OutputFolder
 from .output import atomic_write_bytes as atomic_write_bytes
 from .output import sha256_file as sha256_file
+from .record import Record as Record
