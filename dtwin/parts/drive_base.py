@@ -50,6 +50,15 @@ class AbstractDrive(eqx.Module):
         omega_sun: Float[Array, ""],
     ) -> tuple[Float[Array, ""], Float[Array, " n_aux"]]: ...
 
+    def aux_steady(
+        self, omega_sun: Float[Array, ""], torque_sun: Float[Array, ""]
+    ) -> Float[Array, " n_aux"]:
+        """States of a steady run at `omega_sun` (rad/s) delivering `torque_sun` (N·m) to the sun
+        (shaft pre-twisted, controller integrators preloaded). Drives that can should override
+        this; the default is `aux_init(omega_sun)` (the run then starts with a small transient).
+        """
+        return self.aux_init(omega_sun)
+
     @abc.abstractmethod
     def outputs(
         self,
