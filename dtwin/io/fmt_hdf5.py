@@ -87,7 +87,7 @@ def read(
 
     where = str(path)
     try:
-        if fmt_matlab.is_v73(path):
+        if fmt_matlab.has_matlab_header(path):
             return fmt_matlab.read(path, sample_rate=sample_rate, time_column=time_column,
                                    group=group)
         with h5py.File(path, "r") as f:

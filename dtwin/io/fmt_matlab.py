@@ -43,6 +43,12 @@ def is_v73(path: Path) -> bool:
     return head[512:520] == _HDF5_SIGNATURE or head[:8] == _HDF5_SIGNATURE
 
 
+def has_matlab_header(path: Path) -> bool:
+    """Whether a file starts with MATLAB's v7.3 text header (an HDF5 file written by MATLAB)."""
+    with open(path, "rb") as f:
+        return f.read(19) == b"MATLAB 7.3 MAT-file"
+
+
 def _descend(tree: dict[str, Any], group: str | None, where: str) -> dict[str, Any]:
     if group is None:
         return tree

@@ -494,7 +494,7 @@ def _apply_sensitivity(
             data[i] = data[i] * (to_volt / volts_per_unit)
             units[i] = phys
             applied[name] = {
-                "sensitivity": text,
+                "sensitivity": f"{float(spec[0])!r} {text}",
                 "volts_per_unit": volts_per_unit,
                 "input_unit": unit_in or "V (assumed: the file gave no unit)",
                 "output_unit": phys,
@@ -638,9 +638,12 @@ def finish_record(
             raise RecordError("sensitivity must be a mapping {channel: (value, 'mV/g')}")
         meta["sensitivity"] = _apply_sensitivity(data, chans, unit_list, groups, sensitivity)
     if path is not None:
-        meta.setdefault("source", str(path))
+        previous = meta.get("source")
+        if previous is not None and previous != str(path):
+            meta["derived_from"] = {"source": previous, "format": meta.get("format")}
+        meta["source"] = str(path)
     if fmt is not None:
-        meta.setdefault("format", fmt)
+        meta["format"] = fmt
     return dataclasses.replace(
         raw,
         data=data,
