@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from dtwin.errors import ParameterError, SpecError
+from dtwin.errors import OutputExistsError, ParameterError, SpecError
 from dtwin.lumped import make_lumped, replace
 from dtwin.modal import (
     coordinate_names,
@@ -331,3 +331,63 @@ def test_errors_name_what_to_change(lp3):
         frequency_sensitivity(lp3, "k_sun")
     with pytest.raises(SpecError, match="one per planet"):
         stiffness_matrix(lp3, k_sun_planet=jnp.ones(2, dtype=jnp.float64))
+
+
+# --- CLI ----------------------------------------------------------------------------------------
+
+def _invoke(args):
+    """Run ``dtwin modes ARGS`` in-process (typer runs a lone command without its name)."""
+    import typer.main
+    from typer.testing import CliRunner
+
+    import dtwin.cli.cmd_modes  # noqa: F401  (registers the command)
+    from dtwin.cli.app import app
+
+    cmd = typer.main.get_command(app)
+    full = (["modes"] if hasattr(cmd, "commands") else []) + list(args)
+    return CliRunner().invoke(app, full)
+
+
+def test_cli_json_reproduces_lin_parker():
+    import json
+
+    r = _invoke(["--preset", "lin-parker", "--json"])
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    rot = [m["frequency_hz"] for m in data["modes"] if m["type"] == "rotational"]
+    trans = [m["frequency_hz"] for m in data["modes"] if m["type"] == "translational"]
+    np.testing.assert_allclose(rot[1:], LP_ROTATIONAL[1:], rtol=5e-3)
+    np.testing.assert_allclose(trans, LP_TRANSLATIONAL, rtol=5e-3)
+    assert len(data["frequencies_hz"]) == 18
+
+
+def test_cli_table_torsional_and_out_folder(tmp_path):
+    import json
+
+    r = _invoke(["--preset", "lin-parker", "--planets", "4", "--model", "torsional"])
+    assert r.exit_code == 0, r.output
+    assert "planet" in r.stdout and "rotational" in r.stdout
+    # planet modes of the torsional reduction: sqrt(1e9 / 0.61) / 2 pi = 6444.0 Hz, three of them
+    assert "6444.0" in r.stdout
+    out = tmp_path / "res"
+    r = _invoke(["--preset", "lin-parker", "--planets", "5", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["files"] == ["modes.json", "modes.png"]
+    assert (out / "modes.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    data = json.loads((out / "modes.json").read_text())
+    assert sorted({m["multiplicity"] for m in data["modes"] if m["type"] == "planet"}) == [2]
+    # a second run into the same folder is refused unless --force
+    r = _invoke(["--preset", "lin-parker", "--out", str(out)])
+    assert isinstance(r.exception, OutputExistsError) and "--force" in str(r.exception)
+    r = _invoke(["--preset", "lin-parker", "--out", str(out), "--force"])
+    assert r.exit_code == 0, r.output
+
+
+def test_cli_refuses_bad_arguments():
+    r = _invoke(["--json"])
+    assert isinstance(r.exception, SpecError) and "--preset" in str(r.exception)
+    r = _invoke(["--preset", "lin-parker", "--model", "rotational"])
+    assert isinstance(r.exception, SpecError) and "torsional" in str(r.exception)
+    r = _invoke(["--preset", "paper-sim", "--planets", "4"])
+    assert isinstance(r.exception, SpecError) and "--planets" in str(r.exception)
