@@ -507,8 +507,9 @@ def mesh_stiffnesses(
     """Time-varying stiffness of every planet's sun and ring mesh, faults included (N/m).
 
     ``k_sp_i = waveform(phase_sp_i; k_sun_planet, eps_sp) - dk_sp_i`` and likewise for the ring
-    (:func:`dtwin.stiffness.mesh_stiffness_waveform`, :func:`total_stiffness_loss`). Without
-    faults, or with every severity 0, the healthy waveform is returned bit for bit.
+    (:func:`dtwin.stiffness.mesh_stiffness_waveform`, :func:`total_stiffness_loss`), floored at
+    0 (a fault that removes a whole pair in single contact leaves no stiffness). Without faults,
+    or with every severity 0, the healthy waveform is returned bit for bit.
 
     **Returns:** ``(k_sp, k_rp)``, each shape ``(N,)`` (N/m).
     """
@@ -518,5 +519,9 @@ def mesh_stiffnesses(
     if not faults:
         return k_sp, k_rp
     dk_sp, dk_rp = total_stiffness_loss(faults, lp, theta_s, theta_c, theta_r, theta_p)
-    return k_sp - dk_sp, k_rp - dk_rp
+    # The band-limited healthy wave and the sigmoid windows do not share their edges exactly,
+    # so a fault removing a whole pair can undershoot zero by ~1 % of c' in single contact; a
+    # mesh cannot have negative stiffness, hence the floor (exact, and inactive for k - dk > 0,
+    # so severity 0 still returns the healthy wave bit for bit).
+    return jnp.maximum(k_sp - dk_sp, 0.0), jnp.maximum(k_rp - dk_rp, 0.0)
 

@@ -26,6 +26,7 @@ from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from .errors import SpecError
@@ -57,6 +58,7 @@ def _f64(x: ArrayLike) -> Float[Array, "..."]:
 
 
 def _is_concrete(x) -> bool:
+    """True for values known at trace time (checks use numpy on them: JAX would stage them)."""
     return not isinstance(x, jax.core.Tracer)
 
 
@@ -132,7 +134,7 @@ def single_pair_stiffness(
     z1, z2, b = _f64(z1), _f64(z2), _f64(face_width)
     x1, x2, beta = _f64(x1), _f64(x2), _f64(beta)
     for name, val in (("z1", z1), ("z2", z2), ("face_width", b)):
-        if _is_concrete(val) and bool(jnp.any(val <= 0)):
+        if _is_concrete(val) and bool(np.any(np.asarray(val) <= 0)):
             raise SpecError([(name, f"must be positive, got {val}")])
     cos_b = jnp.cos(beta)
     if not internal:
@@ -204,7 +206,7 @@ def single_pair_from_mean(k_mean: ArrayLike, eps_alpha: ArrayLike) -> Float[Arra
 
 
 def _check_eps(eps):
-    if _is_concrete(eps) and bool(jnp.any((eps < 1.0) | (eps >= 2.0))):
+    if _is_concrete(eps) and bool(np.any((np.asarray(eps) < 1.0) | (np.asarray(eps) >= 2.0))):
         raise SpecError(
             [("eps_alpha", f"the single/double contact waveform needs 1 <= eps_alpha < 2, got "
               f"{eps}; check the tooth geometry (addenda, centre distance)")]
