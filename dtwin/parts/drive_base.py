@@ -57,6 +57,10 @@ class AbstractDrive(eqx.Module):
         (shaft pre-twisted, controller integrators preloaded). Drives that can should override
         this; the default is `aux_init(omega_sun)` (the run then starts with a small transient).
         """
+        import inspect
+
+        if "torque_sun" in inspect.signature(self.aux_init).parameters:
+            return self.aux_init(omega_sun, torque_sun=torque_sun)  # type: ignore[call-arg]
         return self.aux_init(omega_sun)
 
     @abc.abstractmethod

@@ -1,0 +1,113 @@
+"""Manufacturing and assembly imperfections as parts (all zero = the ideal gearbox).
+
+Each imperfection changes the meshes through the mesh phase and/or an excitation subtracted
+from the mesh deflection (docs/conventions.md, "Mesh deflection"):
+
+- `PlanetPositionErrors`: planet i sits at ``psi_i + dpsi_i`` on the carrier. Its mesh phases
+  shift by ``-Zs dpsi_i / 2 pi`` (sun) and ``+Zr dpsi_i / 2 pi`` (ring) and its pin moves by
+  ``a dpsi_i`` along ``e_t``, which changes the sun-mesh deflection by ``-a dpsi cos(alpha_sp)``
+  and the ring-mesh deflection by ``+a dpsi cos(alpha_rp)``. Breaks the sideband cancellation
+  of equally spaced planets (reference.md §2): sidebands at every multiple of f_carrier.
+- `SunEccentricity`: the sun's centre runs out by `e` (m), the offset turning with the sun:
+  carrier-frame direction ``theta_s - theta_c + phase``.
+- `CarrierEccentricity`: every pin is offset by the same vector `e` (m) at carrier-frame angle
+  `phase` (turns with the carrier).
+- `MeshOffsets`: a static extra clearance (m, positive = relieved) per planet and mesh; planets
+  with larger offsets carry less load (unequal load sharing).
+- `TransmissionError`: static transmission error of every mesh as a function of its phase.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from ..faults import mesh_phases
+from ..stiffness import transmission_error
+from ..twin import unit_radial, unit_tangential
+from .base import AbstractPart, Modulation
+
+
+def _lines_of_action(lp):
+    psi = lp.planet_angles
+    er, et = unit_radial(psi), unit_tangential(psi)
+    n_sp = unit_tangential(psi - lp.alpha_sp)
+    n_rp = jnp.sin(lp.alpha_rp) * er - jnp.cos(lp.alpha_rp) * et
+    return n_sp, n_rp
+
+
+class PlanetPositionErrors(AbstractPart):
+    """Angular position errors of the planets on the carrier, `dpsi` (rad), shape (N,)."""
+
+    dpsi: Float[Array, " N"]
+
+    def modulation(self, twin, t, q, qdot):
+        lp = twin.lp
+        two_pi = 2.0 * jnp.pi
+        a = lp.centre_distance
+        return Modulation(
+            jnp.zeros_like(self.dpsi),
+            jnp.zeros_like(self.dpsi),
+            -lp.z_sun * self.dpsi / two_pi,
+            lp.z_ring * self.dpsi / two_pi,
+            a * self.dpsi * jnp.cos(lp.alpha_sp),
+            -a * self.dpsi * jnp.cos(lp.alpha_rp),
+        )
+
+
+class SunEccentricity(AbstractPart):
+    """Sun run-out: centre offset `e` (m) turning with the sun, at angle `phase` (rad)."""
+
+    e: Float[Array, ""]
+    phase: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.zeros(()))
+
+    def modulation(self, twin, t, q, qdot):
+        n_sp, _ = _lines_of_action(twin.lp)
+        ang = q.theta_s - q.theta_c + self.phase
+        ecc = self.e * jnp.stack([jnp.cos(ang), jnp.sin(ang)])
+        z = jnp.zeros(twin.n_planets)
+        return Modulation(z, z, z, z, -(n_sp @ ecc), z)
+
+
+class CarrierEccentricity(AbstractPart):
+    """Carrier eccentricity: all pins offset by `e` (m) at carrier-frame angle `phase` (rad)."""
+
+    e: Float[Array, ""]
+    phase: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.zeros(()))
+
+    def modulation(self, twin, t, q, qdot):
+        n_sp, n_rp = _lines_of_action(twin.lp)
+        ecc = self.e * jnp.stack([jnp.cos(self.phase), jnp.sin(self.phase)])
+        z = jnp.zeros(twin.n_planets)
+        return Modulation(z, z, z, z, n_sp @ ecc, n_rp @ ecc)
+
+
+class MeshOffsets(AbstractPart):
+    """Static clearances (m) of each planet's sun and ring mesh: unequal load sharing."""
+
+    e_sp: Float[Array, " N"]
+    e_rp: Float[Array, " N"]
+
+    def modulation(self, twin, t, q, qdot):
+        z = jnp.zeros(twin.n_planets)
+        return Modulation(z, z, z, z, self.e_sp, self.e_rp)
+
+
+class TransmissionError(AbstractPart):
+    """Static transmission error ``A sum_h a_h sin(2 pi h phase + phi_h)`` (m) on both meshes.
+
+    `amplitude` (m), `harmonics` relative amplitudes, `phases` (rad). The ring mesh uses the
+    same profile; its phase is the ring mesh's own.
+    """
+
+    amplitude: Float[Array, ""]
+    harmonics: Float[Array, " H"] = eqx.field(default_factory=lambda: jnp.ones(1))
+    phases: Float[Array, " H"] = eqx.field(default_factory=lambda: jnp.zeros(1))
+
+    def modulation(self, twin, t, q, qdot):
+        ph_sp, ph_rp = mesh_phases(twin.lp, q.theta_s, q.theta_c, q.theta_r)
+        z = jnp.zeros(twin.n_planets)
+        e_sp = transmission_error(ph_sp, self.amplitude, self.harmonics, self.phases)
+        e_rp = transmission_error(ph_rp, self.amplitude, self.harmonics, self.phases)
+        return Modulation(z, z, z, z, e_sp, e_rp)

@@ -1,0 +1,76 @@
+"""Transfer paths: how the gear set's motion reaches an accelerometer on the housing.
+
+A transfer path is a part whose `acceleration(...)` gives the acceleration (m/s²) at the
+sensor, along the sensor's direction, in the fixed frame. Several transfer paths add up. The
+default `PlanetPassTransferPath` (McFadden & Smith 1985) sees
+
+- the ring's translational acceleration, converted from the carrier frame to the fixed frame
+  (``R(theta_c) [r'' + 2 W J r' - W^2 r + W' J r]``, ``W = theta_c'``, ``J`` = rotation by 90°),
+  projected on the sensor direction; and
+- each planet's ring-mesh contact force ``F_rp_i`` (N) divided by the ring mass (a force → local
+  acceleration scale), weighted by a window of the planet's angle to the sensor,
+  ``w(phi) = ((1 + cos phi) / 2) ** window_exponent``, ``phi = theta_c + psi_i - sensor_angle``:
+  1 when the planet passes under the sensor, 0 on the far side. ``window_exponent`` controls
+  the window width (1: raised cosine; larger: narrower).
+
+The sensor direction is the unit vector at `direction_angle` in the fixed frame (default
+``pi/2``: vertical, +y up), the sensor itself at `sensor_angle` (default ``pi/2``, on top).
+"""
+
+from __future__ import annotations
+
+import abc
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from .base import AbstractPart
+
+
+def _rot(theta, v):
+    c, s = jnp.cos(theta), jnp.sin(theta)
+    return jnp.stack([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
+def _perp(v):
+    return jnp.stack([-v[1], v[0]])
+
+
+def ring_acceleration_fixed(q, qdot, qddot):
+    """Acceleration of the ring centre in the fixed frame (m/s²) from carrier-frame coordinates."""
+    w, wd = qdot.theta_c, qddot.theta_c
+    r, rd, rdd = q.ring_xy, qdot.ring_xy, qddot.ring_xy
+    return _rot(q.theta_c, rdd + 2.0 * w * _perp(rd) - w**2 * r + wd * _perp(r))
+
+
+def ring_velocity_fixed(q, qdot):
+    """Velocity of the ring centre in the fixed frame (m/s)."""
+    return _rot(q.theta_c, qdot.ring_xy + qdot.theta_c * _perp(q.ring_xy))
+
+
+class AbstractTransferPath(AbstractPart):
+    """A path from the gear set to the sensor; `acceleration` in m/s² along the sensor axis."""
+
+    @abc.abstractmethod
+    def acceleration(self, twin, t, q, qdot, qddot, mesh) -> Float[Array, ""]: ...
+
+
+class PlanetPassTransferPath(AbstractTransferPath):
+    """Ring motion plus planet mesh forces seen through a planet-angle window (module docs)."""
+
+    sensor_angle: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(jnp.pi / 2))
+    direction_angle: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(jnp.pi / 2))
+    window_exponent: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(2.0))
+    ring_weight: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(1.0))
+    force_weight: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(1.0))
+
+    def window(self, twin, q) -> Float[Array, " N"]:
+        phi = q.theta_c + twin.lp.planet_angles - self.sensor_angle
+        return (0.5 * (1.0 + jnp.cos(phi))) ** self.window_exponent
+
+    def acceleration(self, twin, t, q, qdot, qddot, mesh):
+        d = jnp.stack([jnp.cos(self.direction_angle), jnp.sin(self.direction_angle)])
+        a_ring = ring_acceleration_fixed(q, qdot, qddot) @ d
+        a_force = jnp.sum(self.window(twin, q) * mesh.force_rp) / twin.lp.m_ring
+        return self.ring_weight * a_ring + self.force_weight * a_force

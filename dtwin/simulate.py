@@ -1,0 +1,393 @@
+"""The diffrax solve: a twin → a sampled sensor record, as a DAQ would record it.
+
+Pipeline (reference.md §6):
+
+1. initial state: a steady state at the operating speed (static mesh deflections under the
+   load, drive pre-loaded) or rest;
+2. adaptive explicit Runge–Kutta (Tsit5, PID step-size control) on scaled integration
+   coordinates (`dtwin.twin`); the sensor signal is computed from the states *inside* the model
+   (`SaveAt(fn=...)`, no differentiation of sampled output) on a grid `oversample` times finer
+   than the DAQ rate;
+3. DAQ: a linear-phase FIR low-pass (Kaiser window, cut-off 0.4 × the output rate, ≥ 80 dB
+   stop band at the output Nyquist) and decimation to `sample_rate`; then optional integration
+   to velocity/displacement (frequency domain, high-pass at `f_highpass`), measurement noise
+   at a given SNR and a tachometer channel.
+
+Everything is JAX: `simulate_signal` is differentiable with respect to the twin's parameters
+(forward mode through `diffrax.ForwardMode()`, or reverse through the default adjoint).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy.signal
+from jaxtyping import Array, Float
+
+from .errors import SolverError
+from .parts.drive import DrivePart, LoadPart
+from .parts.transfer_path import AbstractTransferPath, ring_velocity_fixed
+from .twin import Twin
+
+QUANTITIES = ("acceleration", "velocity", "displacement", "ring_velocity")
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverOptions:
+    """Solver settings.
+
+    - `rtol`, `atol`: tolerances on the scaled state (translations in µm, rotation deviations
+      ~1e-6/r_b rad, see `state_scales`), so `atol = 1e-5` means ~1e-11 m;
+      the default gives ~1e-4 relative error of the sensor signal.
+    - `dtmax`: largest step (s); None → a tenth of a mesh period.
+    - `max_steps`: None → 400 000 per simulated second.
+    - `adjoint`: ``"forward"`` (for `jax.jacfwd`/`jvp`), ``"reverse"`` (checkpointed, for
+      `jax.grad`).
+    """
+
+    rtol: float = 1e-5
+    atol: float = 1e-5
+    dtmax: float | None = None
+    max_steps: int | None = None
+    adjoint: str = "forward"
+
+
+@dataclasses.dataclass(frozen=True)
+class DAQ:
+    """Data-acquisition settings of the simulated sensor.
+
+    - `sample_rate`: output rate (Hz), default 5 kHz as in the paper.
+    - `oversample`: internal rate = `oversample` × `sample_rate` (anti-aliasing, reference §6).
+    - `quantity`: ``acceleration`` (m/s², default), ``velocity`` (m/s), ``displacement`` (m) of
+      the sensor, or ``ring_velocity`` (the ring's velocity along the sensor axis, what the
+      paper's simulation plotted).
+    - `gain`: sensor gain (1).
+    - `f_highpass`: corner (Hz) of the high-pass used when integrating to velocity/displacement.
+    - `snr_db`: measurement noise, signal power over noise power over the record (dB); None =
+      no noise.
+    - `tacho_ppr`, `tacho_shaft`: tachometer pulses per revolution of ``"sun"`` or
+      ``"carrier"``; None = no tachometer.
+    """
+
+    sample_rate: float = 5000.0
+    oversample: int = 4
+    quantity: str = "acceleration"
+    gain: float = 1.0
+    f_highpass: float = 2.0
+    snr_db: float | None = None
+    tacho_ppr: int | None = None
+    tacho_shaft: str = "sun"
+
+    def __post_init__(self):
+        if self.quantity not in QUANTITIES:
+            raise ValueError(f"quantity must be one of {QUANTITIES}, got {self.quantity!r}")
+        if not (self.sample_rate > 0 and math.isfinite(self.sample_rate)):
+            raise ValueError(f"sample_rate must be a positive number of Hz, got {self.sample_rate}")
+        if self.oversample < 2:
+            raise ValueError("oversample must be >= 2 so the DAQ filter can remove aliases")
+        if self.tacho_shaft not in ("sun", "carrier"):
+            raise ValueError(f"tacho_shaft must be 'sun' or 'carrier', got {self.tacho_shaft!r}")
+
+
+class SimResult(eqx.Module):
+    """A simulated record and the model's internal signals, at the DAQ rate.
+
+    - `time` (s), `signal` (the sensor, unit of `quantity`), `tacho` (V, or None);
+    - `outputs`: named internal signals (shaft speeds `omega_sun`, `omega_carrier` rad/s, drive
+      and load outputs: torques N·m, currents A, powers W …), same time base;
+    - `num_steps`: accepted solver steps; `f_sun`: nominal input speed (Hz).
+    """
+
+    time: Float[Array, " n"]
+    signal: Float[Array, " n"]
+    tacho: Float[Array, " n"] | None
+    outputs: dict[str, Float[Array, " n"]]
+    num_steps: Any
+    sample_rate: float = eqx.field(static=True)
+    quantity: str = eqx.field(static=True)
+
+    def to_record(self, metadata: dict | None = None):
+        """The result as a `dtwin.io.Record` (channel ``vibration``, optional tachometer)."""
+        from .io.record import Record
+
+        unit = {"acceleration": "m/s^2", "velocity": "m/s", "displacement": "m",
+                "ring_velocity": "m/s"}[self.quantity]
+        return Record(
+            data=np.asarray(self.signal)[None, :],
+            sample_rate=float(self.sample_rate),
+            channels=("vibration",),
+            units=(unit,),
+            tacho=None if self.tacho is None else np.asarray(self.tacho),
+            metadata=dict(metadata or {}),
+        )
+
+
+# --------------------------------------------------------------------------------- state
+def state_scales(twin: Twin) -> tuple[Array, Array]:
+    """Scales of the integration coordinates z and their rates (translations 1e-6 m, rotation
+    deviations 1e-6 rad·(1 m / base radius) ~ 5e-5 rad, carrier angle 1 rad)."""
+    n = twin.n_dof
+    rot = np.zeros(n)
+    for name in ("theta_s", "theta_r"):
+        rot[twin._index(name)] = 1.0
+    for i in range(twin.n_planets):
+        rot[twin._index("theta_p", i)] = 1.0
+    rot = jnp.asarray(rot)
+    sz = jnp.where(rot > 0, 1e-6 / jax.lax.stop_gradient(twin.lp.rb_planet), 1e-6)
+    sz = sz.at[twin._index("theta_c")].set(1.0)
+    sv = sz * 2.0 * jnp.pi * 1000.0
+    sv = sv.at[twin._index("theta_c")].set(10.0)
+    return sz, sv
+
+
+def _ext_static_forces(twin: Twin, omega_c):
+    """Generalised static forces: load torque on the carrier and the balancing sun torque."""
+    from .twin import Coords
+
+    tl = jnp.zeros(())
+    for p in twin.find(LoadPart):
+        tl = tl + p.load.torque(jnp.zeros(()), jnp.zeros(()), omega_c)
+    rs, _ = twin.kinematic_ratios
+    f = Coords.zeros(twin.n_planets).set(theta_c=-tl, theta_s=tl / rs)
+    # centripetal force on the planets (bearing pre-load)
+    f = f + twin.frame_forces(Coords.zeros(twin.n_planets), Coords.zeros(twin.n_planets).set(theta_c=omega_c))
+    return f, tl / rs
+
+
+def initial_state(twin: Twin, f_sun: float | Array, start: str = "steady"):
+    """Initial `(z, z', aux)` (unscaled) for a run at input speed `f_sun` (Hz).
+
+    ``start="steady"``: rigid rotation at the operating speed with the static mesh and bearing
+    deflections of the mean-stiffness model under the load torque (solved with the carrier
+    angle held), and the drive in its steady state delivering the balancing torque.
+    ``start="rest"``: everything at rest, undeflected (the paper's start from standstill).
+    """
+    rs, _ = twin.kinematic_ratios
+    n = twin.n_dof
+    ic = twin._index("theta_c")
+    omega_s = 2.0 * jnp.pi * jnp.asarray(f_sun, dtype=jnp.float64)
+    if start == "rest":
+        z = jnp.zeros(n)
+        zd = jnp.zeros(n)
+        aux = [p.aux_init(twin, jnp.zeros(())) for p in twin.parts]
+    elif start == "steady":
+        omega_c = omega_s / rs
+        A = jnp.asarray(twin.kinematic_map())
+        K = A.T @ twin.linear_stiffness() @ A
+        f, torque_sun = _ext_static_forces(twin, omega_c)
+        F = A.T @ twin.pack(f)
+        keep = np.array([i for i in range(n) if i != ic])
+        x = jnp.linalg.solve(K[np.ix_(keep, keep)], F[keep])
+        z = jnp.zeros(n).at[keep].set(x)
+        zd = jnp.zeros(n).at[ic].set(omega_c)
+        aux = []
+        for p in twin.parts:
+            if isinstance(p, DrivePart):
+                aux.append(p.aux_init(twin, omega_s, torque_sun))
+            else:
+                aux.append(p.aux_init(twin, omega_s))
+    else:
+        raise ValueError(f"start must be 'steady' or 'rest', got {start!r}")
+    aux = jnp.concatenate([jnp.asarray(a, dtype=jnp.float64).reshape(-1) for a in aux]) if aux else jnp.zeros(0)
+    return z, zd, aux
+
+
+# --------------------------------------------------------------------------------- solve
+def daq_filter(oversample: int) -> np.ndarray:
+    """FIR anti-aliasing filter taps (Kaiser, cut-off 0.4 of the output rate, unit DC gain)."""
+    numtaps = 24 * oversample + 1
+    taps = scipy.signal.firwin(numtaps, 0.8 / oversample, window=("kaiser", 9.0))
+    return taps / taps.sum()
+
+
+def _observe(twin: Twin, ops, scales, quantity, t, y):
+    sz, sv = scales
+    z, zd, aux = y
+    yy = (z * sz, zd * sv, aux)
+    _, _, _, q, qdot, qddot, mesh, outputs = twin.accelerations(t, yy, ops)
+    if quantity == "ring_velocity":
+        paths = twin.find(AbstractTransferPath)
+        ang = paths[0].direction_angle if paths else jnp.pi / 2
+        d = jnp.stack([jnp.cos(ang), jnp.sin(ang)])
+        sig = ring_velocity_fixed(q, qdot) @ d
+    else:
+        sig = jnp.zeros(())
+        for p in twin.find(AbstractTransferPath):
+            sig = sig + p.acceleration(twin, t, q, qdot, qddot, mesh)
+    out = {
+        "signal": sig,
+        "theta_sun": q.theta_s,
+        "theta_carrier": q.theta_c,
+        "omega_sun": qdot.theta_s,
+        "omega_carrier": qdot.theta_c,
+    }
+    for k, v in outputs.items():
+        out[k] = jnp.asarray(v)
+    return out
+
+
+@eqx.filter_jit
+def _solve(twin: Twin, y0, t0, t1, ts, quantity: str, rtol, atol, dtmax, max_steps: int,
+           adjoint: str, progress: bool):
+    ops = twin.operators()
+    scales = state_scales(twin)
+    sz, sv = scales
+    z0, zd0, aux0 = y0
+    ys0 = (z0 / sz, zd0 / sv, aux0)
+
+    def vf(t, y, args):
+        z, zd, aux = y
+        dz, dzd, daux = twin.vector_field(t, (z * sz, zd * sv, aux), ops)
+        return dz / sz, dzd / sv, daux
+
+    saveat = diffrax.SaveAt(ts=ts, fn=lambda t, y, args: _observe(twin, ops, scales, quantity, t, y))
+    adj = diffrax.ForwardMode() if adjoint == "forward" else diffrax.RecursiveCheckpointAdjoint()
+    meter = diffrax.TextProgressMeter() if progress else diffrax.NoProgressMeter()
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(vf),
+        diffrax.Tsit5(),
+        t0=t0,
+        t1=t1,
+        dt0=None,
+        y0=ys0,
+        saveat=saveat,
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, dtmax=dtmax),
+        max_steps=max_steps,
+        adjoint=adj,
+        throw=False,
+        progress_meter=meter,
+    )
+    return sol.ys, sol.result, sol.stats["num_accepted_steps"]
+
+
+def _raise_for(result, t1) -> None:
+    if result == diffrax.RESULTS.successful:
+        return
+    if result == diffrax.RESULTS.max_steps_reached:
+        raise SolverError(
+            "the ODE solver reached max_steps before the end of the record: pass a larger "
+            "SolverOptions(max_steps=...), a shorter duration, or check for a stiffness "
+            "that makes the model stiff (e.g. a huge support stiffness)"
+        )
+    raise SolverError(
+        f"the ODE solver failed ({result}): the state became NaN/inf or the step size "
+        "collapsed; check the parameters (negative or zero stiffness or mass, severity "
+        "outside [0, 1], absurd load torque)"
+    )
+
+
+def simulate(
+    twin: Twin,
+    *,
+    duration: float,
+    f_sun: float,
+    daq: DAQ | None = None,
+    start: str = "steady",
+    discard: float = 0.0,
+    solver: SolverOptions | None = None,
+    seed: int = 0,
+    progress: bool = False,
+    check: bool = True,
+) -> SimResult:
+    """Simulate `twin` and record its sensor like a DAQ.
+
+    **Arguments:**
+
+    - `twin`: the `Twin` (with a drive part to turn it, a load and a transfer path).
+    - `duration`: length of the returned record (s), after `discard`.
+    - `f_sun`: nominal input speed (Hz), used for the steady initial state and the step limit.
+    - `daq`: `DAQ` settings (default 5 kHz acceleration, no noise).
+    - `start`: ``"steady"`` or ``"rest"`` (see `initial_state`).
+    - `discard`: initial transient simulated but not returned (s).
+    - `solver`: `SolverOptions`.
+    - `seed`: seed of the measurement noise.
+    - `progress`: print solver progress.
+    - `check`: raise `SolverError` when the solver fails (needs concrete values: pass False
+      inside `jax.jit`/`grad`, where failure shows as NaN instead).
+
+    **Returns:** `SimResult`.
+    """
+    daq = daq or DAQ()
+    solver = solver or SolverOptions()
+    if duration <= 0 or not math.isfinite(duration):
+        raise ValueError(f"duration must be a positive number of seconds, got {duration}")
+    if discard < 0:
+        raise ValueError(f"discard must be >= 0 s, got {discard}")
+    fs_out = float(daq.sample_rate)
+    fs_hi = fs_out * daq.oversample
+    taps = daq_filter(daq.oversample)
+    half = (len(taps) - 1) // 2
+    n_out = int(round(duration * fs_out))
+    if n_out < 8:
+        raise ValueError(f"duration {duration} s gives only {n_out} samples at {fs_out} Hz")
+    n_hi = n_out * daq.oversample
+    if start == "rest" and discard * fs_hi < half:
+        # the filter needs samples before the first output sample; a run from rest starts at 0
+        discard = half / fs_hi
+    t_start = float(discard)
+    # high-rate grid covering the output samples plus the filter's half-length on each side
+    ts = t_start + jnp.arange(-half, n_hi + half, dtype=jnp.float64) / fs_hi
+    t0 = float(ts[0]) if start == "steady" else 0.0
+    t1 = float(ts[-1])
+    y0 = initial_state(twin, f_sun, start)
+    rs, _ = twin.kinematic_ratios
+    f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
+    dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
+    max_steps = solver.max_steps or int(400_000 * (t1 - t0) + 10_000)
+    ys, result, nsteps = _solve(
+        twin, y0, t0, t1, ts, daq.quantity, solver.rtol, solver.atol, dtmax, max_steps,
+        solver.adjoint, progress,
+    )
+    if check:
+        _raise_for(result, t1)
+    return _daq(ys, taps, daq, fs_out, nsteps, seed, t_start)
+
+
+def _daq(ys, taps, daq: DAQ, fs_out, nsteps, seed, t_start) -> SimResult:
+    taps = jnp.asarray(taps)
+    step = daq.oversample
+
+    def decimate(x):
+        return jnp.convolve(x, taps, mode="valid")[::step]
+
+    sig = decimate(ys["signal"]) * daq.gain
+    n = sig.shape[0]
+    if daq.quantity in ("velocity", "displacement"):
+        sig = integrate_spectral(sig, fs_out, 1 if daq.quantity == "velocity" else 2, daq.f_highpass)
+    half = (len(taps) - 1) // 2
+    outputs = {}
+    for k, v in ys.items():
+        if k == "signal":
+            continue
+        outputs[k] = v[half : half + n * step : step]
+    if daq.snr_db is not None:
+        p_sig = jnp.mean((sig - jnp.mean(sig)) ** 2)
+        sigma = jnp.sqrt(p_sig / 10.0 ** (daq.snr_db / 10.0))
+        sig = sig + sigma * jax.random.normal(jax.random.PRNGKey(seed), sig.shape)
+    tacho = None
+    if daq.tacho_ppr is not None:
+        ang = outputs["theta_sun" if daq.tacho_shaft == "sun" else "theta_carrier"]
+        frac = jnp.mod(daq.tacho_ppr * ang / (2.0 * jnp.pi), 1.0)
+        tacho = jnp.where(frac < 0.5, 5.0, 0.0)
+    time = t_start + jnp.arange(n, dtype=jnp.float64) / fs_out
+    return SimResult(time, sig, tacho, outputs, nsteps, fs_out, daq.quantity)
+
+
+def integrate_spectral(x: Float[Array, " n"], fs: float, order: int, f_highpass: float) -> Array:
+    """Integrate a signal `order` times in the frequency domain (divide by (j 2 pi f)^order),
+    with a smooth high-pass below `f_highpass` (Hz) to remove drift."""
+    n = x.shape[0]
+    X = jnp.fft.rfft(x - jnp.mean(x))
+    f = jnp.fft.rfftfreq(n, 1.0 / fs)
+    w = 2.0 * jnp.pi * f
+    hp = (f / f_highpass) ** 4 / (1.0 + (f / f_highpass) ** 4)
+    safe = jnp.where(f > 0, w, 1.0)
+    H = jnp.where(f > 0, hp / (1j * safe) ** order, 0.0)
+    return jnp.fft.irfft(X * H, n)

@@ -1,0 +1,418 @@
+"""The twin: parts assembled into one vector field. The state layout lives here only.
+
+Coordinates (docs/conventions.md): per body two translations and a rotation. Central members
+(sun, ring, carrier) translate in the carrier frame; planets translate relative to their pins
+(radial `zeta`, tangential `eta`); every rotation is an absolute angle (rad). The torsional
+reduction keeps only the rotations.
+
+Integration coordinates. Absolute angles grow without bound (the sun turns ~750 rad in 4 s) and
+an adaptive solver controls their error relative to their size, which would let the *difference*
+of two angles — the mesh deflection — drift. The integrated coordinates `z` therefore keep only
+the carrier angle absolute and store every other rotation as its deviation from the rigid
+kinematics of a fixed ring::
+
+    theta_s = (1 + Zr/Zs) theta_c + z_s,     theta_p_i = (1 - Zr/Zp) theta_c + z_p_i
+
+(`q = A z` with a constant matrix `A`). With the mass matrix `M` of the coordinates `q` the
+equations of motion are ``(A^T M A) z'' = A^T F(t, q, q')``; `M` is constant (planet translation
+inertia couples to the carrier rotation through the pin radius `a`), so its inverse is computed
+once. Rotating-frame (Coriolis and centripetal) forces on the translations are included; the
+Euler force of translations is neglected (carrier angular acceleration × micrometre offsets).
+
+Mesh forces act along the lines of action (deflections in docs/conventions.md) with one-sided
+contact, smoothed over `contact_smoothing` metres::
+
+    F = k(t) * s * softplus(delta / s) + c * delta' * sigmoid(delta / s)
+
+and generalised forces ``-F * d(delta)/dq`` by automatic differentiation of the (linear)
+deflection map, so every part's forces are consistent with virtual work.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .lumped import LumpedParameters
+from .parts.base import AbstractPart, Modulation
+
+KINDS = ("translational", "torsional")
+
+
+class Coords(eqx.Module):
+    """Generalised coordinates (or velocities, accelerations, forces) of the gear set.
+
+    Translations in metres (carrier frame), rotations in radians (absolute). For a force-like
+    `Coords`, translation entries are forces (N) and rotation entries torques (N·m).
+    """
+
+    sun_xy: Float[Array, " 2"]
+    theta_s: Float[Array, ""]
+    ring_xy: Float[Array, " 2"]
+    theta_r: Float[Array, ""]
+    carrier_xy: Float[Array, " 2"]
+    theta_c: Float[Array, ""]
+    zeta: Float[Array, " N"]
+    eta: Float[Array, " N"]
+    theta_p: Float[Array, " N"]
+
+    @classmethod
+    def zeros(cls, n: int) -> Coords:
+        z2, z0, zn = jnp.zeros(2), jnp.zeros(()), jnp.zeros(n)
+        return cls(z2, z0, z2, z0, z2, z0, zn, zn, zn)
+
+    def __add__(self, other: Coords) -> Coords:
+        return jax.tree_util.tree_map(jnp.add, self, other)
+
+    def __mul__(self, scale: Any) -> Coords:
+        return jax.tree_util.tree_map(lambda a: a * scale, self)
+
+    def set(self, **fields: Any) -> Coords:
+        """A copy with the named fields replaced."""
+        return dataclasses.replace(self, **fields)
+
+
+class MeshState(eqx.Module):
+    """The meshes at one instant, shape (N,) each (sun-planet `_sp`, ring-planet `_rp`).
+
+    - `phase_*`: mesh phase (cycles); `k_*`: stiffness (N/m); `c_*`: damping (N·s/m);
+    - `delta_*`: deflection (m, positive = compressed), `ddelta_*`: its rate (m/s);
+    - `force_*`: contact force along the line of action (N), never negative.
+    """
+
+    phase_sp: Float[Array, " N"]
+    phase_rp: Float[Array, " N"]
+    k_sp: Float[Array, " N"]
+    k_rp: Float[Array, " N"]
+    c_sp: Float[Array, " N"]
+    c_rp: Float[Array, " N"]
+    delta_sp: Float[Array, " N"]
+    delta_rp: Float[Array, " N"]
+    ddelta_sp: Float[Array, " N"]
+    ddelta_rp: Float[Array, " N"]
+    force_sp: Float[Array, " N"]
+    force_rp: Float[Array, " N"]
+
+
+def unit_radial(psi):
+    return jnp.stack([jnp.cos(psi), jnp.sin(psi)], axis=-1)
+
+
+def unit_tangential(psi):
+    return jnp.stack([-jnp.sin(psi), jnp.cos(psi)], axis=-1)
+
+
+def mesh_deflections(lp: LumpedParameters, q: Coords) -> tuple[Array, Array]:
+    """Rigid-geometry mesh deflections (m) of every planet's sun and ring mesh.
+
+    Linear in `q` (docs/conventions.md, "Mesh deflection"), excitations not included::
+
+        delta_sp_i = n_sp_i . (d_s - d_p_i) + rb_s (theta_s - theta_c) + rb_p (theta_p_i - theta_c)
+        delta_rp_i = n_rp_i . (d_r - d_p_i) + rb_r (theta_r - theta_c) - rb_p (theta_p_i - theta_c)
+
+    **Returns:** `(delta_sp, delta_rp)`, each shape (N,).
+    """
+    psi = lp.planet_angles
+    er, et = unit_radial(psi), unit_tangential(psi)
+    n_sp = unit_tangential(psi - lp.alpha_sp)
+    n_rp = jnp.sin(lp.alpha_rp) * er - jnp.cos(lp.alpha_rp) * et
+    d_p = q.carrier_xy[None, :] + q.zeta[:, None] * er + q.eta[:, None] * et
+    rot_p = lp.rb_planet * (q.theta_p - q.theta_c)
+    d_sp = (
+        jnp.sum(n_sp * (q.sun_xy[None, :] - d_p), axis=-1)
+        + lp.rb_sun * (q.theta_s - q.theta_c)
+        + rot_p
+    )
+    d_rp = (
+        jnp.sum(n_rp * (q.ring_xy[None, :] - d_p), axis=-1)
+        + lp.rb_ring * (q.theta_r - q.theta_c)
+        - rot_p
+    )
+    return d_sp, d_rp
+
+
+def mesh_damping(lp: LumpedParameters) -> tuple[Array, Array]:
+    """Mesh damping coefficients (N·s/m) from the damping ratios (docs/conventions.md).
+
+    ``c = 2 zeta sqrt(k_mean m_e)``, ``m_e = m1 m2 / (m1 + m2)`` with ``m = J / rb^2``; the ring
+    mesh uses ``m_e = J_p / rb_p^2`` (the ring, held by its supports, is far heavier).
+    """
+    ms = lp.J_sun / lp.rb_sun**2
+    mp = lp.J_planet / lp.rb_planet**2
+    me_sp = ms * mp / (ms + mp)
+    c_sp = 2.0 * lp.zeta_sun_planet * jnp.sqrt(lp.k_sun_planet * me_sp)
+    c_rp = 2.0 * lp.zeta_ring_planet * jnp.sqrt(lp.k_ring_planet * mp)
+    return c_sp, c_rp
+
+
+class Twin(eqx.Module):
+    """A planetary gearbox twin: lumped parameters plus parts, as one ODE.
+
+    **Fields:**
+
+    - `lp`: `LumpedParameters` (geometry, inertias, mean stiffness, damping ratios).
+    - `parts`: tuple of `AbstractPart` (supports, faults, imperfections, drive, load, sensor…).
+    - `kind`: ``"translational"`` (Lin & Parker, 3(N+3) DOF) or ``"torsional"`` (N+3 DOF).
+    - `n_harmonics`: Fourier harmonics of the mesh-stiffness waveform.
+    - `contact_smoothing`: length (m) over which one-sided contact is smoothed.
+    """
+
+    lp: LumpedParameters
+    parts: tuple[AbstractPart, ...]
+    kind: str = eqx.field(static=True, default="translational")
+    n_harmonics: int = eqx.field(static=True, default=12)
+    contact_smoothing: float = eqx.field(static=True, default=2e-8)
+
+    def __check_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}, got {self.kind!r}")
+
+    # ----------------------------------------------------------------------------- layout
+    @property
+    def n_planets(self) -> int:
+        return self.lp.n_planets
+
+    @property
+    def n_dof(self) -> int:
+        n = self.n_planets
+        return 3 * (n + 3) if self.kind == "translational" else n + 3
+
+    @property
+    def aux_sizes(self) -> tuple[int, ...]:
+        return tuple(p.aux_size for p in self.parts)
+
+    def pack(self, q: Coords) -> Float[Array, " n_dof"]:
+        """Coordinates → flat vector (layout of this twin's `kind`)."""
+        if self.kind == "torsional":
+            return jnp.concatenate([jnp.stack([q.theta_s, q.theta_r, q.theta_c]), q.theta_p])
+        per_planet = jnp.stack([q.zeta, q.eta, q.theta_p], axis=1).reshape(-1)
+        return jnp.concatenate(
+            [
+                q.sun_xy, q.theta_s[None], q.ring_xy, q.theta_r[None],
+                q.carrier_xy, q.theta_c[None], per_planet,
+            ]
+        )
+
+    def unpack(self, v: Float[Array, " n_dof"]) -> Coords:
+        """Flat vector → coordinates (translations zero in the torsional model)."""
+        n = self.n_planets
+        if self.kind == "torsional":
+            z2 = jnp.zeros(2, dtype=v.dtype)
+            zn = jnp.zeros(n, dtype=v.dtype)
+            return Coords(z2, v[0], z2, v[1], z2, v[2], zn, zn, v[3:])
+        pp = v[9:].reshape(n, 3)
+        return Coords(v[0:2], v[2], v[3:5], v[5], v[6:8], v[8], pp[:, 0], pp[:, 1], pp[:, 2])
+
+    def _index(self, name: str, i: int = 0) -> int:
+        if self.kind == "torsional":
+            return {"theta_s": 0, "theta_r": 1, "theta_c": 2}.get(name, 3 + i)
+        return {"theta_s": 2, "theta_r": 5, "theta_c": 8}.get(name, 9 + 3 * i + 2)
+
+    @property
+    def kinematic_ratios(self) -> tuple[float, float]:
+        """(sun, planet) absolute speed over carrier speed with the ring fixed."""
+        lp = self.lp
+        return 1.0 + lp.z_ring / lp.z_sun, 1.0 - lp.z_ring / lp.z_planet
+
+    def kinematic_map(self) -> np.ndarray:
+        """The constant matrix `A` with `q = A z` (integration coordinates, module docstring)."""
+        a = np.eye(self.n_dof)
+        rs, rp = self.kinematic_ratios
+        ic = self._index("theta_c")
+        a[self._index("theta_s"), ic] = rs
+        for i in range(self.n_planets):
+            a[self._index("theta_p", i), ic] = rp
+        return a
+
+    # ----------------------------------------------------------------------------- inertia
+    def mass_matrix(self) -> Float[Array, "n_dof n_dof"]:
+        """Mass matrix of the coordinates `q` (kg, kg·m², and kg·m couplings).
+
+        Kinetic energy: central members ``m (x'^2 + y'^2)/2 + J theta'^2/2``; planet i
+        ``m_p |v_i|^2 / 2 + J_p theta_p'^2/2`` with the carrier-frame velocity of its centre
+        ``v_i = (x_c', y_c') + zeta_i' e_r + (eta_i' + a theta_c') e_t``.
+        """
+        lp, n = self.lp, self.n_planets
+        psi = lp.planet_angles
+        if self.kind == "torsional":
+            diag = jnp.concatenate(
+                [
+                    jnp.stack([lp.J_sun, lp.J_ring, lp.J_carrier + n * lp.m_planet * lp.centre_distance**2]),
+                    jnp.full((n,), lp.J_planet),
+                ]
+            )
+            return jnp.diag(diag)
+        nd = self.n_dof
+        # B maps q' to "absolute" velocity components; M = B^T diag(masses) B.
+        rows, masses = [], []
+
+        def row(entries):
+            r = jnp.zeros(nd)
+            for idx, val in entries:
+                r = r.at[idx].add(val)
+            return r
+
+        for base, m, J in ((0, lp.m_sun, lp.J_sun), (3, lp.m_ring, lp.J_ring), (6, lp.m_carrier, lp.J_carrier)):
+            rows += [row([(base, 1.0)]), row([(base + 1, 1.0)]), row([(base + 2, 1.0)])]
+            masses += [m, m, J]
+        for i in range(n):
+            b = 9 + 3 * i
+            c, s = jnp.cos(psi[i]), jnp.sin(psi[i])
+            rows.append(row([(6, c), (7, s), (b, 1.0)]))
+            rows.append(row([(6, -s), (7, c), (b + 1, 1.0), (8, lp.centre_distance)]))
+            rows.append(row([(b + 2, 1.0)]))
+            masses += [lp.m_planet, lp.m_planet, lp.J_planet]
+        B = jnp.stack(rows)
+        return B.T @ (jnp.stack(masses)[:, None] * B)
+
+    # ----------------------------------------------------------------------------- meshes
+    def mesh_state(self, t, q: Coords, qdot: Coords, mod: Modulation) -> MeshState:
+        """Mesh phases, stiffness, deflections and contact forces (see `MeshState`)."""
+        from .faults import mesh_phases
+        from .stiffness import mesh_stiffness_waveform
+
+        lp = self.lp
+        ph_sp, ph_rp = mesh_phases(lp, q.theta_s, q.theta_c, q.theta_r)
+        ph_sp = ph_sp + mod.dphase_sp
+        ph_rp = ph_rp + mod.dphase_rp
+        k_sp = mesh_stiffness_waveform(ph_sp, lp.k_sun_planet, lp.eps_sp, n_harmonics=self.n_harmonics) - mod.dk_sp
+        k_rp = mesh_stiffness_waveform(ph_rp, lp.k_ring_planet, lp.eps_rp, n_harmonics=self.n_harmonics) - mod.dk_rp
+        (d_sp, d_rp), (dd_sp, dd_rp) = jax.jvp(lambda x: mesh_deflections(lp, x), (q,), (qdot,))
+        d_sp = d_sp - mod.e_sp
+        d_rp = d_rp - mod.e_rp
+        c_sp, c_rp = mesh_damping(lp)
+        s = self.contact_smoothing
+
+        def contact(k, c, d, dd):
+            return k * s * jax.nn.softplus(d / s) + c * dd * jax.nn.sigmoid(d / s)
+
+        return MeshState(
+            ph_sp, ph_rp, k_sp, k_rp, jnp.broadcast_to(c_sp, k_sp.shape),
+            jnp.broadcast_to(c_rp, k_rp.shape), d_sp, d_rp, dd_sp, dd_rp,
+            contact(k_sp, c_sp, d_sp, dd_sp), contact(k_rp, c_rp, d_rp, dd_rp),
+        )
+
+    def mesh_forces(self, q: Coords, mesh: MeshState) -> Coords:
+        """Generalised forces of the mesh contact forces: ``-F . d(delta)/dq`` (virtual work)."""
+        _, vjp = jax.vjp(lambda x: mesh_deflections(self.lp, x), q)
+        (f,) = vjp((-mesh.force_sp, -mesh.force_rp))
+        return f
+
+    def frame_forces(self, q: Coords, qdot: Coords) -> Coords:
+        """Coriolis and centripetal forces of translations in the carrier frame (N).
+
+        ``-2 m Omega x (r')`` and ``m Omega^2 r`` with ``Omega = theta_c'``; planets' radius is
+        ``a + zeta``. Zero in the torsional model.
+        """
+        lp = self.lp
+        if self.kind == "torsional":
+            return Coords.zeros(self.n_planets)
+        w = qdot.theta_c
+
+        def fict(m, r, v):
+            return m * (w**2 * r + 2.0 * w * jnp.stack([v[1], -v[0]]))
+
+        z0, zn = jnp.zeros(()), jnp.zeros(self.n_planets)
+        mp = lp.m_planet
+        f_zeta = mp * (w**2 * (lp.centre_distance + q.zeta) + 2.0 * w * qdot.eta)
+        f_eta = mp * (w**2 * q.eta - 2.0 * w * qdot.zeta)
+        return Coords(
+            fict(lp.m_sun, q.sun_xy, qdot.sun_xy), z0, fict(lp.m_ring, q.ring_xy, qdot.ring_xy), z0,
+            fict(lp.m_carrier, q.carrier_xy, qdot.carrier_xy), z0, f_zeta, f_eta, zn,
+        )
+
+    # ----------------------------------------------------------------------------- assembly
+    def modulation(self, t, q: Coords, qdot: Coords) -> Modulation:
+        mod = Modulation.zeros(self.n_planets)
+        for p in self.parts:
+            m = p.modulation(self, t, q, qdot)
+            if m is not None:
+                mod = mod + m
+        return mod
+
+    def split_aux(self, aux: Float[Array, " n_aux"]) -> list[Float[Array, " k"]]:
+        out, i = [], 0
+        for n in self.aux_sizes:
+            out.append(aux[i : i + n])
+            i += n
+        return out
+
+    def evaluate(self, t, q: Coords, qdot: Coords, aux: Float[Array, " n_aux"]):
+        """All forces at one instant.
+
+        **Returns:** `(F, aux_dot, mesh, outputs)`: total generalised force (`Coords`), the
+        parts' state derivatives, the `MeshState`, and the parts' named observables.
+        """
+        mod = self.modulation(t, q, qdot)
+        mesh = self.mesh_state(t, q, qdot, mod)
+        F = self.mesh_forces(q, mesh) + self.frame_forces(q, qdot)
+        aux_dots, outputs = [], {}
+        for p, a in zip(self.parts, self.split_aux(aux), strict=True):
+            f, ad, out = p.forces(self, t, q, qdot, a, mesh)
+            if f is not None:
+                F = F + f
+            aux_dots.append(jnp.asarray(ad).reshape(p.aux_size))
+            outputs.update(out)
+        aux_dot = jnp.concatenate(aux_dots) if aux_dots else jnp.zeros(0)
+        return F, aux_dot, mesh, outputs
+
+    def operators(self) -> tuple[Array, Array]:
+        """`(A, inv(A^T M A))` for the integration coordinates (computed once per solve)."""
+        A = jnp.asarray(self.kinematic_map())
+        Mz = A.T @ self.mass_matrix() @ A
+        return A, jnp.linalg.inv(Mz)
+
+    def to_q(self, A, z, zdot) -> tuple[Coords, Coords]:
+        return self.unpack(A @ z), self.unpack(A @ zdot)
+
+    def accelerations(self, t, y, ops):
+        """State derivative pieces: `(zdot, zddot, aux_dot, q, qdot, qddot, mesh, outputs)`."""
+        A, Mz_inv = ops
+        z, zdot, aux = y
+        q, qdot = self.to_q(A, z, zdot)
+        F, aux_dot, mesh, outputs = self.evaluate(t, q, qdot, aux)
+        zdd = Mz_inv @ (A.T @ self.pack(F))
+        return zdot, zdd, aux_dot, q, qdot, self.unpack(A @ zdd), mesh, outputs
+
+    def vector_field(self, t, y, ops):
+        """diffrax vector field: `y = (z, z', aux)`."""
+        zdot, zdd, aux_dot, *_ = self.accelerations(t, y, ops)
+        return zdot, zdd, aux_dot
+
+    # ----------------------------------------------------------------------------- helpers
+    def with_parts(self, *parts: AbstractPart) -> Twin:
+        """A twin with further parts appended (no edit of the assembly code)."""
+        return eqx.tree_at(lambda tw: tw.parts, self, self.parts + tuple(parts))
+
+    def find(self, cls: type) -> list[AbstractPart]:
+        """The parts that are instances of `cls`."""
+        return [p for p in self.parts if isinstance(p, cls)]
+
+    def linear_stiffness(self) -> Float[Array, "n_dof n_dof"]:
+        """Stiffness matrix of the coordinates `q` at mean mesh stiffness, no load, linear contact.
+
+        The Jacobian of minus the generalised forces of the meshes (at their mean stiffness,
+        contact taken as linear) and of the parts' springs, at rest. The modal analysis of this
+        matrix with `mass_matrix()` is the twin's own; it must agree with `dtwin.modal`.
+        """
+        lp = self.lp
+        zero = Coords.zeros(self.n_planets)
+
+        def forces(v):
+            q = self.unpack(v)
+            d_sp, d_rp = mesh_deflections(lp, q)
+            _, vjp = jax.vjp(lambda x: mesh_deflections(lp, x), q)
+            (f,) = vjp((-lp.k_sun_planet * d_sp, -lp.k_ring_planet * d_rp))
+            for p in self.parts:
+                spring = getattr(p, "spring_forces", None)
+                if spring is not None:
+                    f = f + spring(self, q)
+            return self.pack(f)
+
+        return -jax.jacfwd(forces)(self.pack(zero))
