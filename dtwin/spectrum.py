@@ -58,6 +58,7 @@ __all__ = [
     "TimeStats",
     "amplitude_spectrum",
     "analytic_signal",
+    "as_signal",
     "envelope_spectrum",
     "find_peaks",
     "label_frequency",
@@ -89,6 +90,31 @@ def _as_array(x):
     if isinstance(x, jax.Array):
         return x
     return np.asarray(x, dtype=np.float64)
+
+
+def as_signal(
+    x, sample_rate: float | None = None, channel: str | int = 0
+) -> tuple[np.ndarray, float]:
+    """One channel as a float64 numpy array and its sampling rate (Hz).
+
+    `x` is a :class:`dtwin.io.Record` (then `channel` picks the row and the record's rate is used;
+    a `sample_rate` that disagrees raises) or a 1-D array (then `sample_rate` is required).
+    """
+    from .io.record import Record
+
+    if isinstance(x, Record):
+        if sample_rate is not None and float(sample_rate) != float(x.sample_rate):
+            raise RecordError(
+                f"sample_rate {sample_rate} Hz disagrees with the record's {x.sample_rate} Hz; "
+                "leave sample_rate out when passing a Record"
+            )
+        return np.asarray(x.channel(channel), dtype=np.float64), _check_rate(x.sample_rate)
+    if sample_rate is None:
+        raise RecordError("pass sample_rate (Hz) with a plain array, or pass a dtwin.io.Record")
+    arr = np.asarray(x, dtype=np.float64)
+    if arr.ndim != 1:
+        raise RecordError(f"expected one channel (1-D array), got shape {arr.shape}")
+    return arr, _check_rate(sample_rate)
 
 
 def get_window(name: str, n: int) -> np.ndarray:
