@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import tokenize
 import zipfile
 from pathlib import Path
 
@@ -18,7 +19,10 @@ from ..errors import RecordError, UnreadableFileError
 from .readers import records_from_arrays
 from .record import Record
 
-_LOAD_ERRORS = (ValueError, OSError, EOFError, zipfile.BadZipFile, KeyError, UnicodeError)
+#: Exceptions numpy raises on corrupt files (the .npy header is parsed as a Python literal,
+#: hence SyntaxError and tokenize errors; .npz is a zip archive).
+_LOAD_ERRORS = (ValueError, OSError, EOFError, zipfile.BadZipFile, KeyError, UnicodeError,
+                SyntaxError, tokenize.TokenError, MemoryError, OverflowError)
 
 
 def read(

@@ -25,25 +25,51 @@ from .record import Record
 _FULL_SCALE = {"int16": 2.0**15, "int32": 2.0**31, "int64": 2.0**63}
 
 
-def _fmt_chunk(path: Path) -> dict:
-    """Format tag and bits per sample from the ``fmt `` chunk (only after scipy accepted the file)."""
+def scan_header(path: Path) -> dict:
+    """Walk the RIFF chunks and check the ``fmt `` and ``data`` chunks before scipy parses them.
+
+    scipy trusts the header (a zero channel count or block size divides by zero, a missing
+    ``data`` chunk fails inside scipy); this walk refuses such files with a clear message.
+
+    **Returns:** format tag, bits per sample, channel count, container (RIFF/RIFX/RF64).
+    """
+    where = str(path)
+    size_on_disk = path.stat().st_size
     with open(path, "rb") as f:
         head = f.read(12)
-        while True:
+        if len(head) < 12 or head[:4] not in (b"RIFF", b"RIFX", b"RF64") or head[8:] != b"WAVE":
+            raise UnreadableFileError(f"{where}: not a WAV file (no RIFF/WAVE header)")
+        endian = ">" if head[:4] == b"RIFX" else "<"
+        declared = struct.unpack(endian + "I", head[4:8])[0] + 8
+        end = size_on_disk if head[:4] == b"RF64" else min(declared, size_on_disk)
+        info: dict = {"container": head[:4].decode("ascii")}
+        pos = 12
+        while pos < end:
+            f.seek(pos)
             hdr = f.read(8)
             if len(hdr) < 8:
-                return {}
-            cid, size = struct.unpack("<4sI", hdr)
+                break
+            cid, size = struct.unpack(endian + "4sI", hdr)
             if cid == b"fmt ":
                 body = f.read(min(size, 40))
                 if len(body) < 16:
-                    return {}
-                tag, _nch, _rate, _bps, _align, bits = struct.unpack("<HHIIHH", body[:16])
+                    raise UnreadableFileError(f"{where}: WAV 'fmt ' chunk is truncated")
+                tag, nch, _rate, _bps, align, bits = struct.unpack(endian + "HHIIHH", body[:16])
                 if tag == 0xFFFE and len(body) >= 26:
-                    tag = struct.unpack("<H", body[24:26])[0]
-                return {"format_tag": {1: "PCM", 3: "IEEE float"}.get(tag, str(tag)),
-                        "bits_per_sample": bits, "riff": head[:4].decode("ascii", "replace")}
-            f.seek(size + (size & 1), 1)
+                    tag = struct.unpack(endian + "H", body[24:26])[0]
+                if nch < 1 or align < 1 or bits < 1:
+                    raise UnreadableFileError(
+                        f"{where}: WAV header is corrupt ({nch} channels, block size {align}, "
+                        f"{bits} bits per sample)")
+                info.update(format_tag={1: "PCM", 3: "IEEE float"}.get(tag, str(tag)),
+                            bits_per_sample=bits, n_channels=nch)
+            elif cid == b"data":
+                if "bits_per_sample" not in info:
+                    raise UnreadableFileError(f"{where}: WAV 'data' chunk before the 'fmt ' chunk")
+                info["data_bytes"] = size
+                return info
+            pos += 8 + size + (size & 1)
+    raise UnreadableFileError(f"{where}: WAV file without a 'data' chunk (truncated or corrupt)")
 
 
 def read(
@@ -54,11 +80,13 @@ def read(
     if group is not None or time_column is not None:
         raise RecordError(f"{where}: WAV files have no groups or time column; drop group= and "
                           "time_column=")
+    header = scan_header(path)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             rate, q = wavfile.read(path)
-        except (ValueError, EOFError, struct.error, IndexError, OverflowError) as e:
+        except (ValueError, EOFError, struct.error, IndexError, OverflowError,
+                ZeroDivisionError, MemoryError) as e:
             raise UnreadableFileError(f"{where}: not a readable WAV file ({e})") from None
     if q.ndim == 1:
         q = q[:, None]
@@ -75,10 +103,7 @@ def read(
     else:
         raise UnreadableFileError(f"{where}: WAV sample type {dtype} not supported")
     meta: dict = {"wav_dtype": dtype, "full_scale_code": full_scale, "file_sample_rate": float(rate)}
-    try:
-        meta.update(_fmt_chunk(path))
-    except (struct.error, OSError):
-        pass
+    meta.update(header)
     if caught:
         meta["warnings"] = [str(w.message) for w in caught]
     return Record(
