@@ -246,3 +246,93 @@ def test_transmission_error_closed_form_and_zero_mean():
     assert abs(float(jnp.mean(e))) < 1e-15 * amp
     with pytest.raises(SpecError, match="phases"):
         transmission_error(ph, amp, harmonics=(1.0, 0.5), phases=(0.0,))
+
+
+# ---------------------------------------------------------------------------------------------
+# Figure and CLI (`dtwin stiffness`)
+# ---------------------------------------------------------------------------------------------
+def test_plot_mesh_stiffness_draws_the_given_curves():
+    import matplotlib.pyplot as plt
+
+    from dtwin.plotting.stiffness import plot_mesh_stiffness
+
+    x = np.linspace(0.0, 5.0, 201)
+    k_sp = np.asarray(mesh_stiffness_waveform(jnp.asarray(x), 3e8, 1.6))
+    k_rp = np.asarray(mesh_stiffness_waveform(jnp.asarray(x), 4e8, 1.8))
+    fig = plot_mesh_stiffness(x, k_sp, k_rp, k_sun_planet_faulty=0.9 * k_sp,
+                              k_ring_planet_faulty=k_rp, zoom=(1.0, 3.0), fault_label="test fault",
+                              title="t")
+    axes = fig.axes
+    assert len(axes) == 4
+    assert "1e8 N/m" in axes[0].get_ylabel() and "mesh cycles" in axes[2].get_xlabel()
+    lines = axes[0].get_lines()
+    np.testing.assert_allclose(lines[0].get_ydata(), k_sp / 1e8)  # plotted in units of 1e8 N/m
+    np.testing.assert_allclose(lines[1].get_ydata(), 0.9 * k_sp / 1e8)
+    assert [t.get_text() for t in axes[0].get_legend().get_texts()] == ["healthy", "test fault"]
+    assert axes[1].get_xlim() == (1.0, 3.0)
+    plt.close(fig)
+
+
+def _run_cli(args, capsys):
+    from dtwin.cli import main
+
+    main(args)
+    return capsys.readouterr().out
+
+
+def test_cli_stiffness_json_against_iso_hand_calculation(capsys):
+    import json
+
+    pytest.importorskip("dtwin.spec")
+    out = _run_cli(["stiffness", "--preset", "paper-sim", "--fault", "sun:missing_tooth:0.5",
+                    "--json"], capsys)
+    rep = json.loads(out)
+    # Hand calculation for the paper-sim preset (data/specs/paper-sim.toml: 21/30/81, 20 mm face,
+    # 50 N*m at the carrier): T_sun = 50 * 21/102 = 10.294 N*m, F_t = T_sun/(3 * 0.021 m)
+    # = 163.40 N, line load 8.170 N/mm -> load factor 0.0817**0.25 = 0.53463;
+    # q' = 0.04723 + 0.15551/21 + 0.25791/30 = 0.063235 -> c'_th = 15.8140 N/(mm um);
+    # c' = 15.8140 * 0.8 * 0.975 * 0.53463 = 6.5946 N/(mm um) -> * 20 mm -> 1.3189e8 N/m
+    t_sun = 50.0 * 21 / 102
+    f_t = t_sun / (3 * 0.021)
+    lf = (f_t / 20.0 / 100.0) ** 0.25
+    q = 0.04723 + 0.15551 / 21 + 0.25791 / 30
+    c_hand = 1 / q * 0.8 * 0.975 * lf * 20.0 * 1e6
+    sp = rep["meshes"]["sun_planet"]
+    np.testing.assert_allclose(sp["c_single"], c_hand, rtol=1e-9)
+    np.testing.assert_allclose(sp["c_double"], 1.75 * c_hand, rtol=1e-9)
+    np.testing.assert_allclose(sp["k_mean"], c_hand * (0.75 * sp["eps"] + 0.25), rtol=1e-9)
+    # a sun tooth with half its face width gone removes half a pair, only from the sun mesh
+    np.testing.assert_allclose(sp["max_loss"], 0.5 * c_hand, rtol=1e-6)
+    assert rep["meshes"]["ring_planet"]["max_loss"] == 0.0
+    assert rep["faults"][0]["location"] == "sun" and rep["faults"][0]["severity"] == 0.5
+
+
+def test_cli_stiffness_out_folder(tmp_path, capsys):
+    import json
+
+    pytest.importorskip("dtwin.spec")
+    out = tmp_path / "res"
+    _run_cli(["stiffness", "--preset", "paper-bench", "--fault", "planet:missing_tooth:1.0:2:2",
+              "--out", str(out)], capsys)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert set(manifest["files"]) == {"stiffness.json", "stiffness.png"}
+    data = json.loads((out / "stiffness.json").read_text())
+    assert data["planet"] == 2  # the planet of the planet fault is the one shown
+    # a whole planet tooth gone: both meshes lose one pair (c') during each contact of the tooth,
+    # which lasts eps cycles and recurs every Zp = 31 mesh cycles (one planet revolution
+    # relative to the carrier); Zp + 4 cycles are shown
+    curves = {k: np.asarray(v) for k, v in data["curves"].items()}
+    x = curves["mesh_cycles"]
+    for mesh in ("sun_planet", "ring_planet"):
+        key = "k_" + mesh
+        loss = curves[key] - curves[key + "_faulty"]
+        c1 = data["meshes"][mesh]["c_single"]
+        assert loss.max() == pytest.approx(c1, rel=0.03)
+        above = loss > 0.5 * c1
+        starts = x[1:][above[1:] & ~above[:-1]]
+        assert 1 <= len(starts) <= 2
+        if len(starts) == 2:
+            assert starts[1] - starts[0] == pytest.approx(31.0, abs=0.05)
+        cycles_lost = loss.sum() / 40 / c1  # 40 samples per mesh cycle
+        assert cycles_lost == pytest.approx(len(starts) * data["meshes"][mesh]["eps"], rel=0.05)
+    assert (out / "stiffness.png").stat().st_size > 10_000
