@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import tokenize
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,8 @@ from .record import Record
 #: Exceptions numpy raises on corrupt files (the .npy header is parsed as a Python literal,
 #: hence SyntaxError and tokenize errors; .npz is a zip archive).
 _LOAD_ERRORS = (ValueError, OSError, EOFError, zipfile.BadZipFile, KeyError, UnicodeError,
-                SyntaxError, tokenize.TokenError, MemoryError, OverflowError)
+                SyntaxError, tokenize.TokenError, MemoryError, OverflowError, NotImplementedError,
+                zlib.error)
 
 
 def read(

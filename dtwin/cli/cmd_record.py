@@ -1,0 +1,284 @@
+"""``dtwin record``: inspect recorded vibration files and convert them to dtwin's format.
+
+    dtwin record info FILE [reading options] [--preset NAME | --spec FILE] [--f-sun HZ]
+                           [--f-mesh HZ] [--f-carrier HZ] [--strict] [--json] [--out DIR]
+    dtwin record convert FILE OUT.dtwin.h5 [reading options] [--force]
+
+Reading options (see :func:`dtwin.io.readers.read_record`): ``--channels a,b,2`` (names,
+indices or group names), ``--sample-rate HZ``, ``--time-column NAME``, ``--units g`` or
+``--units acc=g,mic=Pa``, ``--sensitivity "acc=100 mV/g"`` (repeatable), ``--tacho NAME``,
+``--tacho-ppr N``, ``--tacho-shaft sun|carrier``, ``--group NAME``, ``--format FMT``.
+
+``info`` prints a table of the channels (unit, min, max, RMS, problems), the rate, duration and
+format, and every problem :func:`dtwin.io.validate.check_record` finds. The mesh and carrier
+frequencies for the rate and duration checks come from ``--f-mesh``/``--f-carrier``, or from a
+gearbox (``--preset``/``--spec``) at its operating speed (or ``--f-sun``). Exit code 0, or 2
+with ``--strict`` when problems were found. ``--json`` prints the report on stdout; ``--out DIR``
+writes ``record_info.json`` and ``manifest.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import typer
+
+from ..errors import RecordError, SpecError
+from .app import app
+
+record_app = typer.Typer(help="Recorded vibration files: inspect, check, convert.",
+                         no_args_is_help=True)
+app.add_typer(record_app, name="record")
+
+_SENS_RE = re.compile(r"^\s*(?P<ch>[^=]+?)\s*=\s*(?P<val>[-+0-9.eE]+)\s*(?P<unit>\S.*?)\s*$")
+
+
+def _channel_token(tok: str) -> str | int:
+    tok = tok.strip()
+    return int(tok) if re.fullmatch(r"-?\d+", tok) else tok
+
+
+def parse_channels(text: str | None) -> list[str | int] | None:
+    """``"acc1,2,mic"`` → ``["acc1", 2, "mic"]`` (integers are indices)."""
+    if text is None:
+        return None
+    items = [_channel_token(t) for t in text.split(",") if t.strip()]
+    if not items:
+        raise RecordError("--channels is empty; give names or indices separated by commas")
+    return items
+
+
+def parse_units(text: str | None) -> str | dict[str, str] | None:
+    """``"g"`` (all channels) or ``"acc=g,mic=Pa"`` (per channel)."""
+    if text is None or "=" not in text:
+        return text
+    out: dict[str, str] = {}
+    for item in text.split(","):
+        name, sep, unit = item.partition("=")
+        if not sep or not name.strip():
+            raise RecordError(f"--units item {item!r} not understood; write NAME=UNIT")
+        out[name.strip()] = unit.strip()
+    return out
+
+
+def parse_sensitivity(items: list[str] | None) -> dict[str | int, tuple[float, str]] | None:
+    """``["acc=100 mV/g"]`` → ``{"acc": (100.0, "mV/g")}``."""
+    if not items:
+        return None
+    out: dict[str | int, tuple[float, str]] = {}
+    for item in items:
+        m = _SENS_RE.match(item)
+        if not m:
+            raise RecordError(f"--sensitivity {item!r} not understood; write e.g. "
+                              "'acc=100 mV/g' or 'acc1=10.2 mV/(m/s^2)'")
+        try:
+            value = float(m.group("val"))
+        except ValueError:
+            raise RecordError(f"--sensitivity {item!r}: {m.group('val')!r} is not a number"
+                              ) from None
+        out[_channel_token(m.group("ch"))] = (value, m.group("unit"))
+    return out
+
+
+def _frequencies(preset: str | None, spec_file: Path | None, f_sun: float | None,
+                 f_mesh: float | None, f_carrier: float | None) -> tuple[dict[str, float], Any]:
+    freqs: dict[str, float] = {}
+    spec_obj = None
+    if preset is not None and spec_file is not None:
+        raise SpecError([("--preset/--spec", "give at most one of --preset NAME or --spec FILE")])
+    if preset is not None or spec_file is not None:
+        from .. import spec as spec_mod
+        from ..gears import characteristic_frequencies
+
+        spec_obj = spec_mod.preset(preset) if preset is not None else spec_mod.load_spec(spec_file)
+        fs_in = f_sun if f_sun is not None else spec_obj["operating"].get("f_sun")
+        if fs_in is None:
+            raise SpecError([("operating.f_sun", "the spec states no input speed; pass --f-sun HZ")])
+        freqs = {k: float(v) for k, v in
+                 characteristic_frequencies(spec_obj.gear_set(), float(fs_in)).items()}
+    elif f_sun is not None:
+        raise SpecError([("--f-sun", "needs a gearbox: add --preset NAME or --spec FILE, or "
+                          "give --f-mesh and --f-carrier directly")])
+    if f_mesh is not None:
+        freqs["f_mesh"] = float(f_mesh)
+    if f_carrier is not None:
+        freqs["f_carrier"] = float(f_carrier)
+    return freqs, spec_obj
+
+
+def record_report(rec: Any, problems: list[Any], freqs: dict[str, float]) -> dict[str, Any]:
+    """JSON-ready summary of a record: channels with statistics, rate, duration, problems."""
+    chans = []
+    for i, name in enumerate(rec.channels):
+        x = rec.data[i]
+        finite = x[np.isfinite(x)]
+        stats = ({"min": float(finite.min()), "max": float(finite.max()),
+                  "mean": float(finite.mean()), "rms": float(np.sqrt(np.mean(finite**2)))}
+                 if finite.size else {"min": None, "max": None, "mean": None, "rms": None})
+        chans.append({"name": name, "unit": rec.units[i], **stats,
+                      "problems": [p.kind for p in problems if p.channel == name]})
+    return {
+        "file": rec.metadata.get("source"),
+        "format": rec.metadata.get("format"),
+        "sample_rate_hz": float(rec.sample_rate),
+        "n_samples": rec.n_samples,
+        "duration_s": rec.duration,
+        "channels": chans,
+        "groups": {k: list(v) for k, v in rec.groups.items()},
+        "tacho": None if rec.tacho is None else {
+            "channel": rec.metadata.get("tacho_channel"), "ppr": rec.tacho_ppr,
+            "shaft": rec.tacho_shaft},
+        "frequencies_hz": freqs,
+        "problems": [{"kind": p.kind, "channel": p.channel, "sample": p.sample,
+                      "value": p.value, "message": p.message} for p in problems],
+        "metadata": rec.metadata,
+    }
+
+
+def _read(file: Path, channels, sample_rate, time_column, units, sensitivity, tacho, tacho_ppr,
+          tacho_shaft, group, fmt):
+    from ..io.readers import read_record
+
+    return read_record(
+        file, channels=parse_channels(channels), sample_rate=sample_rate,
+        time_column=_channel_token(time_column) if time_column is not None else None,
+        units=parse_units(units), sensitivity=parse_sensitivity(sensitivity),
+        tacho=_channel_token(tacho) if tacho is not None else None, tacho_ppr=tacho_ppr,
+        tacho_shaft=tacho_shaft, group=group, fmt=fmt)
+
+
+_CHANNELS = typer.Option(None, "--channels", help="Channels to keep: names, indices or group "
+                         "names, comma-separated.")
+_RATE = typer.Option(None, "--sample-rate", help="Sampling rate (Hz) if the file states none.")
+_TIME = typer.Option(None, "--time-column", help="Name (or index) of the time column (s).")
+_UNITS = typer.Option(None, "--units", help="Unit for all channels ('g') or NAME=UNIT,...")
+_SENS = typer.Option(None, "--sensitivity", help="Sensor sensitivity 'NAME=100 mV/g' "
+                     "(repeatable); converts volts to the physical unit.")
+_TACHO = typer.Option(None, "--tacho", help="Tachometer channel (name or index).")
+_PPR = typer.Option(None, "--tacho-ppr", help="Tachometer pulses per revolution.")
+_SHAFT = typer.Option(None, "--tacho-shaft", help="Shaft the tacho sees: sun or carrier.")
+_GROUP = typer.Option(None, "--group", help="TDMS group, HDF5 group or MATLAB struct to read.")
+_FMT = typer.Option(None, "--format", help="Force a format: csv wav numpy matlab hdf5 tdms uff "
+                    "native.")
+
+
+@record_app.command("info")
+def info(
+    file: Path = typer.Argument(..., help="Recorded vibration file."),
+    channels: str | None = _CHANNELS,
+    sample_rate: float | None = _RATE,
+    time_column: str | None = _TIME,
+    units: str | None = _UNITS,
+    sensitivity: list[str] | None = _SENS,
+    tacho: str | None = _TACHO,
+    tacho_ppr: int | None = _PPR,
+    tacho_shaft: str | None = _SHAFT,
+    group: str | None = _GROUP,
+    fmt: str | None = _FMT,
+    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset (paper-sim, "
+                                      "paper-bench) for the mesh and carrier frequencies."),
+    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    f_sun: float | None = typer.Option(None, "--f-sun", help="Input (sun) speed (Hz), "
+                                       "overriding the spec's operating point."),
+    f_mesh: float | None = typer.Option(None, "--f-mesh", help="Mesh frequency (Hz)."),
+    f_carrier: float | None = typer.Option(None, "--f-carrier", help="Carrier frequency (Hz)."),
+    strict: bool = typer.Option(False, "--strict", help="Exit with code 2 if problems are found."),
+    json_out: bool = typer.Option(False, "--json", help="Print the report as JSON on stdout."),
+    out: Path | None = typer.Option(None, "--out", help="Write record_info.json and "
+                                    "manifest.json into this folder."),
+    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
+) -> None:
+    """Channels, rate, duration and the problems found in a recorded vibration file."""
+    from ..io.output import OutputFolder, to_jsonable
+    from ..io.validate import check_record
+
+    freqs, spec_obj = _frequencies(preset, spec, f_sun, f_mesh, f_carrier)
+    rec = _read(file, channels, sample_rate, time_column, units, sensitivity, tacho, tacho_ppr,
+                tacho_shaft, group, fmt)
+    problems = check_record(rec, f_mesh=freqs.get("f_mesh"), f_carrier=freqs.get("f_carrier"))
+    report = to_jsonable(record_report(rec, problems, freqs))
+    if json_out:
+        typer.echo(json.dumps(report, indent=2))
+    else:
+        _print_report(report)
+    if out is not None:
+        from ..spec import spec_to_dict
+
+        folder = OutputFolder(
+            out, force=force, inputs=[file] + ([spec] if spec is not None else []),
+            spec=spec_to_dict(spec_obj) if spec_obj is not None else None,
+            parameters={"preset": preset, **freqs})
+        folder.write_json("record_info.json", report)
+        if not json_out:
+            typer.echo(f"wrote {folder.path}/record_info.json, manifest.json", err=True)
+    if strict and problems:
+        raise SystemExit(2)
+
+
+@record_app.command("convert")
+def convert(
+    file: Path = typer.Argument(..., help="Recorded vibration file (any supported format)."),
+    target: Path = typer.Argument(..., help="Output file, named *.dtwin.h5."),
+    channels: str | None = _CHANNELS,
+    sample_rate: float | None = _RATE,
+    time_column: str | None = _TIME,
+    units: str | None = _UNITS,
+    sensitivity: list[str] | None = _SENS,
+    tacho: str | None = _TACHO,
+    tacho_ppr: int | None = _PPR,
+    tacho_shaft: str | None = _SHAFT,
+    group: str | None = _GROUP,
+    fmt: str | None = _FMT,
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing output file."),
+) -> None:
+    """Convert a record to dtwin's own format (*.dtwin.h5), with units and sensitivity applied."""
+    from ..io.output import sha256_file
+    from ..io.readers import write_record
+
+    rec = _read(file, channels, sample_rate, time_column, units, sensitivity, tacho, tacho_ppr,
+                tacho_shaft, group, fmt)
+    rec.metadata["source_sha256"] = sha256_file(file)
+    path = write_record(rec, target, force=force)
+    typer.echo(f"wrote {path}: {len(rec.channels)} channel(s), {rec.n_samples} samples at "
+               f"{rec.sample_rate:g} Hz", err=True)
+
+
+def _print_report(report: dict[str, Any]) -> None:
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    console = Console()
+    fr = report["frequencies_hz"]
+    title = (f"{report['file']} ({report['format']}): {report['sample_rate_hz']:g} Hz, "
+             f"{report['n_samples']} samples, {report['duration_s']:.4g} s")
+    if "f_mesh" in fr:
+        title += f", f_mesh = {fr['f_mesh']:.2f} Hz"
+    table = Table(title=escape(title))
+    for col in ("channel", "unit", "min", "max", "RMS", "problems"):
+        table.add_column(col, justify="right" if col in ("min", "max", "RMS") else "left")
+
+    def num(v: Any) -> str:
+        return "-" if v is None or isinstance(v, str) else f"{v:.4g}"
+
+    for c in report["channels"]:
+        table.add_row(escape(c["name"]), escape(c["unit"] or "-"), num(c["min"]), num(c["max"]),
+                      num(c["rms"]), ", ".join(c["problems"]) or "ok")
+    console.print(table)
+    if report["tacho"]:
+        t = report["tacho"]
+        console.print(f"tacho: {escape(str(t['channel']))}, {t['ppr']} pulse(s)/rev, "
+                      f"shaft {t['shaft']}")
+    if report["groups"]:
+        console.print("groups: " + escape(", ".join(f"{k} = {'/'.join(v)}"
+                                                    for k, v in report["groups"].items())))
+    if report["problems"]:
+        console.print(f"[red]{len(report['problems'])} problem(s):[/red]")
+        for p in report["problems"]:
+            console.print(f"  - {escape(p['message'])}")
+    else:
+        console.print("[green]no problems found[/green]")
