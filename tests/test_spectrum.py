@@ -201,3 +201,17 @@ def test_find_peaks_min_spacing_keeps_the_higher():
     assert len(find_peaks(freqs, a, threshold_db=20)) == 2
     p = find_peaks(freqs, a, threshold_db=20, min_spacing_hz=2.0)
     assert [q.frequency for q in p] == [100.0]
+
+
+def test_cepstrum_shows_a_sideband_family_as_rahmonics():
+    from dtwin.cepstrum import rahmonics, real_cepstrum
+
+    fs, dur, spacing = 5000.0, 4.0, 3 * FC  # fm ± k N fc: the planet-pass family (reference §2)
+    t = np.arange(int(fs * dur)) / fs
+    x = sum(np.cos(2 * np.pi * (FM + k * spacing) * t) * 0.8 ** abs(k) for k in range(-6, 7))
+    x = x + np.random.default_rng(6).normal(scale=1e-3, size=t.size)
+    q, c = real_cepstrum(x, sample_rate=fs)
+    sel = (q > 0.01) & (q < 0.2)
+    assert q[sel][np.argmax(c[sel])] == pytest.approx(1 / spacing, abs=2 / fs)
+    r = rahmonics(q, c, spacing, 3)
+    assert r[0] > 5 * np.std(c[sel])
