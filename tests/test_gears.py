@@ -9,6 +9,7 @@ a tip circle.
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
 
@@ -458,3 +459,54 @@ def test_relative_phase_of_other_sets_agrees_with_contact_tracking():
         fl = _Flanks(gs)
         d = gs.z_sun * (fl.sun_events(0)[0] - fl.ring_events(0)[0]) / (2 * math.pi)
         assert _cdist(d - float(relative_mesh_phase(gs))) < 1e-6
+
+
+# --- CLI: dtwin freqs -----------------------------------------------------------------------------
+
+def test_cli_freqs_json_matches_paper_table(capsys):
+    from dtwin.cli import main
+
+    main(["freqs", "--preset", "paper-sim", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    # paper Table 2 (reference.md §1)
+    assert out["frequencies_hz"]["f_mesh"] == pytest.approx(500.1, rel=0.01)
+    assert out["frequencies_hz"]["f_sun_fault"] == pytest.approx(71.4, rel=0.01)
+    assert out["f_planet_fault_both_flanks_hz"] == pytest.approx(
+        2 * out["frequencies_hz"]["f_planet_fault"])
+    assert out["geometry"]["centre_distance"] == pytest.approx(0.051)
+
+
+def test_cli_freqs_out_folder_and_f_sun_override(tmp_path, capsys):
+    from dtwin.cli import main
+
+    out_dir = tmp_path / "res"
+    main(["freqs", "--preset", "paper-bench", "--f-sun", "29.7", "--out", str(out_dir)])
+    table = capsys.readouterr().out
+    assert "f_mesh" in table and "498.960" in table  # paper Table 4: 498.9 Hz
+    res = json.loads((out_dir / "freqs.json").read_text())
+    man = json.loads((out_dir / "manifest.json").read_text())
+    assert "freqs.json" in man["files"] and man["spec"]["gears"]["z_ring"] == 84
+    assert res["frequencies_hz"] == pytest.approx(characteristic_frequencies(_bench(), 29.7))
+    # an existing result is not overwritten without --force
+    with pytest.raises(SystemExit) as e:
+        main(["freqs", "--preset", "paper-bench", "--out", str(out_dir)])
+    assert e.value.code == 2
+    main(["freqs", "--preset", "paper-bench", "--out", str(out_dir), "--force", "--json"])
+
+
+def test_cli_freqs_spec_file_and_errors(tmp_path, capsys):
+    from dtwin.cli import main
+
+    spec = tmp_path / "box.toml"
+    spec.write_text("[gears]\nz_sun = 21\nz_planet = 30\nz_ring = 81\nn_planets = 3\n"
+                    "module = 0.002\nface_width = 0.02\n")
+    with pytest.raises(SystemExit) as e:
+        main(["freqs", "--spec", str(spec)])  # no operating.f_sun in the file
+    assert e.value.code == 2
+    assert "--f-sun" in capsys.readouterr().err
+    main(["freqs", "--spec", str(spec), "--f-sun", "30", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert out["frequencies_hz"]["f_carrier"] == pytest.approx(30 * 21 / 102)
+    with pytest.raises(SystemExit):
+        main(["freqs", "--spec", str(spec), "--f-sun", "1800"])  # rpm slip
+    assert "1800 rpm = 30 Hz" in capsys.readouterr().err

@@ -1,0 +1,150 @@
+"""``dtwin freqs``: characteristic frequencies of a planetary gearbox.
+
+    dtwin freqs --preset paper-sim|paper-bench|lin-parker | --spec FILE [--f-sun HZ]
+                [--planet-fault paper|both_flanks] [--json] [--out DIR] [--force]
+
+The input speed is the spec's ``operating.f_sun`` unless ``--f-sun`` (Hz) is given. A table on
+the terminal lists the frequencies under their registry names (``f_sun``, ``f_carrier``,
+``f_mesh``, ``f_sun_fault``, ``f_planet_fault``, ``f_ring_fault``, ``f_planet_pass``,
+``f_planet``), in Hz and as orders of the input speed, with the geometry they follow from;
+``--json`` prints the same as JSON on stdout (nothing else); ``--out DIR`` writes
+``freqs.json`` and ``manifest.json``. See :func:`dtwin.gears.characteristic_frequencies`.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from ..errors import SpecError
+from .app import app
+
+_MEANING = {
+    "f_sun": "sun (input) rotation, the paper's f_sr",
+    "f_carrier": "carrier (output) rotation",
+    "f_mesh": "gear mesh frequency",
+    "f_sun_fault": "sun local fault, f_mesh N / Zs (paper's f_s)",
+    "f_planet_fault": "planet local fault",
+    "f_ring_fault": "ring local fault, f_mesh N / Zr",
+    "f_planet_pass": "planet pass, N f_carrier",
+    "f_planet": "planet spin relative to the carrier",
+}
+
+
+def freqs_report(spec: Any, f_sun: float | None, planet_fault: str, source: str) -> dict:
+    """JSON-ready result of ``dtwin freqs`` for a loaded :class:`~dtwin.spec.Spec`.
+
+    **Arguments:** `spec`; `f_sun` (Hz) overriding ``operating.f_sun``; `planet_fault`
+    convention (``paper`` or ``both_flanks``); `source` label. **Returns:** dict with
+    ``source``, ``f_sun_hz``, ``planet_fault``, ``frequencies_hz`` (registry names),
+    ``orders`` (frequency / f_sun), ``f_planet_fault_both_flanks_hz`` and ``geometry``.
+    """
+    from ..gears import characteristic_frequencies, geometry_summary
+
+    if planet_fault not in ("paper", "both_flanks"):
+        raise SpecError([("--planet-fault", f"use paper or both_flanks, got {planet_fault!r}")])
+    if f_sun is None:
+        f_sun = spec["operating"]["f_sun"]
+        if f_sun is None:
+            raise SpecError([("--f-sun", f"{source} gives no operating.f_sun; pass --f-sun HZ "
+                              "(input speed in Hz, e.g. 30 for 1800 rpm)")])
+    elif not (0.0 < f_sun <= 500.0):
+        hint = f" (did you mean {f_sun:g} rpm = {f_sun / 60:g} Hz?)" if f_sun > 500 else ""
+        raise SpecError([("--f-sun", f"must be an input speed in Hz in (0, 500], got "
+                          f"{f_sun:g}{hint}")])
+    gs = spec.gear_set()
+    f = characteristic_frequencies(gs, f_sun, planet_fault=planet_fault)
+    both = characteristic_frequencies(gs, f_sun, planet_fault="both_flanks")["f_planet_fault"]
+    return {
+        "source": source,
+        "f_sun_hz": float(f_sun),
+        "planet_fault": planet_fault,
+        "gears": {"z_sun": gs.z_sun, "z_planet": gs.z_planet, "z_ring": gs.z_ring,
+                  "n_planets": gs.n_planets},
+        "frequencies_hz": f,
+        "orders": {k: v / f_sun for k, v in f.items()},
+        "f_planet_fault_both_flanks_hz": both,
+        "geometry": geometry_summary(gs),
+    }
+
+
+def _load(preset: str | None, spec_file: Path | None):
+    from .. import spec as spec_mod
+
+    if (preset is None) == (spec_file is None):
+        raise SpecError([("--preset/--spec", "give exactly one of --preset NAME or --spec FILE")])
+    if preset is not None:
+        return spec_mod.preset(preset), preset
+    return spec_mod.load_spec(spec_file), str(spec_file)
+
+
+@app.command()
+def freqs(
+    preset: str | None = typer.Option(
+        None, "--preset", help="paper-sim, paper-bench or lin-parker (bundled specs)."),
+    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    f_sun: float | None = typer.Option(
+        None, "--f-sun", help="Input (sun) speed in Hz; default: the spec's operating.f_sun."),
+    planet_fault: str = typer.Option(
+        "paper", "--planet-fault", help="paper (f_mesh/Zp) or both_flanks (2 f_mesh/Zp)."),
+    json_out: bool = typer.Option(False, "--json", help="Print results as JSON on stdout."),
+    out: Path | None = typer.Option(
+        None, "--out", help="Write freqs.json and manifest.json into this folder."),
+    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
+) -> None:
+    """Characteristic frequencies (mesh, carrier, fault, planet pass) of a gearbox."""
+    from ..spec import spec_to_dict
+
+    spec_obj, source = _load(preset, spec)  # geometry warnings go to stderr
+    report = freqs_report(spec_obj, f_sun, planet_fault, source)
+    if json_out:
+        typer.echo(json.dumps(report, indent=2))
+    else:
+        _print_table(report)
+    if out is not None:
+        from ..io.output import OutputFolder
+
+        folder = OutputFolder(
+            out, force=force, inputs=[spec] if spec is not None else [],
+            spec=spec_to_dict(spec_obj),
+            parameters={"source": source, "f_sun": report["f_sun_hz"],
+                        "planet_fault": planet_fault},
+        )
+        folder.write_json("freqs.json", report)
+        if not json_out:
+            typer.echo(f"wrote {folder.path}/freqs.json, manifest.json", err=True)
+
+
+def _print_table(report: dict[str, Any]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    g = report["gears"]
+    geo = report["geometry"]
+    title = (f"{report['source']}: Zs/Zp/Zr = {g['z_sun']}/{g['z_planet']}/{g['z_ring']}, "
+             f"N = {g['n_planets']}, f_sun = {report['f_sun_hz']:g} Hz "
+             f"({60 * report['f_sun_hz']:g} rpm)")
+    table = Table(title=title)
+    table.add_column("name")
+    table.add_column("f (Hz)", justify="right")
+    table.add_column("order", justify="right")
+    table.add_column("meaning")
+    for name, v in report["frequencies_hz"].items():
+        meaning = _MEANING[name]
+        if name == "f_planet_fault":
+            meaning += (" (paper: f_mesh/Zp)" if report["planet_fault"] == "paper"
+                        else " (both flanks: 2 f_mesh/Zp)")
+        table.add_row(name, f"{v:.3f}", f"{report['orders'][name]:.4f}", meaning)
+    console = Console()
+    console.print(table)
+    console.print(
+        f"a = {geo['centre_distance'] * 1e3:.3f} mm, x = ({geo['x_sun']:.4f}, "
+        f"{geo['x_planet']:.4f}, {geo['x_ring']:.4f}), α_sp = "
+        f"{geo['alpha_sp'] * 57.29577951308232:.2f}°, α_rp = "
+        f"{geo['alpha_rp'] * 57.29577951308232:.2f}°, ε_sp = {geo['eps_sp']:.3f}, ε_rp = "
+        f"{geo['eps_rp']:.3f}, phase0_rp − phase0_sp = {geo['phase0_rp']:.4f} cycles; "
+        f"2 f_mesh/Zp = {report['f_planet_fault_both_flanks_hz']:.3f} Hz"
+    )
