@@ -222,3 +222,13 @@ class OutputFolder:
                 os.unlink(tmp)
             raise
         return self._register(name)
+
+    def write_record(self, name: str, record: Any) -> Path:
+        """Write a :class:`~dtwin.io.record.Record` in dtwin's own format (``*.dtwin.h5``),
+        atomically, and list it in the manifest (see :mod:`dtwin.io.fmt_native`)."""
+        from ..errors import RecordError
+        from .fmt_native import write_into
+
+        if not name.endswith(".dtwin.h5"):
+            raise RecordError(f"record files are named '*.dtwin.h5', got {name!r}; rename it")
+        return self.write_with(name, lambda tmp: write_into(record, tmp))
