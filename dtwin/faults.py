@@ -55,8 +55,8 @@ resolves the pulses with ``dtmax`` below a pulse).
 from __future__ import annotations
 
 import abc
-from collections.abc import Sequence
-from typing import ClassVar
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
 
 import equinox as eqx
 import jax
@@ -74,6 +74,7 @@ __all__ = [
     "Pitting",
     "RootCrack",
     "crack_loss_fraction",
+    "faults_from_table",
     "make_fault",
     "mesh_phases",
     "mesh_stiffnesses",
@@ -452,6 +453,23 @@ def make_fault(
                           f"{sorted(_KINDS)}")]) from None
     kwargs = {} if flank is None else {"flank": flank}
     return cls(severity, location=location, tooth=tooth, planet=planet, **kwargs)
+
+
+def faults_from_table(entries: Sequence[Mapping[str, Any]]) -> tuple[AbstractFault, ...]:
+    """Faults from a spec's ``[[faults]]`` tables (keys ``type``, ``location``, ``severity``,
+    optional ``tooth``, ``planet``, ``flank``; :data:`dtwin.spec.FAULT_SCHEMA`).
+
+    **Returns:** a tuple of faults, in the order given (empty for no entries).
+    """
+    out = []
+    for i, e in enumerate(entries):
+        try:
+            kind, location, severity = e["type"], e["location"], e["severity"]
+        except KeyError as err:
+            raise SpecError([(f"faults[{i}].{err.args[0]}", "is required")]) from None
+        out.append(make_fault(kind, location, severity, tooth=int(e.get("tooth", 0)),
+                              planet=int(e.get("planet", 0)), flank=e.get("flank")))
+    return tuple(out)
 
 
 def parse_fault(text: str) -> AbstractFault:

@@ -374,3 +374,19 @@ def test_parse_fault():
     g = parse_fault("sun:missing_tooth:0.5")
     assert isinstance(g, MissingTooth) and g.location == "sun" and g.flank == "both"
     assert isinstance(parse_fault("ring:crack:0.1:3"), RootCrack)
+
+
+def test_faults_from_spec_tables_match_direct_construction(lp):
+    from dtwin.faults import faults_from_table
+
+    entries = [{"type": "missing_tooth", "location": "sun", "severity": 0.4, "tooth": 2},
+               {"type": "crack", "location": "planet", "severity": 0.3, "tooth": 1, "planet": 2,
+                "flank": "sun"}]
+    got = faults_from_table(entries)
+    direct = (MissingTooth(0.4, location="sun", tooth=2),
+              RootCrack(0.3, location="planet", tooth=1, planet=2, flank="sun"))
+    tc = relative_sun_revolution(500)
+    for a, b in zip(loss_series(lp, got, tc), loss_series(lp, direct, tc), strict=True):
+        assert np.array_equal(np.asarray(a), np.asarray(b))
+    with pytest.raises(SpecError, match=r"faults\[0\].severity"):
+        faults_from_table([{"type": "pitting", "location": "sun"}])

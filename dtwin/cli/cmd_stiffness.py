@@ -46,16 +46,6 @@ def _load(preset: str | None, spec_file: Path | None):
     return spec, spec_mod.lumped_from_spec(spec), source
 
 
-def _spec_faults(spec: Any) -> list:
-    from ..faults import make_fault
-
-    out = []
-    for f in spec["faults"]:
-        out.append(make_fault(f["type"], f["location"], f["severity"], tooth=f.get("tooth", 0),
-                              planet=f.get("planet", 0), flank=f.get("flank")))
-    return out
-
-
 def _fault_label(f: Any) -> str:
     kind = {"MissingTooth": "missing tooth", "Pitting": "pitting", "RootCrack": "root crack"}
     where = f"planet {f.planet}" if f.location == "planet" else f.location
@@ -157,10 +147,10 @@ def stiffness(
     force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
 ) -> None:
     """Mesh-stiffness waveform of planet 0's sun and ring meshes, healthy and faulty."""
-    from ..faults import parse_fault
+    from ..faults import faults_from_table, parse_fault
 
     spec_obj, lp, source = _load(preset, spec)
-    faults = [parse_fault(f) for f in fault] if fault else _spec_faults(spec_obj)
+    faults = [parse_fault(f) for f in fault] if fault else list(faults_from_table(spec_obj["faults"]))
     n_harm = int(spec_obj["mesh"].get("n_harmonics", 12))
     if cycles is not None and not cycles > 0:
         raise SpecError([("--cycles", f"must be positive, got {cycles}")])
