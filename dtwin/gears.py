@@ -114,6 +114,10 @@ class GearSet(eqx.Module):
     carrier radius, contact ratios below 1 and non-positive dimensions. Warns (does not refuse)
     when ``(z_s + z_r)/N`` is not an integer (equally spaced planets cannot be assembled) and when
     ``z_r ≠ z_s + 2 z_p`` (profile shift needed, as on the paper's bench 21/31/84).
+
+    Construction is a boundary operation (concrete values, checks); every function of a built
+    gear set below is pure JAX, jittable and differentiable — replace a field with
+    ``eqx.tree_at`` to differentiate with respect to it.
     """
 
     z_sun: int = eqx.field(static=True)
@@ -155,8 +159,11 @@ class GearSet(eqx.Module):
             if not (np.isfinite(v) and v > 0):
                 problems.append((f"gears.{name}", f"must be positive (m), got {v!r}"))
         if not (0.0 < pressure_angle < math.radians(45.0)):
+            hint = (f": did you mean {pressure_angle:g}° = {math.radians(pressure_angle):.6g} rad?"
+                    if 0.0 < math.radians(pressure_angle) < math.radians(45.0) else "")
             problems.append(
-                ("gears.pressure_angle", f"must lie in (0, 0.785) rad, got {pressure_angle!r}")
+                ("gears.pressure_angle", f"must lie in (0, 0.785) rad, got {pressure_angle!r}"
+                 f"{hint}")
             )
         if problems:
             raise GeometryError(problems)
@@ -421,7 +428,12 @@ def relative_mesh_phase(gs: GearSet) -> Float[Array, ""]:
     The ``−z_p/2`` inside ``r_b,p π / p_b`` is where the parity of ``z_p`` enters (half a cycle
     between an even and an odd planet); ``2 ψ_b z_p/2π = 1/2 + (2 x_p tan α + z_p inv α)/π``.
 
-    Reference: Parker & Lin (2004), J. Mech. Des. 126:365, whose tests use the same construction.
+    The phase is that of the loaded flanks with the sun driving (input torque CCW, as in
+    docs/conventions.md); with the torque reversed the other flanks mesh and Δ changes.
+    ``tests/test_gears.py`` checks it against an independent flank-contact calculation.
+
+    Reference: Parker & Lin (2004), J. Mech. Des. 126:365 (mesh phasing from the contact-line
+    positions and the planet tooth count).
 
     **Returns:** Δ in [0, 1) (mesh cycles).
     """

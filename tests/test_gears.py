@@ -55,7 +55,14 @@ def _bench() -> GearSet:
                        face_width=0.02, pressure_angle=ALPHA, centre_distance=0.0525)
 
 
-PRESETS = {"sim": _sim, "bench": _bench}
+def _odd4() -> GearSet:
+    # a standard set with an odd planet and unequal per-planet phases: 21/31/83, N = 4
+    # (Zs/N = 5.25, Zr/N = 20.75: sequentially phased planets)
+    return GearSet(z_sun=21, z_planet=31, z_ring=83, n_planets=4, module=0.002,
+                   face_width=0.02, pressure_angle=ALPHA)
+
+
+PRESETS = {"sim": _sim, "bench": _bench, "odd4": _odd4}
 
 
 # --- characteristic frequencies ------------------------------------------------------------------
@@ -118,7 +125,7 @@ def test_four_planets_fit_but_warn_on_unequal_spacing():
         (dict(z_planet=-3), "gears.z_planet"),
         (dict(n_planets=0), "gears.n_planets"),
         (dict(module=-0.002), "gears.module"),
-        (dict(pressure_angle=20.0), "gears.pressure_angle"),
+        (dict(pressure_angle=20.0), "gears.pressure_angle"),  # degrees: hint in the message
         (dict(planet_angles=[0.0, 1.0]), "gears.planet_angles"),
         (dict(x_ring=0.5), "gears.x_ring"),  # shifts that give two carrier radii
     ],
@@ -211,6 +218,23 @@ def test_geometry_is_differentiable():
 
 
 # --- rigid kinematics: no drift of the mesh deflections -------------------------------------------
+
+@pytest.mark.parametrize("name", ["paper-sim", "paper-bench"])
+def test_rigid_rotation_no_drift_with_preset_lumped_parameters(name):
+    """The same with the base radii that lumped_from_spec hands to the dynamics."""
+    from dtwin.spec import lumped_from_spec, preset
+
+    lp = lumped_from_spec(preset(name))
+    gs = preset(name).gear_set()
+    ang = rigid_angles(gs, 2 * jnp.pi * 30.0 * jnp.linspace(0.0, 10.0, 2001, dtype=jnp.float64))
+    ts, tc, tp = ang["sun"], ang["carrier"], ang["planet"]
+    d_sp = lp.rb_sun * (ts - tc) + lp.rb_planet * (tp - tc)
+    d_rp = lp.rb_ring * (0.0 - tc) - lp.rb_planet * (tp - tc)
+    assert float(jnp.max(jnp.abs(d_sp))) < 1e-9 and float(jnp.max(jnp.abs(d_rp))) < 1e-9
+    a = lp.centre_distance
+    assert float(lp.rb_sun + lp.rb_planet) == pytest.approx(float(a * jnp.cos(lp.alpha_sp)))
+    assert float(lp.rb_ring - lp.rb_planet) == pytest.approx(float(a * jnp.cos(lp.alpha_rp)))
+
 
 @pytest.mark.parametrize("name", ["sim", "bench"])
 def test_rigid_rotation_keeps_mesh_deflections_zero(name):
@@ -392,7 +416,7 @@ def _cdist(x: float) -> float:
     return abs((x + 0.5) % 1.0 - 0.5)
 
 
-@pytest.fixture(scope="module", params=["sim", "bench"])
+@pytest.fixture(scope="module", params=["sim", "bench", "odd4"])
 def contact(request):
     gs = PRESETS[request.param]()
     fl = _Flanks(gs)
@@ -444,21 +468,27 @@ def test_mesh_phases_agree_with_contact_tracking(contact):
     assert _cdist(delta_test - float(relative_mesh_phase(gs))) < 1e-6
 
 
-def test_relative_phase_of_other_sets_agrees_with_contact_tracking():
-    """More sets through the same independent construction: a standard set with an odd planet
-    (21/31/83, N = 4) and the simulation set at a' = 51.2 mm with a shifted planet
-    (x_planet = 0.1, the sum and difference of the shift rule kept)."""
-    g31 = GearSet(z_sun=21, z_planet=31, z_ring=83, n_planets=4, module=0.002, face_width=0.02,
-                  pressure_angle=ALPHA)  # (21+83)/4 = 26
+def test_relative_phase_with_a_shifted_planet():
+    """The simulation set at a' = 51.2 mm with a shifted planet (x_planet = 0.1, the sum and
+    difference of the shift rule kept) through the same independent construction."""
     ref = GearSet(z_sun=21, z_planet=30, z_ring=81, n_planets=3, module=0.002, face_width=0.02,
                   centre_distance=0.0512)
-    g30 = GearSet(z_sun=21, z_planet=30, z_ring=81, n_planets=3, module=0.002, face_width=0.02,
-                  x_sun=float(ref.x_sun) - 0.1, x_planet=0.1, x_ring=float(ref.x_ring) + 0.1)
-    assert float(g30.centre_distance) == pytest.approx(0.0512, abs=1e-9)
-    for gs in (g31, g30):
-        fl = _Flanks(gs)
-        d = gs.z_sun * (fl.sun_events(0)[0] - fl.ring_events(0)[0]) / (2 * math.pi)
-        assert _cdist(d - float(relative_mesh_phase(gs))) < 1e-6
+    gs = GearSet(z_sun=21, z_planet=30, z_ring=81, n_planets=3, module=0.002, face_width=0.02,
+                 x_sun=float(ref.x_sun) - 0.1, x_planet=0.1, x_ring=float(ref.x_ring) + 0.1)
+    assert float(gs.centre_distance) == pytest.approx(0.0512, abs=1e-9)
+    fl = _Flanks(gs)
+    d = gs.z_sun * (fl.sun_events(0)[0] - fl.ring_events(0)[0]) / (2 * math.pi)
+    assert _cdist(d - float(relative_mesh_phase(gs))) < 1e-6
+    # the planet shift changes the relative phase (tooth thickness enters): not a constant
+    assert _cdist(float(relative_mesh_phase(gs)) - float(relative_mesh_phase(ref))) > 1e-3
+
+
+def test_per_planet_phases_are_sequential_for_the_odd_set():
+    """Parker & Lin: with Zs/N = 5.25 the sun meshes of planets 0..3 are staggered by 1/4 cycle;
+    (Zs + Zr)/N integer makes the ring meshes carry the same per-planet shift."""
+    ph = mesh_phasing(_odd4())
+    np.testing.assert_allclose(ph.gamma_sp, [0.0, 0.25, 0.5, 0.75], atol=1e-12)
+    np.testing.assert_allclose(ph.gamma_rp, ph.gamma_sp, atol=1e-12)
 
 
 # --- CLI: dtwin freqs -----------------------------------------------------------------------------
