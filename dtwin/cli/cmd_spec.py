@@ -42,6 +42,9 @@ def check_spec_file(path: Path) -> dict[str, Any]:
             report["problems"] = [{"path": p, "message": m} for p, m in e.problems]
         except UnreadableFileError as e:
             report["problems"] = [{"path": "", "message": str(e)}]
+        except UnicodeDecodeError as e:  # tomllib on a binary file, before spec.py converts it
+            report["problems"] = [{"path": "", "message": f"{path} is not a UTF-8 text (TOML) "
+                                   f"file ({e.reason} at byte {e.start}); save it as UTF-8"}]
         else:
             report["ok"] = True
             report["spec"] = spec_mod.spec_to_dict(spec)
