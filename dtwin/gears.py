@@ -7,7 +7,8 @@ Tooth geometry is the ISO 53 basic rack (addendum ``1·m``, dedendum ``1.25·m``
 gears, no tip shortening. Profile shifts ``x`` are in modules; for the internal ring gear a
 positive ``x_ring`` moves its profile away from the gear centre (the tooth *space* at the
 reference circle is ``m (π/2 + 2 x_ring tan α)`` wide), which is the sign that makes the
-zero-backlash condition of the ring–planet mesh read
+zero-backlash condition of the ring–planet mesh read (ISO 21771 / DIN 3960, which sign internal
+gears' tooth counts negative, count the shift positive towards the tips: ``x_ISO = −x_ring``)
 
     inv α_w,rp = inv α + 2 tan α (x_r − x_p) / (z_r − z_p)            (internal mesh)
     inv α_w,sp = inv α + 2 tan α (x_s + x_p) / (z_s + z_p)            (external mesh)

@@ -593,7 +593,8 @@ def lumped_from_spec(spec: Spec, *, model: str | None = None):
       nominal tangential force per planet mesh at the sun's reference circle,
       ``F_t = T_sun / (N r_s)`` with ``T_sun = T_load z_s/(z_s + z_r)`` (ring fixed, no losses;
       the ring mesh carries the same force). With ``load_torque = 0`` the load factor is left out
-      (ISO's line load of at least 100 N/mm).
+      (ISO's line load of at least 100 N/mm). The ring's shift is passed to ISO with ISO 21771's
+      sign for internal gears (positive towards the tips), i.e. ``−x_ring``.
     - Supports and damping from ``[supports]`` and ``[damping]``; ``lumped.k_u_torsion_*``
       (Lin & Parker's N/m on u = r θ) become ``k_torsion = k_u r²`` and win over ``[supports]``.
 
@@ -664,8 +665,10 @@ def lumped_from_spec(spec: Spec, *, model: str | None = None):
             k_sp = mesh_stiffness_mean(gs.z_sun, gs.z_planet, gs.face_width, eps_sp,
                                        x1=gs.x_sun, x2=gs.x_planet, internal=False, **common)
         if k_rp is None:
+            # ISO 6336 / ISO 21771 count an internal gear's shift positive towards its tips
+            # (towards the axis): the opposite of dtwin's x_ring (see dtwin.gears).
             k_rp = mesh_stiffness_mean(gs.z_planet, gs.z_ring, gs.face_width, eps_rp,
-                                       x1=gs.x_planet, x2=gs.x_ring, internal=True, **common)
+                                       x1=gs.x_planet, x2=-gs.x_ring, internal=True, **common)
 
     damp = spec["damping"]
     return make_lumped(

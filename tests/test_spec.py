@@ -116,10 +116,11 @@ def test_lin_parker_preset_reproduces_their_natural_frequencies():
 
 # --- lumped parameters from geometry ----------------------------------------------------------------
 
-def _iso_mesh_stiffness(z1, z2, b, eps, ft, internal=False):
-    """ISO 6336-1 method B by hand (reference.md §4), x = 0, 20°, h_fP/m = 1.25, K_A = 1."""
+def _iso_mesh_stiffness(z1, z2, b, eps, ft, internal=False, x1=0.0, x2=0.0):
+    """ISO 6336-1 method B by hand (reference.md §4), 20°, h_fP/m = 1.25, K_A = 1."""
     inv_zn2 = 0.0 if internal else 1.0 / z2
-    q = 0.04723 + 0.15551 / z1 + 0.25791 * inv_zn2
+    q = (0.04723 + 0.15551 / z1 + 0.25791 * inv_zn2 - 0.00635 * x1 - 0.11654 * x1 / z1
+         - 0.00193 * x2 - 0.24188 * x2 * inv_zn2 + 0.00529 * x1**2 + 0.00182 * x2**2)
     c_b = (1 + 0.5 * (1.2 - 1.25)) * 1.0
     line_load = ft / (b * 1e3)  # N/mm
     c_single = (1 / q) * 0.8 * 1.0 * c_b * min(line_load / 100.0, 1.0) ** 0.25  # N/(mm µm)
@@ -142,6 +143,20 @@ def test_iso_mesh_stiffness_from_the_load_torque():
     lp0 = lumped_from_spec(load_spec(_with("operating.load_torque", 0.0)))
     k0 = _iso_mesh_stiffness(21, 30, 0.02, float(lp0.eps_sp), 1e9)
     assert float(lp0.k_sun_planet) == pytest.approx(k0, rel=1e-10)
+
+
+def test_iso_mesh_stiffness_of_the_shifted_bench():
+    # x_sun = +0.2588 on the pinion; the ring's -0.2408 (dtwin sign) is +0.2408 in ISO 21771's
+    # sign for internal gears (positive towards the tips)
+    s = preset("paper-bench")
+    lp = lumped_from_spec(s)
+    gs = s.gear_set()
+    ft = 50.0 * 21 / 105 / (3 * 0.021)
+    k_sp = _iso_mesh_stiffness(21, 31, 0.02, float(lp.eps_sp), ft, x1=float(gs.x_sun))
+    k_rp = _iso_mesh_stiffness(31, 84, 0.02, float(lp.eps_rp), ft, internal=True,
+                               x2=-float(gs.x_ring))
+    assert float(lp.k_sun_planet) == pytest.approx(k_sp, rel=1e-10)
+    assert float(lp.k_ring_planet) == pytest.approx(k_rp, rel=1e-10)
 
 
 def test_geometry_fields_and_overrides():
