@@ -206,7 +206,8 @@ class InductionMotor(AbstractDrive):
         branch, at supply frequency `f_e` (Hz; default: the V/f command at t = 0).
 
         Newton's method in the speed from synchronous speed (30 iterations; monotone, since the
-        torque is concave in the slip below the breakdown slip). Fails (`eqx.error_if`) when the
+        torque is concave in the slip below the breakdown slip), differentiable by the implicit
+        function theorem (derivatives w.r.t. the motor's parameters and the load). Fails (`eqx.error_if`) when the
         load exceeds the breakdown torque.
         """
         f = self.supply_frequency(_f(0.0)) if f_e is None else _f(f_e)
@@ -219,8 +220,11 @@ class InductionMotor(AbstractDrive):
         def newton(_, w):
             return w - residual(w) / jax.grad(residual)(w)
 
-        w = jax.lax.fori_loop(0, 30, newton, w_sync)
-        res = residual(w)
+        # Iterate without differentiating the loop; one final Newton step carries the implicit
+        # derivative dw/dtheta = -(dr/dtheta) / (dr/dw) (implicit function theorem).
+        w_star = jax.lax.stop_gradient(jax.lax.fori_loop(0, 30, newton, jax.lax.stop_gradient(w_sync)))
+        w = w_star - residual(w_star) / jax.lax.stop_gradient(jax.grad(residual)(w_star))
+        res = residual(w_star)
         return eqx.error_if(
             w, ~(jnp.abs(res) <= 1e-6 * (1.0 + jnp.abs(load))) | (w > w_sync),
             "InductionMotor.steady_speed: no stable operating point; the load torque exceeds the "

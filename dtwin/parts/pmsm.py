@@ -267,23 +267,22 @@ class PMSM(AbstractDrive):
         the shaft carries `torque_sun` (N·m); zeros for a start from standstill.
 
         `i_d = 0`, `i_q = (torque_sun + b omega) / K_t`, shaft twist `torque_sun / k_shaft`, speed
-        integrator `x_w = sat^-1(i_q) - K_pw e_w`, current integrators preloaded with the voltages
-        `R_s i` that hold the currents, through the inverse of the voltage limit. Consistent
-        (all derivatives 0) when `omega_sun` is the set point at t = 0. Fails (`eqx.error_if`)
+        integrator `x_w = sat^-1(i_q)`, current integrators preloaded with the voltages that hold
+        the currents (through the inverse of the voltage limit). Consistent (all derivatives 0)
+        when `omega_sun` is the set point at t = 0; at standstill with no torque every state and
+        integrator is 0 (controller reset), whatever the set point. Fails (`eqx.error_if`)
         if the steady voltage or current exceeds the inverter's limits.
         """
         omega = _f(omega_sun)
         torque = _f(torque_sun)
         i_q = (torque + self.friction * omega) / self.torque_constant
         i_d = 0.0 * i_q
-        kpw, _ = self.speed_gains()
-        e_w = self.speed(_f(0.0)) - omega
         i_q = eqx.error_if(
             i_q, jnp.abs(i_q) >= self.current_limit,
             "aux_init: the steady current exceeds motor.pmsm.current_limit; lower the load or "
             "raise the current limit",
         )
-        x_w = soft_clip_inverse(i_q, self.current_limit) - kpw * e_w
+        x_w = soft_clip_inverse(i_q, self.current_limit)
         omega_e = self.pole_pairs * omega
         v_d = self.R_s * i_d - omega_e * self.L_q * i_q
         v_q = self.R_s * i_q + omega_e * (self.L_d * i_d + self.psi_f)
