@@ -73,3 +73,25 @@ def test_bandpass_and_envelope_of_an_am_tone():
 def test_bad_band_is_refused():
     with pytest.raises(RecordError, match="band"):
         bandpass(np.ones(100), (3000, 4000), sample_rate=FS)
+
+
+def test_cli_view_envelope_and_kurtogram(impulsive, tmp_path, capsys):
+    readers = pytest.importorskip("dtwin.io.readers", reason="record readers not available yet")
+    import json
+
+    from dtwin.cli import main
+
+    _, x = impulsive
+    path = tmp_path / "imp.dtwin.h5"
+    readers.write_record(Record(x[None, :], FS, ("acc",), ("m/s^2",)), path)
+    main(["view", str(path), "--kind", "kurtogram", "--json"])
+    lo, hi = json.loads(capsys.readouterr().out)["best_band_hz"]
+    assert lo <= F_RES <= hi
+    out = tmp_path / "env"
+    main(["view", str(path), "--kind", "envelope", "--json", "--out", str(out)])
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["band_source"].startswith("kurtogram")
+    assert rep["band_hz"] == [lo, hi]
+    assert (out / "envelope.png").exists() and (out / "view_envelope.json").exists()
+    main(["view", str(path), "--kind", "cepstrum", "--json"])
+    assert json.loads(capsys.readouterr().out)["quefrency_resolution_s"] == pytest.approx(1 / FS)

@@ -123,3 +123,36 @@ def test_errors_name_the_fix():
         tacho_angle(np.r_[np.zeros(50), np.ones(50)], 100.0, 1)
     with pytest.raises(RecordError, match="Campbell"):
         campbell(waterfall(np.random.default_rng(0).normal(size=256), 100.0, segment_length=64), {})
+
+
+def test_cli_view_order_without_tacho_labels_mesh_orders(tmp_path, capsys):
+    readers = pytest.importorskip("dtwin.io.readers", reason="record readers not available yet")
+    pytest.importorskip("dtwin.spec", reason="dtwin.spec not available yet")
+    import json
+
+    from dtwin.cli import main
+    from dtwin.io import Record
+
+    # the paper's simulation gearbox (Zs 21, Zr 81, N 3) at about 30 Hz with a slow speed drift
+    t = np.arange(int(FS * 2.0)) / FS
+    th = 2 * np.pi * (30.0 * t + 0.2 * np.sin(2 * np.pi * 0.5 * t))
+    x = (1 + 0.5 * np.cos(SB * th)) * np.cos(MESH_ORDER * th)
+    x = x + np.random.default_rng(8).normal(scale=0.02, size=t.size)
+    path = tmp_path / "run.dtwin.h5"
+    readers.write_record(Record(x[None, :], FS, ("acc",), ("m/s^2",)), path)
+    main(["view", str(path), "--kind", "order", "--preset", "paper-sim", "--f-sun", "30",
+          "--json", "--out", str(tmp_path / "o")])
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["angle_source"].startswith("mesh phase")
+    by_label = {p["labels"][0]: p for p in rep["peaks"] if p["labels"]}
+    for label, order in (("fm", MESH_ORDER), ("fm − 3fc", MESH_ORDER - SB),
+                         ("fm + 3fc", MESH_ORDER + SB)):
+        assert abs(by_label[label]["order"] - order) <= rep["order_resolution"]
+    assert by_label["fm"]["amplitude"] == pytest.approx(1.0, rel=0.2)
+    assert (tmp_path / "o" / "order.png").exists()
+    # waterfall + Campbell with the tacho-less angle and a natural frequency overlay
+    main(["view", str(path), "--kind", "waterfall", "--preset", "paper-sim", "--f-sun", "30",
+          "--nat", "1475.7", "--segment", "512", "--json"])
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["natural_frequencies_hz"] == {"f1": 1475.7}
+    assert 29.0 < rep["speed_hz"]["min"] < rep["speed_hz"]["max"] < 31.0

@@ -58,3 +58,20 @@ def test_bad_arguments():
         welch_psd(np.ones(10), 10.0, segment_length=20)
     with pytest.raises(RecordError, match="overlap"):
         welch_psd(np.ones(10), 10.0, overlap=1.0)
+
+
+def test_cli_view_psd_rms_obeys_parseval(tmp_path, capsys):
+    readers = pytest.importorskip("dtwin.io.readers", reason="record readers not available yet")
+    import json
+
+    from dtwin.cli import main
+    from dtwin.io import Record
+
+    t = np.arange(1 << 14) / FS
+    x = 2.0 * np.sin(2 * np.pi * 300.0 * t) + np.random.default_rng(9).normal(scale=0.5, size=t.size)
+    path = tmp_path / "psd.dtwin.h5"
+    readers.write_record(Record(x[None, :], FS, ("acc",), ("m/s^2",)), path)
+    main(["view", str(path), "--kind", "psd", "--band", "290", "310", "--json"])
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["rms_total"] == pytest.approx(np.sqrt(2.0**2 / 2 + 0.5**2), rel=0.02)
+    assert rep["rms_band"] == pytest.approx(np.sqrt(2.0), rel=0.02)  # the tone, A / sqrt 2

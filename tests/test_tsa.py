@@ -63,22 +63,25 @@ def test_tsa_attenuates_an_asynchronous_tone_by_the_comb_gain():
         assert np.sqrt(2) * np.std(tsa.average) == pytest.approx(expected, abs=0.02)
 
 
-def _planet_record(faulty, fs=5000.0, duration=4.0, f_carrier=6.0, seed=1):
-    t = np.arange(int(fs * duration)) / fs
-    carrier = 2 * np.pi * f_carrier * t
+def _planet_signal(carrier, faulty, seed=1):
+    """Sensor signal for a carrier angle history: each planet's ring mesh seen through a window
+    of its angle to the sensor (on top, pi/2); planet `faulty` has a damaged tooth 7."""
     psi = 2 * np.pi * np.arange(N) / N
-    sensor = np.pi / 2
-    rng = np.random.default_rng(seed)
-    x = np.zeros_like(t)
+    x = np.zeros_like(carrier)
     for i in range(N):
         q = ZR * (carrier + psi[i]) / (2 * np.pi)  # ring-mesh cycles of planet i (conventions)
         mesh = np.cos(2 * np.pi * q)
-        if i == faulty:  # planet tooth 7 damaged: an impulse each time it meshes with the ring
-            tooth = np.mod(q, ZP)
-            mesh = mesh + 1.5 * np.exp(-(((tooth - 7.5) / 0.08) ** 2))
-        phi = np.angle(np.exp(1j * (carrier + psi[i] - sensor)))  # planet angle to the sensor
+        if i == faulty:  # an impulse each time the damaged tooth meshes with the ring
+            mesh = mesh + 1.5 * np.exp(-(((np.mod(q, ZP) - 7.5) / 0.08) ** 2))
+        phi = np.angle(np.exp(1j * (carrier + psi[i] - np.pi / 2)))  # planet angle to the sensor
         x += np.exp(-0.5 * (phi / 0.5) ** 2) * mesh  # transfer path: strongest under the sensor
-    return x + rng.normal(scale=0.1, size=t.size), carrier, fs
+    return x + np.random.default_rng(seed).normal(scale=0.1, size=carrier.size)
+
+
+def _planet_record(faulty, fs=5000.0, duration=4.0, f_carrier=6.0, seed=1):
+    t = np.arange(int(fs * duration)) / fs
+    carrier = 2 * np.pi * f_carrier * t
+    return _planet_signal(carrier, faulty, seed), carrier, fs
 
 
 @pytest.mark.parametrize("faulty", [0, 1, 2])
@@ -111,3 +114,25 @@ def test_too_short_record_is_refused():
         time_synchronous_average(np.sin(t), 2 * np.pi * t, 64, sample_rate=1000.0)
     with pytest.raises(RecordError, match="sample_rate"):
         time_synchronous_average(np.sin(t), 2 * np.pi * t, 64)
+
+
+def test_cli_view_tsa_finds_the_faulty_planet_with_a_carrier_tacho(tmp_path, capsys):
+    readers = pytest.importorskip("dtwin.io.readers", reason="record readers not available yet")
+    pytest.importorskip("dtwin.spec", reason="dtwin.spec not available yet")
+    import json
+
+    from dtwin.cli import main
+
+    fs, f_carrier = 5000.0, 6.0
+    t = np.arange(int(fs * 4.0)) / fs
+    carrier = 2 * np.pi * f_carrier * t - 0.3  # the tacho's first rising edge is carrier angle 0
+    x = _planet_signal(carrier, faulty=2, seed=3)
+    tacho = np.sin(carrier)  # a once-per-revolution pick-up on the carrier
+    path = tmp_path / "planets.dtwin.h5"
+    readers.write_record(Record(x[None, :], fs, ("acc",), ("m/s^2",), tacho=tacho,
+                                tacho_ppr=1, tacho_shaft="carrier"), path)
+    main(["view", str(path), "--kind", "tsa", "--preset", "paper-sim", "--json"])
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["planets"]["numbering"] == "absolute"
+    assert rep["planets"]["largest_fm4"] == 2
+    assert rep["f_sun_hz"] == pytest.approx(f_carrier * (ZS + ZR) / ZS, rel=1e-3)

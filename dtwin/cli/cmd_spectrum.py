@@ -200,9 +200,10 @@ def spectrum_report(
 
 def _print_table(report: dict, title: str) -> None:
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
-    table = Table(title=title)
+    table = Table(title=escape(title))
     for col, just in (("No.", "right"), ("f (Hz)", "right"), (f"amplitude ({report['unit']})",
                       "right"), ("dB over floor", "right"), ("label", "left"),
                       ("more", "right")):

@@ -1,0 +1,369 @@
+"""``dtwin view``: the classic signal-processing views of a record.
+
+    dtwin view RECORD --kind order|tsa|envelope|kurtogram|cepstrum|waterfall|psd
+               [--channel C] [--preset P | --spec FILE] [--f-sun HZ] [--band LOW HIGH]
+               [--speed-range LOW HIGH] [--segment N] [--nat HZ ...] [--sample-rate HZ]
+               [--json] [--out DIR] [--force]
+
+- ``order``: order spectrum of the input (sun) shaft after angular resampling; the angle comes
+  from the record's tachometer, else (with a gearbox) from the mesh phase
+  (:func:`dtwin.order.mesh_angle`, speed searched in ``--speed-range``, default ±20 % of the
+  input speed). Peaks are labelled in orders like ``dtwin spectrum`` labels frequencies.
+- ``tsa`` (gearbox needed): TSA on the carrier (indicators RMS, kurtosis, crest factor, FM0, FM4
+  with mesh order Zr), TSA of the sun relative to the carrier (mesh order Zs) and McFadden's
+  planet separation (FM4 per planet). Planet numbers are absolute only with a carrier tacho
+  whose first pulse marks carrier angle 0; otherwise the angle origin is unknown and the planet
+  numbering is relative (the report says which).
+- ``envelope``: envelope spectrum of ``--band`` or, without it, of the kurtogram's band, with
+  the fault frequencies marked.
+- ``kurtogram``: fast kurtogram and the band it picks.
+- ``cepstrum``: real cepstrum with the rahmonics of fc, N·fc and fs/N marked.
+- ``waterfall``: STFT waterfall (``--segment`` samples) and, with a shaft angle, a Campbell
+  diagram with the mesh orders and the natural frequencies given by ``--nat``.
+- ``psd``: Welch PSD (``--segment`` samples per segment), total RMS and the RMS of ``--band``.
+
+Terminal: a short summary table; ``--json``: the report on stdout; ``--out DIR``: ``KIND.png``
+(and further PNGs), ``view_KIND.json``, ``manifest.json``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import typer
+
+from ..errors import RecordError, SpecError
+from .app import app
+from .cmd_spectrum import (
+    channel_token,
+    channel_unit,
+    gear_frequencies,
+    input_speed,
+    load_gearbox,
+    open_output,
+    read_input,
+)
+
+KINDS = ("order", "tsa", "envelope", "kurtogram", "cepstrum", "waterfall", "psd")
+
+
+def _pow2(v: float) -> int:
+    return int(2 ** np.ceil(np.log2(max(v, 4.0))))
+
+
+def shaft_angles(record, x: np.ndarray, gearbox, f_sun: float | None,
+                 speed_range: tuple[float, float] | None) -> dict[str, Any]:
+    """Sun and carrier angles (rad) at every sample, and how they were obtained.
+
+    Returns a dict with ``sun`` and ``carrier`` (arrays or None), ``source`` and
+    ``absolute_carrier`` (True when a carrier tachometer fixes the carrier's angle origin).
+    """
+    from ..order import mesh_angle, tacho_angle
+
+    gs = gearbox.gear_set() if gearbox is not None else None
+    ratio = (gs.z_sun + gs.z_ring) / gs.z_sun if gs is not None else None  # sun / carrier
+    if record.tacho is not None and record.tacho_ppr:
+        ang = tacho_angle(record.tacho, record.sample_rate, int(record.tacho_ppr))
+        shaft = record.tacho_shaft or "sun"
+        if shaft == "carrier":
+            return {"sun": ang * ratio if ratio else None, "carrier": ang,
+                    "source": "tachometer on the carrier", "absolute_carrier": True}
+        return {"sun": ang, "carrier": ang / ratio if ratio else None,
+                "source": "tachometer on the sun", "absolute_carrier": False}
+    if gs is None or f_sun is None:
+        raise SpecError([("--preset/--spec", "this view needs the shaft angle: the record has no "
+                          "tachometer, so give the gearbox (--preset or --spec) and its input "
+                          "speed (--f-sun) to track the mesh phase")])
+    mo = gs.z_sun * gs.z_ring / (gs.z_sun + gs.z_ring)
+    co = gs.z_sun / (gs.z_sun + gs.z_ring)
+    rng = speed_range or (0.8 * f_sun, 1.2 * f_sun)
+    sun = mesh_angle(x, record.sample_rate, mo, rng, bandwidth=0.45 * co)
+    return {"sun": sun, "carrier": sun / ratio, "source": "mesh phase (no tachometer)",
+            "absolute_carrier": False}
+
+
+def _order_view(record, x, unit, gearbox, freqs, f_sun, speed_range):
+    from ..order import order_spectrum, resample_to_angle, shaft_speed
+    from ..plotting.views import plot_order_spectrum
+    from ..spectrum import FrequencyBasis, find_peaks, label_peaks
+
+    ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
+    if ang["sun"] is None:
+        raise SpecError([("--preset/--spec", "the tachometer is on the carrier: give the gearbox "
+                          "to convert its angle to the input shaft")])
+    speed = shaft_speed(ang["sun"], record.sample_rate)
+    f_lo, f_hi = float(np.percentile(speed, 1)), float(np.percentile(speed, 99))
+    if f_lo <= 0:
+        raise RecordError("the input shaft stands still in part of the record; cut it to the "
+                          "part where it turns")
+    if freqs is not None:
+        mo = freqs["f_mesh"] / freqs["f_sun"]
+        spr = _pow2(2.5 * 2.5 * mo * f_hi / f_lo)
+    else:
+        spr = _pow2(record.sample_rate / f_hi)
+    _, xa = resample_to_angle(x, record.sample_rate, ang["sun"], spr)
+    orders, amp = order_spectrum(xa, spr, "hann")
+    max_order = float(orders[-1])
+    marks, labelled = None, []
+    peaks = find_peaks(orders, amp, threshold_db=10.0, max_peaks=15)
+    if freqs is not None:
+        o = {k: v / freqs["f_sun"] for k, v in freqs.items()}
+        gs = gearbox.gear_set()
+        basis = FrequencyBasis(o["f_mesh"], o["f_carrier"], o["f_sun_fault"], o["f_planet_fault"],
+                               gs.n_planets)
+        labelled = label_peaks(peaks, basis, float(orders[1] - orders[0]))
+        marks = {"fm": o["f_mesh"], "fm − N fc": o["f_mesh"] - o["f_planet_pass"],
+                 "fm + N fc": o["f_mesh"] + o["f_planet_pass"]}
+        max_order = min(max_order, 2.5 * o["f_mesh"])
+    report = {
+        "angle_source": ang["source"], "samples_per_rev": spr,
+        "speed_hz": {"min": f_lo, "max": f_hi, "mean": float(np.mean(speed))},
+        "order_resolution": float(orders[1] - orders[0]),
+        "peaks": [{"order": p.frequency, "amplitude": p.amplitude,
+                   "above_floor_db": p.above_floor_db,
+                   "labels": [lab.text for lab in labelled[i].labels] if labelled else []}
+                  for i, p in enumerate(peaks)],
+    }
+    fig = plot_order_spectrum(orders, amp, marks=marks, unit=unit, max_order=max_order,
+                              shaft="input (sun) shaft",
+                              title=f"Order spectrum ({ang['source']})")
+    return report, {"order.png": fig}
+
+
+def _tsa_view(record, x, unit, gearbox, freqs, f_sun, speed_range):
+    from ..indicators import crest_factor, fm0, fm4, kurtosis, rms
+    from ..plotting.views import plot_planet_averages, plot_tsa
+    from ..tsa import planet_separation, sun_relative_angle, time_synchronous_average
+
+    if gearbox is None:
+        raise SpecError([("--preset/--spec", "the TSA views need the gearbox's tooth counts")])
+    gs = gearbox.gear_set()
+    ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
+    carrier = ang["carrier"]
+    fs = record.sample_rate
+    tsa_c = time_synchronous_average(x, carrier, gs.z_ring * 16, sample_rate=fs)
+    rel = sun_relative_angle(carrier, gs.z_sun, gs.z_ring)
+    tsa_s = time_synchronous_average(x, rel, gs.z_sun * 16, sample_rate=fs)
+    sep = planet_separation(x, carrier, gs.z_ring, gs.z_planet, gs.n_planets, sample_rate=fs)
+    planet_fm4 = [float(fm4(np.nan_to_num(a), gs.z_planet)) for a in sep.averages]
+
+    def ind(t, z):
+        a = t.average
+        return {"n_averages": t.n_averages, "rms": float(rms(a)), "kurtosis": float(kurtosis(a)),
+                "crest_factor": float(crest_factor(a)), "fm0": float(fm0(a, z)),
+                "fm4": float(fm4(a, z))}
+
+    report = {
+        "angle_source": ang["source"],
+        "carrier_tsa": ind(tsa_c, gs.z_ring),
+        "sun_relative_tsa": ind(tsa_s, gs.z_sun),
+        "planets": {
+            "numbering": "absolute" if ang["absolute_carrier"] else
+                         "relative (carrier angle origin unknown)",
+            "window": sep.window, "window_teeth": sep.window_teeth,
+            "n_passes": sep.n_passes.tolist(), "complete": sep.complete,
+            "fm4": planet_fm4, "largest_fm4": int(np.argmax(planet_fm4)),
+        },
+    }
+    figs = {
+        "tsa.png": plot_tsa(tsa_c, unit=unit, shaft="carrier"),
+        "tsa_sun.png": plot_tsa(tsa_s, unit=unit, shaft="sun (relative to the carrier)"),
+        "planets.png": plot_planet_averages(sep, planet_fm4, unit=unit),
+    }
+    return report, figs
+
+
+def _fault_marks(freqs):
+    if freqs is None:
+        return None
+    return {"fs (sun fault)": freqs["f_sun_fault"], "fp (planet fault)": freqs["f_planet_fault"],
+            "fc": freqs["f_carrier"], "N fc": freqs["f_planet_pass"]}
+
+
+def _envelope_view(record, x, unit, freqs, band):
+    from ..envelope import envelope_spectrum, fast_kurtogram
+    from ..plotting.views import plot_envelope_spectrum
+    from ..spectrum import level_at
+
+    fs = record.sample_rate
+    source = "--band"
+    if band is None:
+        kg = fast_kurtogram(x, sample_rate=fs)
+        band, source = kg.best_band, f"kurtogram (level {kg.best_level:.2f}, K = {kg.best_kurtosis:.2f})"
+    f, e = envelope_spectrum(x, band, sample_rate=fs)
+    marks = _fault_marks(freqs)
+    levels = {k: level_at(f, e, v) for k, v in (marks or {}).items() if v < f[-1]}
+    max_f = 4 * max(marks.values()) if marks else min(500.0, float(f[-1]))
+    report = {"band_hz": [float(band[0]), float(band[1])], "band_source": source,
+              "levels_at_fault_frequencies": levels}
+    fig = plot_envelope_spectrum(f, e, band=band, marks=marks, unit=unit,
+                                 max_freq=min(max_f, float(f[-1])))
+    return report, {"envelope.png": fig}
+
+
+def _kurtogram_view(record, x):
+    from ..envelope import fast_kurtogram
+    from ..plotting.views import plot_kurtogram
+
+    kg = fast_kurtogram(x, sample_rate=record.sample_rate)
+    report = {"best_band_hz": list(kg.best_band), "best_level": kg.best_level,
+              "best_kurtosis": kg.best_kurtosis, "levels": kg.levels.tolist()}
+    return report, {"kurtogram.png": plot_kurtogram(kg)}
+
+
+def _cepstrum_view(record, x, freqs, gearbox):
+    from ..cepstrum import rahmonics, real_cepstrum
+    from ..plotting.views import plot_cepstrum
+
+    q, c = real_cepstrum(x, sample_rate=record.sample_rate)
+    spacings = None
+    report: dict[str, Any] = {"quefrency_resolution_s": float(q[1])}
+    if freqs is not None:
+        n = gearbox.gear_set().n_planets
+        spacings = {"fc": freqs["f_carrier"], "N fc": freqs["f_planet_pass"],
+                    f"fs/{n}": freqs["f_sun_fault"] / n}
+        report["rahmonics"] = {k: rahmonics(q, c, v, 3).tolist() for k, v in spacings.items()}
+    max_q = 1.5 / min(spacings.values()) if spacings else float(q[-1])
+    fig = plot_cepstrum(q, c, spacings=spacings, max_quefrency=min(max_q, float(q[-1])))
+    return report, {"cepstrum.png": fig}
+
+
+def _waterfall_view(record, x, unit, gearbox, freqs, f_sun, speed_range, segment, nat):
+    from ..order import campbell, waterfall
+    from ..plotting.views import plot_campbell, plot_waterfall
+
+    angle, source = None, None
+    if (record.tacho is not None and record.tacho_ppr) or (gearbox is not None and f_sun):
+        ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
+        angle, source = ang["sun"], ang["source"]
+    wf = waterfall(x, record.sample_rate, segment_length=segment, angle=angle)
+    orders = None
+    if freqs is not None:
+        mo = freqs["f_mesh"] / freqs["f_sun"]
+        orders = {"fm": mo, "2fm": 2 * mo}
+    figs = {"waterfall.png": plot_waterfall(wf, unit=unit, orders=orders)}
+    report: dict[str, Any] = {"segments": int(wf.times.size),
+                              "resolution_hz": float(wf.freqs[1] - wf.freqs[0]),
+                              "angle_source": source}
+    if wf.speed is not None:
+        cd = campbell(wf, orders or {"1x": 1.0}, list(nat))
+        figs["campbell.png"] = plot_campbell(cd, unit=unit)
+        report["speed_hz"] = {"min": float(cd.speed.min()), "max": float(cd.speed.max())}
+        report["natural_frequencies_hz"] = cd.natural_frequencies
+    return report, figs
+
+
+def _psd_view(record, x, unit, freqs, band, segment):
+    from ..plotting.views import plot_psd
+    from ..psd import band_power, welch_psd
+
+    f, p = welch_psd(x, record.sample_rate, segment_length=min(segment, x.size))
+    report = {"resolution_hz": float(f[1] - f[0]),
+              "rms_total": float(np.sqrt(band_power(f, p, (0.0, float(f[-1])))))}
+    if band is not None:
+        report["band_hz"] = list(band)
+        report["rms_band"] = float(np.sqrt(band_power(f, p, band)))
+    marks = {"fm": freqs["f_mesh"], "2fm": 2 * freqs["f_mesh"]} if freqs else None
+    return report, {"psd.png": plot_psd(f, p, unit=unit, marks=marks)}
+
+
+@app.command()
+def view(
+    record_file: Path = typer.Argument(..., help="Record file (any supported format)."),
+    kind: str = typer.Option(..., "--kind", help="order, tsa, envelope, kurtogram, cepstrum, "
+                             "waterfall or psd."),
+    channel: str = typer.Option("0", "--channel", help="Channel name or index."),
+    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset (paper-sim, "
+                                      "paper-bench, lin-parker)."),
+    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    f_sun: float | None = typer.Option(None, "--f-sun", help="Input (sun) speed in Hz."),
+    band: tuple[float, float] | None = typer.Option(None, "--band",
+                                                    help="Band LOW HIGH (Hz): envelope, psd."),
+    speed_range: tuple[float, float] | None = typer.Option(
+        None, "--speed-range", help="Input-speed range LOW HIGH (Hz) for tacho-less tracking."),
+    segment: int = typer.Option(1024, "--segment", help="Segment length (samples): waterfall, psd."),
+    nat: list[float] | None = typer.Option(None, "--nat", help="Natural frequency (Hz) to overlay "
+                                           "on the Campbell diagram (repeatable)."),
+    sample_rate: float | None = typer.Option(None, "--sample-rate",
+                                             help="Sampling rate (Hz) if the file states none."),
+    json_out: bool = typer.Option(False, "--json", help="Print the report as JSON on stdout."),
+    out: Path | None = typer.Option(None, "--out", help="Write PNGs, view_KIND.json, manifest."),
+    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
+) -> None:
+    """Order, TSA, envelope, kurtogram, cepstrum, waterfall or PSD view of a record."""
+    if kind not in KINDS:
+        raise RecordError(f"unknown --kind {kind!r}; choose one of {', '.join(KINDS)}")
+    gearbox = load_gearbox(preset, spec)
+    record = read_input(record_file, sample_rate)
+    ch = channel_token(channel)
+    name, unit = channel_unit(record, ch)
+    x = np.asarray(record.channel(ch), dtype=np.float64)
+    if not np.all(np.isfinite(x)):
+        raise RecordError(f"channel {name!r} holds NaN or inf samples; clean the record first")
+    fsun, fsun_source = input_speed(record, gearbox, f_sun)
+    freqs = gear_frequencies(gearbox, fsun, "paper") if gearbox is not None else None
+    if kind == "order":
+        rep, figs = _order_view(record, x, unit, gearbox, freqs, fsun, speed_range)
+    elif kind == "tsa":
+        rep, figs = _tsa_view(record, x, unit, gearbox, freqs, fsun, speed_range)
+    elif kind == "envelope":
+        rep, figs = _envelope_view(record, x, unit, freqs, band)
+    elif kind == "kurtogram":
+        rep, figs = _kurtogram_view(record, x)
+    elif kind == "cepstrum":
+        rep, figs = _cepstrum_view(record, x, freqs, gearbox)
+    elif kind == "waterfall":
+        rep, figs = _waterfall_view(record, x, unit, gearbox, freqs, fsun, speed_range, segment,
+                                    nat or [])
+    else:
+        rep, figs = _psd_view(record, x, unit, freqs, band, segment)
+    from ..io.output import to_jsonable
+
+    report = to_jsonable({"record": str(record_file), "kind": kind, "channel": name,
+                          "unit": unit, "f_sun_hz": fsun, "f_sun_source": fsun_source, **rep})
+    if json_out:
+        typer.echo(json.dumps(report, indent=2))
+    else:
+        _print_summary(report)
+    if out is not None:
+        folder = open_output(out, force, [record_file, spec], gearbox,
+                             {"kind": kind, "channel": name, "f_sun": fsun,
+                              "band": list(band) if band else None})
+        for fname, fig in figs.items():
+            folder.savefig(fname, fig)
+        folder.write_json(f"view_{kind}.json", report)
+        if not json_out:
+            typer.echo(f"wrote {folder.path}: {', '.join(figs)}, view_{kind}.json, manifest.json",
+                       err=True)
+
+
+def _flatten(d: dict, prefix: str = "") -> list[tuple[str, str]]:
+    rows = []
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            rows.extend(_flatten(v, key + "."))
+        elif isinstance(v, list) and v and isinstance(v[0], dict):
+            rows.append((key, f"{len(v)} entries (see --json)"))
+        elif isinstance(v, float):
+            rows.append((key, f"{v:.5g}"))
+        else:
+            rows.append((key, str(v)))
+    return rows
+
+
+def _print_summary(report: dict) -> None:
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    table = Table(title=escape(f"{Path(report['record']).name}: {report['kind']} view, channel "
+                               f"{report['channel']}"))
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    for k, v in _flatten({k: v for k, v in report.items() if k not in ("record", "kind")}):
+        table.add_row(escape(k), escape(v))
+    Console().print(table)
