@@ -261,6 +261,8 @@ def test_tdms_written_by_nptdms(tmp_path, signals):
             *[ChannelObject("Vibration", f"acc1_{a}", sig[i],
                             properties={"wf_increment": 1.0 / FS, "unit_string": "g"})
               for i, a in enumerate("xyz")],
+            ChannelObject("Vibration", "stamp", np.datetime64("2026-11-21T10:00:00", "us")
+                          + np.arange(N) * np.timedelta64(200, "us")),
             ChannelObject("Speed", "tacho", sig[0].astype(np.float32),
                           properties={"wf_increment": 1.0 / FS, "unit_string": "V"}),
         ])
@@ -269,6 +271,7 @@ def test_tdms_written_by_nptdms(tmp_path, signals):
     assert rec.sample_rate == pytest.approx(FS, rel=1e-15)
     np.testing.assert_array_equal(rec.data, sig)
     assert rec.metadata["tdms_properties"]["operator"] == "bench"
+    assert rec.metadata["skipped_channels"] == ["stamp"]  # timestamps are not a signal
     both = read_record(path, tacho="tacho", channels=["acc1_x"])
     np.testing.assert_array_equal(both.tacho, sig[0].astype(np.float32))
     with pytest.raises(RecordError, match="Vibration"):

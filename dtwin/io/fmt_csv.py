@@ -9,6 +9,8 @@ without one, pass `sample_rate`. Without a header row the columns are named ``ch
 
 from __future__ import annotations
 
+import io
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +36,39 @@ def _is_number(tok: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def _parse_rows(body: list[str], delim: str | None, n_col: int, offset: int,
+                where: str) -> np.ndarray:
+    """Numbers of the data lines, shape (lines, columns); numpy's parser first (fast), then a
+    line-by-line pass that names the first bad line if numpy refuses the text."""
+    if not body:
+        return np.empty((0, n_col))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            rows = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delim, ndmin=2,
+                              dtype=np.float64, comments=None)
+        if rows.shape == (len(body), n_col):
+            return rows
+    except (ValueError, UserWarning):
+        pass
+    rows = np.empty((len(body), n_col), dtype=np.float64)
+    for k, line in enumerate(body):
+        toks = line.split(delim) if delim else line.split()
+        if len(toks) != n_col:
+            raise UnreadableFileError(
+                f"{where}: data line {k + 1 + offset} has {len(toks)} fields, the header has "
+                f"{n_col}; the file may be truncated or use another delimiter"
+            )
+        try:
+            rows[k] = [float(tok) for tok in toks]
+        except ValueError:
+            raise UnreadableFileError(
+                f"{where}: data line {k + 1 + offset} holds a value that is not a number: "
+                f"{line[:80]!r}"
+            ) from None
+    return rows
 
 
 def read(
@@ -68,21 +103,7 @@ def read(
         dup = sorted({n for n in names if names.count(n) > 1})
         raise UnreadableFileError(f"{where}: duplicate column names {dup}; rename them")
     n_col = len(labels)
-    rows = np.empty((len(body), n_col), dtype=np.float64)
-    for k, line in enumerate(body):
-        toks = line.split(delim) if delim else line.split()
-        if len(toks) != n_col:
-            raise UnreadableFileError(
-                f"{where}: line {k + 1 + has_header} has {len(toks)} fields, the header has "
-                f"{n_col}; the file may be truncated or use another delimiter"
-            )
-        try:
-            rows[k] = [float(tok) for tok in toks]
-        except ValueError:
-            raise UnreadableFileError(
-                f"{where}: line {k + 1 + has_header} holds a value that is not a number: "
-                f"{line[:80]!r}"
-            ) from None
+    rows = _parse_rows(body, delim, n_col, int(has_header), where)
     meta: dict = {"header": has_header, "delimiter": delim or "whitespace"}
     time_idx: int | None = None
     if time_column is not None:

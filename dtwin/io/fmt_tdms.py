@@ -1,8 +1,8 @@
 """LabVIEW TDMS records via npTDMS.
 
-A TDMS file holds groups of channels. `group` picks one; by default the only group with
-data (with several, every channel is read and named ``group/channel`` unless the channel names
-are unique). The sampling rate is ``1 / wf_increment`` (s) of the channels (waveform
+A TDMS file holds groups of channels. `group` picks one; by default every channel of every
+group is read, named ``group/channel`` unless the channel names are unique. Non-numeric
+channels (timestamps, strings) are skipped and listed in ``metadata["skipped_channels"]``. The sampling rate is ``1 / wf_increment`` (s) of the channels (waveform
 properties); the unit comes from the ``unit_string`` property.
 """
 
@@ -47,10 +47,14 @@ def read(
             raise UnreadableFileError(f"{where}: the TDMS file holds no channels")
         names_only = [c.name for _, c in chans]
         unique = len(set(names_only)) == len(names_only)
-        names, units, signals, increments = [], [], [], []
+        names, units, signals, increments, skipped = [], [], [], [], []
         for gname, c in chans:
             nm = c.name if unique else f"{gname}/{c.name}"
-            signals.append(as_signal(c[:], nm, where))
+            values = c[:]
+            if np.asarray(values).dtype.kind not in "biuf":  # timestamps, strings: not signals
+                skipped.append(nm)
+                continue
+            signals.append(as_signal(values, nm, where))
             names.append(nm)
             units.append(str(c.properties.get("unit_string", "")))
             inc = c.properties.get("wf_increment")
@@ -65,6 +69,9 @@ def read(
         if type(e) is not Exception:
             raise
         raise UnreadableFileError(f"{where}: not a readable TDMS file ({e})") from None
+    if not signals:
+        raise UnreadableFileError(f"{where}: no numeric channels (only {skipped}); a record "
+                                  "needs sampled signals")
     lengths = {n: s.size for n, s in zip(names, signals, strict=True)}
     if len(set(lengths.values())) > 1:
         raise RecordError(f"{where}: TDMS channels have different lengths {lengths}; pick "
@@ -80,6 +87,8 @@ def read(
             raise UnreadableFileError(f"{where}: wf_increment {inc} s is not positive")
         file_rate = 1.0 / inc
     meta: dict = {"tdms_properties": props}
+    if skipped:
+        meta["skipped_channels"] = skipped
     if file_rate is not None:
         meta["file_sample_rate"] = file_rate
     return Record(
