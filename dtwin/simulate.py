@@ -180,7 +180,7 @@ def initial_state(twin: Twin, f_sun: float | Array, start: str = "steady"):
     elif start == "steady":
         omega_c = omega_s / rs
         A = jnp.asarray(twin.kinematic_map())
-        K = A.T @ twin.linear_stiffness() @ A
+        K = A.T @ twin.linear_stiffness(modal=False) @ A
         f, torque_sun = _ext_static_forces(twin, omega_c)
         F = A.T @ twin.pack(f)
         keep = np.array([i for i in range(n) if i != ic])
@@ -207,11 +207,8 @@ def daq_filter(oversample: int) -> np.ndarray:
     return taps / taps.sum()
 
 
-def _observe(twin: Twin, ops, scales, quantity, t, y):
-    sz, sv = scales
-    z, zd, aux = y
-    yy = (z * sz, zd * sv, aux)
-    _, _, _, q, qdot, qddot, mesh, outputs = twin.accelerations(t, yy, ops)
+def _observe(twin: Twin, ops, quantity, t, y):
+    _, _, _, q, qdot, qddot, mesh, outputs = twin.accelerations(t, y, ops)
     if quantity == "ring_velocity":
         paths = twin.find(AbstractTransferPath)
         ang = paths[0].direction_angle if paths else jnp.pi / 2
@@ -237,17 +234,19 @@ def _observe(twin: Twin, ops, scales, quantity, t, y):
 def _solve(twin: Twin, y0, t0, t1, ts, quantity: str, rtol, atol, dtmax, max_steps: int,
            adjoint: str, progress: bool):
     ops = twin.operators()
-    scales = state_scales(twin)
-    sz, sv = scales
+    sz, sv = state_scales(twin)
+    n = twin.n_dof
     z0, zd0, aux0 = y0
-    ys0 = (z0 / sz, zd0 / sv, aux0)
+    ys0 = jnp.concatenate([z0 / sz, zd0 / sv, aux0])
+
+    def unflat(y):
+        return y[:n] * sz, y[n : 2 * n] * sv, y[2 * n :]
 
     def vf(t, y, args):
-        z, zd, aux = y
-        dz, dzd, daux = twin.vector_field(t, (z * sz, zd * sv, aux), ops)
-        return dz / sz, dzd / sv, daux
+        dz, dzd, daux = twin.vector_field(t, unflat(y), ops)
+        return jnp.concatenate([dz / sz, dzd / sv, daux])
 
-    saveat = diffrax.SaveAt(ts=ts, fn=lambda t, y, args: _observe(twin, ops, scales, quantity, t, y))
+    saveat = diffrax.SaveAt(ts=ts, fn=lambda t, y, args: _observe(twin, ops, quantity, t, unflat(y)))
     adj = diffrax.ForwardMode() if adjoint == "forward" else diffrax.RecursiveCheckpointAdjoint()
     meter = diffrax.TextProgressMeter() if progress else diffrax.NoProgressMeter()
     sol = diffrax.diffeqsolve(

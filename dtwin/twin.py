@@ -151,6 +151,18 @@ def mesh_damping(lp: LumpedParameters) -> tuple[Array, Array]:
     return c_sp, c_rp
 
 
+class Operators(eqx.Module):
+    """Constant matrices of a solve: kinematic map `A` (q = A z), inverse reduced mass matrix
+    `Mz_inv`, mesh deflection matrix `L` (2N × n_dof), and the parts' linear springs `K` (N/m,
+    N·m/rad) and dampers `C` (N·s/m, N·m·s/rad) in the coordinates `q`."""
+
+    A: Float[Array, "n n"]
+    Mz_inv: Float[Array, "n n"]
+    L: Float[Array, "m n"]
+    K: Float[Array, "n n"]
+    C: Float[Array, "n n"]
+
+
 class Twin(eqx.Module):
     """A planetary gearbox twin: lumped parameters plus parts, as one ODE.
 
@@ -272,37 +284,47 @@ class Twin(eqx.Module):
         return B.T @ (jnp.stack(masses)[:, None] * B)
 
     # ----------------------------------------------------------------------------- meshes
-    def mesh_state(self, t, q: Coords, qdot: Coords, mod: Modulation) -> MeshState:
-        """Mesh phases, stiffness, deflections and contact forces (see `MeshState`)."""
+    def deflection_matrix(self) -> Float[Array, "2N n_dof"]:
+        """The constant matrix `L` with ``[delta_sp; delta_rp] = L q`` (rigid-geometry part)."""
+        n = self.n_planets
+
+        def f(v):
+            d_sp, d_rp = mesh_deflections(self.lp, self.unpack(v))
+            return jnp.concatenate([d_sp, d_rp])
+
+        return jax.jacfwd(f)(jnp.zeros(self.n_dof))[: 2 * n]
+
+    def mesh_state(self, t, q: Coords, qdot: Coords, mod: Modulation, ops=None) -> MeshState:
+        """Mesh phases, stiffness, deflections and contact forces (see `MeshState`).
+
+        `ops` (from `operators()`) supplies the deflection matrix; without it, it is built.
+        """
         from .faults import mesh_phases
         from .stiffness import mesh_stiffness_waveform
 
-        lp = self.lp
+        lp, n = self.lp, self.n_planets
+        L = self.deflection_matrix() if ops is None else ops.L
         ph_sp, ph_rp = mesh_phases(lp, q.theta_s, q.theta_c, q.theta_r)
-        ph_sp = ph_sp + mod.dphase_sp
-        ph_rp = ph_rp + mod.dphase_rp
-        k_sp = mesh_stiffness_waveform(ph_sp, lp.k_sun_planet, lp.eps_sp, n_harmonics=self.n_harmonics) - mod.dk_sp
-        k_rp = mesh_stiffness_waveform(ph_rp, lp.k_ring_planet, lp.eps_rp, n_harmonics=self.n_harmonics) - mod.dk_rp
-        (d_sp, d_rp), (dd_sp, dd_rp) = jax.jvp(lambda x: mesh_deflections(lp, x), (q,), (qdot,))
-        d_sp = d_sp - mod.e_sp
-        d_rp = d_rp - mod.e_rp
+        ph = jnp.concatenate([ph_sp + mod.dphase_sp, ph_rp + mod.dphase_rp])
+        k_mean = jnp.concatenate([jnp.full((n,), lp.k_sun_planet), jnp.full((n,), lp.k_ring_planet)])
+        eps = jnp.concatenate([jnp.full((n,), lp.eps_sp), jnp.full((n,), lp.eps_rp)])
+        k = mesh_stiffness_waveform(ph, k_mean, eps, n_harmonics=self.n_harmonics)
+        k = k - jnp.concatenate([mod.dk_sp, mod.dk_rp])
+        d = L @ self.pack(q) - jnp.concatenate([mod.e_sp, mod.e_rp])
+        dd = L @ self.pack(qdot)
         c_sp, c_rp = mesh_damping(lp)
+        c = jnp.concatenate([jnp.full((n,), c_sp), jnp.full((n,), c_rp)])
         s = self.contact_smoothing
-
-        def contact(k, c, d, dd):
-            return k * s * jax.nn.softplus(d / s) + c * dd * jax.nn.sigmoid(d / s)
-
+        force = k * s * jax.nn.softplus(d / s) + c * dd * jax.nn.sigmoid(d / s)
         return MeshState(
-            ph_sp, ph_rp, k_sp, k_rp, jnp.broadcast_to(c_sp, k_sp.shape),
-            jnp.broadcast_to(c_rp, k_rp.shape), d_sp, d_rp, dd_sp, dd_rp,
-            contact(k_sp, c_sp, d_sp, dd_sp), contact(k_rp, c_rp, d_rp, dd_rp),
+            ph[:n], ph[n:], k[:n], k[n:], c[:n], c[n:], d[:n], d[n:], dd[:n], dd[n:],
+            force[:n], force[n:],
         )
 
-    def mesh_forces(self, q: Coords, mesh: MeshState) -> Coords:
-        """Generalised forces of the mesh contact forces: ``-F . d(delta)/dq`` (virtual work)."""
-        _, vjp = jax.vjp(lambda x: mesh_deflections(self.lp, x), q)
-        (f,) = vjp((-mesh.force_sp, -mesh.force_rp))
-        return f
+    def mesh_forces(self, q: Coords, mesh: MeshState, ops=None) -> Float[Array, " n_dof"]:
+        """Generalised forces of the mesh contact forces, ``-L^T F`` (virtual work), flat."""
+        L = self.deflection_matrix() if ops is None else ops.L
+        return -L.T @ jnp.concatenate([mesh.force_sp, mesh.force_rp])
 
     def frame_forces(self, q: Coords, qdot: Coords) -> Coords:
         """Coriolis and centripetal forces of translations in the carrier frame (N).
@@ -343,45 +365,53 @@ class Twin(eqx.Module):
             i += n
         return out
 
-    def evaluate(self, t, q: Coords, qdot: Coords, aux: Float[Array, " n_aux"]):
+    def evaluate(self, t, q: Coords, qdot: Coords, aux: Float[Array, " n_aux"], ops=None):
         """All forces at one instant.
 
-        **Returns:** `(F, aux_dot, mesh, outputs)`: total generalised force (`Coords`), the
-        parts' state derivatives, the `MeshState`, and the parts' named observables.
+        **Returns:** `(F, aux_dot, mesh, outputs)`: total generalised force (flat, coordinates
+        `q`), the parts' state derivatives, the `MeshState`, and the parts' named observables.
+        Linear springs and dampers of parts (`linear_springs`) are included.
         """
+        ops = self.operators() if ops is None else ops
         mod = self.modulation(t, q, qdot)
-        mesh = self.mesh_state(t, q, qdot, mod)
-        F = self.mesh_forces(q, mesh) + self.frame_forces(q, qdot)
+        mesh = self.mesh_state(t, q, qdot, mod, ops)
+        qv, qdv = self.pack(q), self.pack(qdot)
+        F = self.mesh_forces(q, mesh, ops) - ops.K @ qv - ops.C @ qdv
+        G = self.frame_forces(q, qdot)
         aux_dots, outputs = [], {}
         for p, a in zip(self.parts, self.split_aux(aux), strict=True):
             f, ad, out = p.forces(self, t, q, qdot, a, mesh)
             if f is not None:
-                F = F + f
+                G = G + f
             aux_dots.append(jnp.asarray(ad).reshape(p.aux_size))
             outputs.update(out)
         aux_dot = jnp.concatenate(aux_dots) if aux_dots else jnp.zeros(0)
-        return F, aux_dot, mesh, outputs
+        return F + self.pack(G), aux_dot, mesh, outputs
 
-    def operators(self) -> tuple[Array, Array]:
-        """`(A, inv(A^T M A))` for the integration coordinates (computed once per solve)."""
+    def operators(self) -> Operators:
+        """Constant matrices of one solve (see `Operators`), computed once."""
         A = jnp.asarray(self.kinematic_map())
         Mz = A.T @ self.mass_matrix() @ A
-        return A, jnp.linalg.inv(Mz)
-
-    def to_q(self, A, z, zdot) -> tuple[Coords, Coords]:
-        return self.unpack(A @ z), self.unpack(A @ zdot)
+        K = jnp.zeros((self.n_dof, self.n_dof))
+        C = jnp.zeros((self.n_dof, self.n_dof))
+        for p in self.parts:
+            springs = getattr(p, "linear_springs", None)
+            if springs is not None:
+                k, c = springs(self)
+                K, C = K + k, C + c
+        return Operators(A, jnp.linalg.inv(Mz), self.deflection_matrix(), K, C)
 
     def accelerations(self, t, y, ops):
-        """State derivative pieces: `(zdot, zddot, aux_dot, q, qdot, qddot, mesh, outputs)`."""
-        A, Mz_inv = ops
+        """State derivative pieces: `(zdot, zddot, aux_dot, q, qdot, qddot, mesh, outputs)`
+        with `y = (z, z', aux)`."""
         z, zdot, aux = y
-        q, qdot = self.to_q(A, z, zdot)
-        F, aux_dot, mesh, outputs = self.evaluate(t, q, qdot, aux)
-        zdd = Mz_inv @ (A.T @ self.pack(F))
-        return zdot, zdd, aux_dot, q, qdot, self.unpack(A @ zdd), mesh, outputs
+        q, qdot = self.unpack(ops.A @ z), self.unpack(ops.A @ zdot)
+        F, aux_dot, mesh, outputs = self.evaluate(t, q, qdot, aux, ops)
+        zdd = ops.Mz_inv @ (ops.A.T @ F)
+        return zdot, zdd, aux_dot, q, qdot, self.unpack(ops.A @ zdd), mesh, outputs
 
     def vector_field(self, t, y, ops):
-        """diffrax vector field: `y = (z, z', aux)`."""
+        """Vector field of `y = (z, z', aux)`."""
         zdot, zdd, aux_dot, *_ = self.accelerations(t, y, ops)
         return zdot, zdd, aux_dot
 
@@ -394,11 +424,12 @@ class Twin(eqx.Module):
         """The parts that are instances of `cls`."""
         return [p for p in self.parts if isinstance(p, cls)]
 
-    def linear_stiffness(self) -> Float[Array, "n_dof n_dof"]:
+    def linear_stiffness(self, modal: bool = True) -> Float[Array, "n_dof n_dof"]:
         """Stiffness matrix of the coordinates `q` at mean mesh stiffness, no load, linear contact.
 
         The Jacobian of minus the generalised forces of the meshes (at their mean stiffness,
-        contact taken as linear) and of the parts' springs, at rest. The modal analysis of this
+        contact taken as linear) and of the parts' springs, at rest. With `modal=True` the
+        torsional supports of sun and carrier (shafts to ground) are included. The modal analysis of this
         matrix with `mass_matrix()` is the twin's own; it must agree with `dtwin.modal`.
         """
         lp = self.lp
@@ -409,10 +440,13 @@ class Twin(eqx.Module):
             d_sp, d_rp = mesh_deflections(lp, q)
             _, vjp = jax.vjp(lambda x: mesh_deflections(lp, x), q)
             (f,) = vjp((-lp.k_sun_planet * d_sp, -lp.k_ring_planet * d_rp))
-            for p in self.parts:
-                spring = getattr(p, "spring_forces", None)
-                if spring is not None:
-                    f = f + spring(self, q)
             return self.pack(f)
 
-        return -jax.jacfwd(forces)(self.pack(zero))
+        K = -jax.jacfwd(forces)(self.pack(zero))
+        for p in self.parts:
+            springs = getattr(p, "linear_springs", None)
+            if modal:
+                springs = getattr(p, "modal_springs", None) or springs
+            if springs is not None:
+                K = K + springs(self)[0]
+        return K

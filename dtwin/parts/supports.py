@@ -15,17 +15,18 @@ torsional supports).
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 from .base import AbstractPart
 
 
 class Supports(AbstractPart):
-    """All bearings and torsional supports, with the stiffness and damping of `twin.lp`."""
+    """All bearings and torsional supports, with the stiffness and damping of `twin.lp`.
 
-    def spring_forces(self, twin, q):
-        """Linear spring forces only (used for the twin's stiffness matrix)."""
-        return self._forces(twin, q, None, modal=True)
+    Linear: contributes constant stiffness and damping matrices (`linear_springs`) that the
+    twin adds once per solve, rather than forces evaluated at every step.
+    """
 
     def _forces(self, twin, q, qdot, modal=False):
         from ..twin import Coords
@@ -36,24 +37,38 @@ class Supports(AbstractPart):
             return 2.0 * lp.zeta_support * jnp.sqrt(k * m)
 
         def f(k, m, x, v):
-            out = -k * x
-            if qdot is not None:
-                out = out - c(k, m) * v
-            return out
+            return -k * x - c(k, m) * v
 
-        v = qdot if qdot is not None else q  # unused when qdot is None
         mc_eff = lp.m_carrier + twin.n_planets * lp.m_planet
+        z0 = jnp.zeros(())
         return Coords(
-            f(lp.k_bearing_sun, lp.m_sun, q.sun_xy, v.sun_xy),
-            -lp.k_torsion_sun * q.theta_s if modal else jnp.zeros(()),
-            f(lp.k_bearing_ring, lp.m_ring, q.ring_xy, v.ring_xy),
-            f(lp.k_torsion_ring, lp.J_ring, q.theta_r, v.theta_r),
-            f(lp.k_bearing_carrier, mc_eff, q.carrier_xy, v.carrier_xy),
-            -lp.k_torsion_carrier * q.theta_c if modal else jnp.zeros(()),
-            f(lp.k_bearing_planet, lp.m_planet, q.zeta, v.zeta),
-            f(lp.k_bearing_planet, lp.m_planet, q.eta, v.eta),
+            f(lp.k_bearing_sun, lp.m_sun, q.sun_xy, qdot.sun_xy),
+            -lp.k_torsion_sun * q.theta_s if modal else z0,
+            f(lp.k_bearing_ring, lp.m_ring, q.ring_xy, qdot.ring_xy),
+            f(lp.k_torsion_ring, lp.J_ring, q.theta_r, qdot.theta_r),
+            f(lp.k_bearing_carrier, mc_eff, q.carrier_xy, qdot.carrier_xy),
+            -lp.k_torsion_carrier * q.theta_c if modal else z0,
+            f(lp.k_bearing_planet, lp.m_planet, q.zeta, qdot.zeta),
+            f(lp.k_bearing_planet, lp.m_planet, q.eta, qdot.eta),
             jnp.zeros_like(q.theta_p),
         )
 
-    def forces(self, twin, t, q, qdot, aux, mesh):
-        return self._forces(twin, q, qdot), jnp.zeros(0), {}
+    def _matrices(self, twin, modal):
+        n = twin.n_dof
+        zero = jnp.zeros(n)
+
+        def fq(v):
+            return twin.pack(self._forces(twin, twin.unpack(v), twin.unpack(zero), modal))
+
+        def fv(v):
+            return twin.pack(self._forces(twin, twin.unpack(zero), twin.unpack(v), modal))
+
+        return -jax.jacfwd(fq)(zero), -jax.jacfwd(fv)(zero)
+
+    def linear_springs(self, twin):
+        """`(K, C)`: stiffness and damping matrices in the twin's coordinates `q`."""
+        return self._matrices(twin, modal=False)
+
+    def modal_springs(self, twin):
+        """As `linear_springs`, with the sun and carrier torsional supports (shafts to ground)."""
+        return self._matrices(twin, modal=True)

@@ -61,7 +61,7 @@ class PlanetPassTransferPath(AbstractTransferPath):
 
     sensor_angle: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(jnp.pi / 2))
     direction_angle: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(jnp.pi / 2))
-    window_exponent: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(2.0))
+    window_exponent: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(4.0))
     ring_weight: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(1.0))
     force_weight: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(1.0))
 

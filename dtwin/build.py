@@ -1,0 +1,170 @@
+"""From a spec to a runnable twin: parts chosen from the spec's sections.
+
+`build_twin(spec)` assembles the `Twin` a spec describes:
+
+- lumped parameters (`dtwin.spec.lumped_from_spec`: geometry, ISO 6336 stiffness, inertias,
+  planet position errors);
+- `Supports`; the spec's `[[faults]]` as `LocalFault` parts; imperfections
+  (`SunEccentricity`, `CarrierEccentricity`, `MeshOffsets` for unequal load sharing) and a
+  `TransmissionError` when their values are non-zero;
+- the drive of `[motor]` (`dtwin.motor_spec.drive_from_spec`), by default turning at the
+  operating speed from the start (``start="steady"``) or stepping from standstill
+  (``start="rest"``); the load torque of `[operating]` on the carrier;
+- the `PlanetPassTransferPath` of `[sensor]`.
+
+`daq_from_spec(spec)` gives the matching `DAQ` settings.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import jax.numpy as jnp
+
+from .errors import SpecError
+from .faults import AbstractFault, faults_from_table
+from .parts.base import AbstractPart
+from .parts.drive import DrivePart, LoadPart
+from .parts.imperfections import (
+    CarrierEccentricity,
+    MeshOffsets,
+    SunEccentricity,
+    TransmissionError,
+)
+from .parts.local_fault import LocalFault
+from .parts.supports import Supports
+from .parts.transfer_path import PlanetPassTransferPath
+from .simulate import DAQ
+from .twin import Twin
+
+_DIRECTIONS = {"vertical": math.pi / 2, "horizontal": 0.0}
+
+
+def operating_speed(spec) -> float:
+    """The spec's input speed `operating.f_sun` (Hz); a clear error when it is missing."""
+    f = spec["operating"]["f_sun"]
+    if f is None:
+        raise SpecError([("operating.f_sun", "is required to simulate: the input (sun) speed in Hz, "
+                          "e.g. 30.0 for 1800 rpm")])
+    return float(f)
+
+
+def drive_part(spec, *, start: str = "steady", f_sun: float | None = None) -> DrivePart:
+    """The drive of the spec's `[motor]` table; with ``start="steady"`` its speed set point is
+    constant at `f_sun` (default `operating.f_sun`), with ``"rest"`` it follows the table's
+    `start` (a step from standstill by default)."""
+    from .motor_spec import drive_from_spec
+
+    table = dict(spec["motor"] or {})
+    table.setdefault("type", "ideal")
+    f = operating_speed(spec) if f_sun is None else float(f_sun)
+    if start == "steady":
+        table["start"] = "constant"
+        if table["type"] == "induction":
+            sub = dict(table.get("induction", {}))
+            sub.setdefault("supply_frequency", None)
+            table["induction"] = {k: v for k, v in sub.items() if v is not None}
+        table["speed_rpm"] = 60.0 * f
+    elif "speed_rpm" not in table:
+        table["speed_rpm"] = 60.0 * f
+    return DrivePart(drive_from_spec(table))
+
+
+def spec_parts(spec, *, faults: tuple[AbstractFault, ...] | None = None) -> list[AbstractPart]:
+    """Supports, faults, imperfections and transfer path of a spec (no drive and load)."""
+    parts: list[AbstractPart] = [Supports()]
+    flts = faults_from_table(spec["faults"]) if faults is None else tuple(faults)
+    parts += [LocalFault(f) for f in flts]
+    imp = spec["imperfections"]
+    if imp["sun_eccentricity"]:
+        parts.append(SunEccentricity(jnp.asarray(float(imp["sun_eccentricity"]))))
+    if imp["carrier_eccentricity"]:
+        parts.append(CarrierEccentricity(jnp.asarray(float(imp["carrier_eccentricity"]))))
+    if imp["load_sharing"] is not None:
+        ls = jnp.asarray(imp["load_sharing"], dtype=jnp.float64)
+        n = spec["gears"]["n_planets"]
+        if ls.shape != (n,):
+            raise SpecError([("imperfections.load_sharing", f"needs {n} values (one per planet)")])
+        parts.append(MeshOffsets(ls, ls))
+    mesh = spec["mesh"]
+    if mesh["te_amplitude"]:
+        h = jnp.asarray(mesh["te_harmonics"], dtype=jnp.float64)
+        parts.append(TransmissionError(jnp.asarray(float(mesh["te_amplitude"])), h, jnp.zeros_like(h)))
+    sensor = spec["sensor"]
+    direction = sensor["direction"]
+    if direction in _DIRECTIONS:
+        d_angle = _DIRECTIONS[direction]
+    elif direction == "radial":
+        d_angle = float(sensor["angle"])
+    else:  # tangential
+        d_angle = float(sensor["angle"]) + math.pi / 2
+    parts.append(
+        PlanetPassTransferPath(
+            sensor_angle=jnp.asarray(float(sensor["angle"])),
+            direction_angle=jnp.asarray(d_angle),
+            window_exponent=jnp.asarray(float(sensor["window_exponent"])),
+        )
+    )
+    return parts
+
+
+
+def load_part(spec, load_torque: float | None = None) -> LoadPart:
+    """The carrier load of `[operating]` (N·m)."""
+    from .parts.loads import ConstantLoad
+
+    tl = spec["operating"]["load_torque"] if load_torque is None else load_torque
+    return LoadPart(ConstantLoad(jnp.asarray(float(tl or 0.0))))
+
+
+def build_twin(
+    spec,
+    *,
+    kind: str | None = None,
+    faults: tuple[AbstractFault, ...] | None = None,
+    start: str = "steady",
+    f_sun: float | None = None,
+    extra_parts: tuple[AbstractPart, ...] = (),
+    n_harmonics: int | None = None,
+) -> Twin:
+    """The `Twin` a spec describes (module docstring).
+
+    **Arguments:**
+
+    - `spec`: a `dtwin.spec.Spec` (or a path/mapping for `load_spec`).
+    - `kind`: ``translational`` / ``torsional`` (default `model.kind`).
+    - `faults`: replace the spec's faults (e.g. from the CLI's ``--fault``).
+    - `start`: ``steady`` (drive at constant speed) or ``rest`` (the drive's start profile).
+    - `f_sun`: input speed (Hz) overriding `operating.f_sun`.
+    - `extra_parts`: further parts (effects) to add.
+    - `n_harmonics`: stiffness Fourier harmonics (default `mesh.n_harmonics`).
+    """
+    from .spec import Spec, load_spec, lumped_from_spec
+
+    if not isinstance(spec, Spec):
+        spec = load_spec(spec)
+    kind = kind or spec["model"]["kind"]
+    lp = lumped_from_spec(spec, model=kind)
+    parts = spec_parts(spec, faults=faults)
+    parts.insert(1, drive_part(spec, start=start, f_sun=f_sun))
+    parts.insert(2, load_part(spec))
+    parts += list(extra_parts)
+    nh = int(n_harmonics or spec["mesh"]["n_harmonics"])
+    return Twin(lp, tuple(parts), kind=kind, n_harmonics=nh)
+
+
+def daq_from_spec(spec, **overrides: Any) -> DAQ:
+    """`DAQ` settings of the spec's `[sensor]` table, with keyword overrides."""
+    s = spec["sensor"]
+    kw: dict[str, Any] = dict(
+        sample_rate=float(s["sample_rate"]),
+        oversample=int(s["oversample"]),
+        quantity=s["quantity"],
+        gain=float(s["gain"]),
+        snr_db=s["snr_db"],
+        tacho_ppr=s["tacho_ppr"],
+        tacho_shaft=s["tacho_shaft"],
+    )
+    kw.update(overrides)
+    return DAQ(**kw)
