@@ -307,6 +307,7 @@ def test_cli_stiffness_json_against_iso_hand_calculation(capsys):
     assert rep["faults"][0]["location"] == "sun" and rep["faults"][0]["severity"] == 0.5
 
 
+@pytest.mark.filterwarnings("ignore:z_ring = 84")  # the bench needs profile shift (expected)
 def test_cli_stiffness_out_folder(tmp_path, capsys):
     import json
 
