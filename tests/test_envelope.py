@@ -95,3 +95,21 @@ def test_cli_view_envelope_and_kurtogram(impulsive, tmp_path, capsys):
     assert (out / "envelope.png").exists() and (out / "view_envelope.json").exists()
     main(["view", str(path), "--kind", "cepstrum", "--json"])
     assert json.loads(capsys.readouterr().out)["quefrency_resolution_s"] == pytest.approx(1 / FS)
+
+
+def test_kurtogram_figure_outlines_the_picked_band(impulsive):
+    from matplotlib.patches import Rectangle
+
+    from dtwin.plotting.views import plot_kurtogram
+
+    _, x = impulsive
+    kg = fast_kurtogram(x, sample_rate=FS)
+    fig = plot_kurtogram(kg)
+    ax = fig.axes[0]
+    outlined = [p for p in ax.patches if isinstance(p, Rectangle) and not p.get_fill()]
+    assert len(outlined) == 1
+    assert outlined[0].get_x() == pytest.approx(kg.best_band[0])
+    assert outlined[0].get_width() == pytest.approx(kg.best_bandwidth)
+    # one coloured cell per band of the tree, and axis labels with units
+    assert len(ax.patches) == int(np.sum(kg.n_bands)) + 1
+    assert ax.get_xlabel() == "frequency (Hz)"

@@ -152,7 +152,8 @@ def test_cli_view_order_without_tacho_labels_mesh_orders(tmp_path, capsys):
     assert (tmp_path / "o" / "order.png").exists()
     # waterfall + Campbell with the tacho-less angle and a natural frequency overlay
     main(["view", str(path), "--kind", "waterfall", "--preset", "paper-sim", "--f-sun", "30",
-          "--nat", "1475.7", "--segment", "512", "--json"])
+          "--nat", "1475.7", "--segment", "512", "--json", "--out", str(tmp_path / "w")])
     rep = json.loads(capsys.readouterr().out)
     assert rep["natural_frequencies_hz"] == {"f1": 1475.7}
     assert 29.0 < rep["speed_hz"]["min"] < rep["speed_hz"]["max"] < 31.0
+    assert (tmp_path / "w" / "waterfall.png").exists() and (tmp_path / "w" / "campbell.png").exists()

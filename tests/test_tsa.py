@@ -131,8 +131,10 @@ def test_cli_view_tsa_finds_the_faulty_planet_with_a_carrier_tacho(tmp_path, cap
     path = tmp_path / "planets.dtwin.h5"
     readers.write_record(Record(x[None, :], fs, ("acc",), ("m/s^2",), tacho=tacho,
                                 tacho_ppr=1, tacho_shaft="carrier"), path)
-    main(["view", str(path), "--kind", "tsa", "--preset", "paper-sim", "--json"])
+    out = tmp_path / "tsa"
+    main(["view", str(path), "--kind", "tsa", "--preset", "paper-sim", "--json", "--out", str(out)])
     rep = json.loads(capsys.readouterr().out)
+    assert {"tsa.png", "tsa_sun.png", "planets.png", "view_tsa.json"} <= {p.name for p in out.iterdir()}
     assert rep["planets"]["numbering"] == "absolute"
     assert rep["planets"]["largest_fm4"] == 2
     assert rep["f_sun_hz"] == pytest.approx(f_carrier * (ZS + ZR) / ZS, rel=1e-3)
