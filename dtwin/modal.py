@@ -145,6 +145,7 @@ def _full_mass_matrix(lp: LumpedParameters) -> Float[Array, "dof dof"]:
     return jnp.diag(jnp.stack(diag))
 
 
+@eqx.filter_jit
 def mass_matrix(lp: LumpedParameters, model: Model = "translational") -> Float[Array, "dof dof"]:
     """Mass matrix in Lin & Parker's coordinates (kg).
 
@@ -178,33 +179,30 @@ def _spring_vectors(
 ) -> tuple[Float[Array, "N dof"], Float[Array, "N dof"], Float[Array, "2N dof"]]:
     """Deflection gradients ``g`` (delta = g . q) of the sun meshes, ring meshes, planet bearings."""
     n = lp.n_planets
-    nd = _n_full(lp)
     psi = lp.planet_angles
     a_s, a_r = lp.alpha_sp, lp.alpha_rp
-    t_s = _e_t(psi - a_s)  # (N, 2) sun line of action
-    t_r = _e_t(psi + a_r)  # (N, 2) ring line of action (= -n_rp of conventions.md)
-    g_sp = jnp.zeros((n, nd), dtype=jnp.float64)
-    g_rp = jnp.zeros((n, nd), dtype=jnp.float64)
-    g_b = jnp.zeros((2 * n, nd), dtype=jnp.float64)
-    rows = jnp.arange(n)
-    p = 9 + 3 * rows  # zeta index of each planet
+    one = jnp.ones((n, 1), dtype=jnp.float64)
+    zero3 = jnp.zeros((n, 3), dtype=jnp.float64)
+    eye = jnp.eye(n, dtype=jnp.float64)
     # sun mesh: e_t(psi - a_s).(d_s - d_p) + u_s + u_p
-    g_sp = g_sp.at[:, 0].set(t_s[:, 0]).at[:, 1].set(t_s[:, 1]).at[:, 2].set(1.0)
-    g_sp = g_sp.at[rows, p].set(-jnp.sin(a_s) * jnp.ones(n, dtype=jnp.float64))
-    g_sp = g_sp.at[rows, p + 1].set(-jnp.cos(a_s) * jnp.ones(n, dtype=jnp.float64))
-    g_sp = g_sp.at[rows, p + 2].set(1.0)
+    sun = jnp.concatenate([_e_t(psi - a_s), one], axis=1)
+    row_sp = jnp.stack([-jnp.sin(a_s), -jnp.cos(a_s), jnp.ones((), dtype=jnp.float64)])
+    g_sp = jnp.concatenate([sun, zero3, zero3, jnp.kron(eye, row_sp[None, :])], axis=1)
     # ring mesh: e_t(psi + a_r).(d_r - d_p) + u_r - u_p
-    g_rp = g_rp.at[:, 3].set(t_r[:, 0]).at[:, 4].set(t_r[:, 1]).at[:, 5].set(1.0)
-    g_rp = g_rp.at[rows, p].set(jnp.sin(a_r) * jnp.ones(n, dtype=jnp.float64))
-    g_rp = g_rp.at[rows, p + 1].set(-jnp.cos(a_r) * jnp.ones(n, dtype=jnp.float64))
-    g_rp = g_rp.at[rows, p + 2].set(-1.0)
-    # planet bearing, radial: zeta - x_c cos psi - y_c sin psi
-    g_b = g_b.at[2 * rows, p].set(1.0)
-    g_b = g_b.at[2 * rows, 6].set(-jnp.cos(psi)).at[2 * rows, 7].set(-jnp.sin(psi))
-    # planet bearing, tangential: eta + x_c sin psi - y_c cos psi - u_c
-    g_b = g_b.at[2 * rows + 1, p + 1].set(1.0)
-    g_b = g_b.at[2 * rows + 1, 6].set(jnp.sin(psi)).at[2 * rows + 1, 7].set(-jnp.cos(psi))
-    g_b = g_b.at[2 * rows + 1, 8].set(-1.0)
+    ring = jnp.concatenate([_e_t(psi + a_r), one], axis=1)
+    row_rp = jnp.stack([jnp.sin(a_r), -jnp.cos(a_r), -jnp.ones((), dtype=jnp.float64)])
+    g_rp = jnp.concatenate([zero3, ring, zero3, jnp.kron(eye, row_rp[None, :])], axis=1)
+    # planet bearing: radial zeta - x_c cos psi - y_c sin psi,
+    #                 tangential eta + x_c sin psi - y_c cos psi - u_c
+    c, s_ = jnp.cos(psi), jnp.sin(psi)
+    zero = jnp.zeros_like(psi)
+    carrier = jnp.stack(
+        [jnp.stack([-c, -s_, zero], axis=1), jnp.stack([s_, -c, -jnp.ones_like(psi)], axis=1)],
+        axis=1,
+    ).reshape(2 * n, 3)
+    pin = jnp.kron(eye, jnp.asarray([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], dtype=jnp.float64))
+    zero3b = jnp.zeros((2 * n, 3), dtype=jnp.float64)
+    g_b = jnp.concatenate([zero3b, zero3b, carrier, pin], axis=1)
     return g_sp, g_rp, g_b
 
 
@@ -215,6 +213,7 @@ def _per_planet(value: ArrayLike, n: int, name: str) -> Float[Array, " N"]:
     return jnp.broadcast_to(v, (n,))
 
 
+@eqx.filter_jit
 def stiffness_matrix(
     lp: LumpedParameters,
     model: Model = "translational",
@@ -267,6 +266,7 @@ def stiffness_matrix(
     return k
 
 
+@eqx.filter_jit
 def lin_parker_transform(lp: LumpedParameters) -> Float[Array, "dof dof"]:
     """Matrix ``T`` mapping the twin's coordinates to Lin & Parker's: ``q_LP = T q_twin``.
 
@@ -317,6 +317,7 @@ def _frequencies_from_eigenvalues(lam: Float[Array, " dof"]) -> Float[Array, " d
     return jnp.where(pos, jnp.sqrt(safe), 0.0) / (2.0 * jnp.pi)
 
 
+@eqx.filter_jit
 def natural_frequencies(
     lp: LumpedParameters,
     model: Model = "translational",
@@ -337,6 +338,14 @@ def natural_frequencies(
     k = stiffness_matrix(lp, model, k_sun_planet, k_ring_planet, k_torsion_planet)
     lam, _ = _generalised_eigh(m, k)
     return _frequencies_from_eigenvalues(lam)
+
+
+@eqx.filter_jit
+def _solve(lp, model, k_sun_planet, k_ring_planet, k_torsion_planet):
+    m = mass_matrix(lp, model)
+    k = stiffness_matrix(lp, model, k_sun_planet, k_ring_planet, k_torsion_planet)
+    lam, phi = _generalised_eigh(m, k)
+    return _frequencies_from_eigenvalues(lam), phi, jnp.diag(m)
 
 
 class ModalResult(eqx.Module):
@@ -442,12 +451,10 @@ def modal_analysis(
     _check_model(model)
     if not (0.0 < tol < 1.0) or not (0.0 < rtol < 1.0):
         raise SpecError([("tol/rtol", f"tolerances must lie in (0, 1), got tol={tol}, rtol={rtol}")])
-    m = mass_matrix(lp, model)
-    k = stiffness_matrix(lp, model, k_sun_planet, k_ring_planet, k_torsion_planet)
-    lam, phi = _generalised_eigh(m, k)
-    f = _frequencies_from_eigenvalues(lam)
+    f, phi, m_diag = _solve(lp, model, k_sun_planet, k_ring_planet,
+                            jnp.asarray(k_torsion_planet, dtype=jnp.float64))
     names = coordinate_names(lp.n_planets, model)
-    energy = jnp.diag(m)[:, None] * phi**2  # kinetic-energy distribution per mode (columns sum 1)
+    energy = m_diag[:, None] * phi**2  # kinetic-energy distribution per mode (columns sum 1)
     trans_idx = [j for j, s in enumerate(names) if s[:2] in ("x_", "y_")]
     rot_idx = [j for j, s in enumerate(names) if s in ("u_s", "u_r", "u_c")]
     t_frac = (
@@ -489,33 +496,7 @@ SENSITIVITY_PARAMETERS: tuple[str, ...] = (
 )
 
 
-def frequency_sensitivity(
-    lp: LumpedParameters,
-    parameter: str = "k_sun_planet",
-    model: Model = "translational",
-    *,
-    relative: bool = True,
-) -> Float[Array, " dof"]:
-    """Sensitivity of every natural frequency to one lumped parameter, by forward-mode autodiff.
-
-    ``relative=True`` gives ``(p / f) df/dp`` (1; 0 for a rigid-body mode): for a stiffness this
-    is half the fraction of the mode's strain energy stored in the springs that ``p`` scales,
-    ``(p / f) df/dp = phi^T (p dK/dp) phi / (2 lambda)``, so the values of all stiffnesses of one
-    mode sum to 1/2. ``relative=False`` gives ``df/dp`` (Hz per unit of `p`).
-
-    **Arguments:**
-
-    - `lp`: lumped parameters.
-    - `parameter`: name of a float field of :class:`~dtwin.lumped.LumpedParameters` (registry
-      name), e.g. ``k_sun_planet``.
-    - `model`: ``"translational"`` or ``"torsional"``.
-    - `relative`: relative (dimensionless) or absolute sensitivity.
-
-    **Returns:** one value per mode, in the order of :func:`natural_frequencies`. For a repeated
-    frequency whose degeneracy the parameter preserves (equal planets) the derivative is that of
-    the repeated value.
-    """
-    _check_model(model)
+def _check_parameter(parameter: str) -> None:
     if parameter not in LumpedParameters.__dataclass_fields__ or parameter in (
         "z_sun", "z_planet", "z_ring", "n_planets", "planet_angles"
     ):
@@ -523,16 +504,70 @@ def frequency_sensitivity(
             f"cannot differentiate with respect to {parameter!r}; use a scalar float field of "
             f"LumpedParameters such as {', '.join(SENSITIVITY_PARAMETERS)}"
         )
-    p0 = jnp.asarray(getattr(lp, parameter), dtype=jnp.float64)
 
-    def freqs(p: Float[Array, ""]) -> Float[Array, " dof"]:
-        return natural_frequencies(_replace(lp, **{parameter: p}), model)
 
-    f, dfdp = jax.jvp(freqs, (p0,), (jnp.ones_like(p0),))
+def frequency_sensitivities(
+    lp: LumpedParameters,
+    parameters: tuple[str, ...] = SENSITIVITY_PARAMETERS,
+    model: Model = "translational",
+    *,
+    relative: bool = True,
+) -> dict[str, Float[Array, " dof"]]:
+    """Sensitivity of every natural frequency to lumped parameters, by forward-mode autodiff.
+
+    ``relative=True`` gives ``(p / f) df/dp`` (1; 0 for a rigid-body mode): for a stiffness this
+    is half the fraction of the mode's strain energy stored in the springs that ``p`` scales,
+    ``(p / f) df/dp = phi^T (p dK/dp) phi / (2 lambda)``, so the values of all stiffnesses of one
+    mode sum to 1/2 (f is homogeneous of degree 1/2 in the stiffnesses). ``relative=False``
+    gives ``df/dp`` (Hz per unit of `p`). One ``jax.jacfwd`` over all `parameters`.
+
+    **Arguments:**
+
+    - `lp`: lumped parameters.
+    - `parameters`: names of scalar float fields of :class:`~dtwin.lumped.LumpedParameters`
+      (registry names), default the mesh, bearing and ring torsional stiffnesses.
+    - `model`: ``"translational"`` or ``"torsional"``.
+    - `relative`: relative (dimensionless) or absolute sensitivity.
+
+    **Returns:** dict name -> one value per mode, in the order of :func:`natural_frequencies`.
+    For a repeated frequency whose degeneracy the parameter preserves (equal planets) the
+    derivative is that of the repeated value.
+    """
+    _check_model(model)
+    parameters = tuple(parameters)
+    for p in parameters:
+        _check_parameter(p)
+    rows = _sensitivity(lp, parameters, model, relative)
+    return {p: rows[i] for i, p in enumerate(parameters)}
+
+
+def frequency_sensitivity(
+    lp: LumpedParameters,
+    parameter: str = "k_sun_planet",
+    model: Model = "translational",
+    *,
+    relative: bool = True,
+) -> Float[Array, " dof"]:
+    """Sensitivity of every natural frequency to one lumped parameter (see
+    :func:`frequency_sensitivities`): ``(p / f) df/dp`` (1) or ``df/dp`` (Hz per unit of `p`).
+    """
+    return frequency_sensitivities(lp, (parameter,), model, relative=relative)[parameter]
+
+
+@eqx.filter_jit
+def _sensitivity(lp, parameters, model, relative):
+    p0 = jnp.stack([jnp.asarray(getattr(lp, p), dtype=jnp.float64) for p in parameters])
+
+    def freqs(p: Float[Array, " P"]) -> Float[Array, " dof"]:
+        return natural_frequencies(
+            _replace(lp, **{name: p[i] for i, name in enumerate(parameters)}), model)
+
+    f = freqs(p0)
+    dfdp = jax.jacfwd(freqs)(p0).T  # (P, dof)
     if not relative:
         return dfdp
     big = f > 1e-6 * jnp.max(f)
-    return jnp.where(big, p0 * dfdp / jnp.where(big, f, 1.0), 0.0)
+    return jnp.where(big[None, :], p0[:, None] * dfdp / jnp.where(big, f, 1.0)[None, :], 0.0)
 
 
 def lin_parker_example(n_planets: int = 3) -> LumpedParameters:
@@ -576,6 +611,7 @@ __all__ = [
     "MODE_TYPES",
     "ModalResult",
     "coordinate_names",
+    "frequency_sensitivities",
     "frequency_sensitivity",
     "lin_parker_example",
     "lin_parker_transform",

@@ -14,6 +14,7 @@ from dtwin.errors import OutputExistsError, ParameterError, SpecError
 from dtwin.lumped import make_lumped, replace
 from dtwin.modal import (
     coordinate_names,
+    frequency_sensitivities,
     frequency_sensitivity,
     lin_parker_example,
     lin_parker_transform,
@@ -258,7 +259,7 @@ def test_twin_coordinates_hessian_equals_transformed_stiffness():
     lp = _paper_sim_like(3)
     t = lin_parker_transform(lp)
     q0 = jnp.zeros(18, dtype=jnp.float64)
-    hess = jax.hessian(lambda q: _twin_elastic_energy(lp, q))(q0)
+    hess = jax.jit(jax.hessian(lambda q: _twin_elastic_energy(lp, q)))(q0)
     k_twin = t.T @ stiffness_matrix(lp) @ t
     np.testing.assert_allclose(np.asarray(k_twin), np.asarray(hess), rtol=1e-9,
                                atol=1e-9 * float(jnp.max(jnp.abs(hess))))
@@ -309,7 +310,7 @@ def test_sensitivity_is_modal_strain_energy_and_sums_to_half(lp3, result3):
     assert rel[0] == 0.0
     names = ("k_sun_planet", "k_ring_planet", "k_bearing_sun", "k_bearing_ring",
              "k_bearing_carrier", "k_bearing_planet", "k_torsion_ring")
-    total = sum(np.asarray(frequency_sensitivity(lp3, p)) for p in names)
+    total = sum(np.asarray(v) for v in frequency_sensitivities(lp3, names).values())
     np.testing.assert_allclose(total[1:], 0.5, rtol=1e-8)
 
 
@@ -384,10 +385,33 @@ def test_cli_table_torsional_and_out_folder(tmp_path):
     assert r.exit_code == 0, r.output
 
 
+def test_cli_paper_sim_mesh_frequency_and_mode_types():
+    import json
+
+    r = _invoke(["--preset", "paper-sim", "--json"])
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    # paper Table 2: f_mesh = 500.1 Hz (computes to 500.3; agree within 1 %)
+    assert data["f_mesh_hz"] == pytest.approx(500.1, rel=1e-2)
+    # Lin & Parker's structure on the paper's gearbox (N = 3): 6 rotational, 6 translational
+    # pairs, no planet modes, and the sensitivities of all springs of a mode sum to 1/2, so the
+    # mesh share lies in [0, 1/2].
+    kinds = [(m["type"], m["multiplicity"]) for m in data["modes"]]
+    assert kinds.count(("rotational", 1)) == 6 and kinds.count(("translational", 2)) == 6
+    assert len(kinds) == 12
+    for m in data["modes"][1:]:
+        share = m["sensitivity_k_sun_planet"] + m["sensitivity_k_ring_planet"]
+        assert -1e-12 <= share <= 0.5 + 1e-9
+        assert m["mesh_order"] == pytest.approx(m["frequency_hz"] / data["f_mesh_hz"])
+
+
 def test_cli_refuses_bad_arguments():
     r = _invoke(["--json"])
     assert isinstance(r.exception, SpecError) and "--preset" in str(r.exception)
     r = _invoke(["--preset", "lin-parker", "--model", "rotational"])
     assert isinstance(r.exception, SpecError) and "torsional" in str(r.exception)
-    r = _invoke(["--preset", "paper-sim", "--planets", "4"])
+    r = _invoke(["--preset", "lin-parker", "--planets", "0"])
     assert isinstance(r.exception, SpecError) and "--planets" in str(r.exception)
+    # issue 2: the simulation gearbox with 5 planets is refused (tip circles overlap)
+    r = _invoke(["--preset", "paper-sim", "--planets", "5"])
+    assert isinstance(r.exception, SpecError) and "tip diameter" in str(r.exception)

@@ -8,14 +8,14 @@ relative sensitivities ``(k/f) df/dk`` to the sun–planet and ring–planet mes
 frequency in mesh orders when the gearbox's operating speed is known); ``--json`` prints the
 same as JSON on stdout; ``--out DIR`` writes ``modes.json``, ``modes.png`` and
 ``manifest.json``. ``lin-parker`` is Lin & Parker's (1999) example
-(:func:`dtwin.modal.lin_parker_example`; ``--planets`` sets N for it).
+(``data/specs/lin-parker.toml``); ``--planets N`` replaces the preset's or spec's number of
+planets (equally spaced), e.g. Lin & Parker's N = 4 and 5 cases.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -24,73 +24,52 @@ import typer
 from ..errors import SpecError
 from .app import app
 
-_PRESETS = ("paper-sim", "paper-bench", "lin-parker")
-
-
-def _operating_f_sun(spec: Any) -> float | None:
-    """The input (sun) speed (Hz) of a loaded spec, if it states one (registry: operating.f_sun)."""
-    node: Any = spec
-    for key in ("operating", "f_sun"):
-        if isinstance(node, Mapping):
-            node = node.get(key)
-        else:
-            node = getattr(node, key, None)
-        if node is None:
-            return None
-    try:
-        value = float(node)
-    except (TypeError, ValueError):
-        return None
-    return value if math.isfinite(value) and value > 0 else None
-
-
-def _spec_as_mapping(spec: Any) -> Mapping[str, Any] | None:
-    if isinstance(spec, Mapping):
-        return spec
-    for attr in ("to_dict", "as_dict"):
-        fn = getattr(spec, attr, None)
-        if callable(fn):
-            out = fn()
-            if isinstance(out, Mapping):
-                return out
-    raw = getattr(spec, "raw", None)
-    return raw if isinstance(raw, Mapping) else None
-
 
 def load_gearbox(preset: str | None, spec_file: Path | None, planets: int | None):
-    """Lumped parameters, spec (or None), input speed f_sun (Hz or None) and a source label."""
-    from ..modal import lin_parker_example
+    """Lumped parameters, the validated spec and a source label for the CLI's gearbox options.
+
+    ``--planets N`` replaces ``gears.n_planets`` of the preset or spec (equally spaced planets),
+    so that the geometry checks of :mod:`dtwin.gears` still apply (tip circles that overlap are
+    refused).
+    """
+    from .. import spec as spec_mod
 
     if (preset is None) == (spec_file is None):
         raise SpecError([("--preset/--spec", "give exactly one of --preset NAME or --spec FILE")])
-    if planets is not None and preset != "lin-parker":
-        raise SpecError([("--planets", "only applies to --preset lin-parker; set "
-                          "gears.n_planets in a spec file instead")])
-    if preset == "lin-parker":
-        return lin_parker_example(3 if planets is None else planets), None, None, "lin-parker"
-    if preset is not None and preset not in _PRESETS:
-        raise SpecError([("--preset", f"unknown preset {preset!r}; use one of {', '.join(_PRESETS)}")])
-    from .. import spec as spec_mod
-
     if preset is not None:
         spec = spec_mod.preset(preset)
         source = preset
     else:
         spec = spec_mod.load_spec(spec_file)
         source = str(spec_file)
-    lp = spec_mod.lumped_from_spec(spec)
-    return lp, spec, _operating_f_sun(spec), source
+    if planets is not None:
+        if planets < 1:
+            raise SpecError([("--planets", f"must be >= 1, got {planets}")])
+        data = spec_mod.spec_to_dict(spec)
+        data.pop("source", None)
+        data["gears"]["n_planets"] = planets
+        data.get("imperfections", {}).pop("planet_position_errors", None)
+        spec = spec_mod.load_spec(data)
+    return spec_mod.lumped_from_spec(spec), spec, source
+
+
+def _mesh_frequency(spec: Any, lp: Any) -> float | None:
+    """f_mesh = f_sun Zs Zr / (Zs + Zr) (Hz) at the spec's operating speed, if it gives one."""
+    f_sun = spec["operating"].get("f_sun")
+    if f_sun is None or not math.isfinite(float(f_sun)) or float(f_sun) <= 0:
+        return None
+    return float(f_sun) * lp.z_sun * lp.z_ring / (lp.z_sun + lp.z_ring)
 
 
 def modes_report(lp, model: str, f_mesh: float | None) -> dict[str, Any]:
     """JSON-ready summary: distinct modes with type, multiplicity, sensitivities, mesh order."""
     import numpy as np
 
-    from ..modal import frequency_sensitivity, modal_analysis
+    from ..modal import frequency_sensitivities, modal_analysis
 
     res = modal_analysis(lp, model)
-    s_sp = np.asarray(frequency_sensitivity(lp, "k_sun_planet", model))
-    s_rp = np.asarray(frequency_sensitivity(lp, "k_ring_planet", model))
+    sens = frequency_sensitivities(lp, ("k_sun_planet", "k_ring_planet"), model)
+    s_sp, s_rp = np.asarray(sens["k_sun_planet"]), np.asarray(sens["k_ring_planet"])
     rows = []
     for g in res.groups():
         j = g["modes"]
@@ -124,7 +103,7 @@ def modes(
         "translational", "--model", help="translational (Lin & Parker, 3 DOF per body) or "
         "torsional (rotations only)."),
     planets: int | None = typer.Option(
-        None, "--planets", help="Number of planets for --preset lin-parker (default 3)."),
+        None, "--planets", help="Override the number of planets (equally spaced)."),
     json_out: bool = typer.Option(False, "--json", help="Print results as JSON on stdout."),
     out: Path | None = typer.Option(
         None, "--out", help="Write modes.json, modes.png and manifest.json into this folder."),
@@ -135,10 +114,9 @@ def modes(
 
     if model not in MODELS:
         raise SpecError([("--model", f"unknown model {model!r}; use translational or torsional")])
-    lp, spec_obj, f_sun, source = load_gearbox(preset, spec, planets)
-    f_mesh = None
-    if f_sun is not None:
-        f_mesh = f_sun * lp.z_sun * lp.z_ring / (lp.z_sun + lp.z_ring)  # f_carrier * Zr
+    lp, spec_obj, source = load_gearbox(preset, spec, planets)
+    f_mesh = _mesh_frequency(spec_obj, lp)
+    sample_rate = spec_obj["sensor"].get("sample_rate")
     report, res = modes_report(lp, model, f_mesh)
     report["source"] = source
     if json_out:
@@ -148,14 +126,15 @@ def modes(
     if out is not None:
         from ..io.output import OutputFolder
         from ..plotting.modes import plot_modes
+        from ..spec import spec_to_dict
 
         folder = OutputFolder(
             out, force=force, inputs=[spec] if spec is not None else [],
-            spec=_spec_as_mapping(spec_obj) if spec_obj is not None else None,
+            spec=spec_to_dict(spec_obj),
             parameters={"model": model, "source": source, "n_planets": lp.n_planets},
         )
         folder.write_json("modes.json", report)
-        fig = plot_modes(res, f_mesh=f_mesh, title=f"{source}: natural frequencies, {model} model")
+        fig = plot_modes(res, f_mesh=f_mesh, sample_rate=sample_rate, title=f"{source}: natural frequencies, {model} model")
         folder.savefig("modes.png", fig)
         import matplotlib.pyplot as plt
 
