@@ -100,7 +100,7 @@ def time_stats(x: Float[Array, "... time"]) -> TimeStats:
     return TimeStats(rms(x), kurtosis(x), crest_factor(x))
 
 
-def _order_mask(n: int, orders: Sequence[float], xp) -> np.ndarray:
+def _order_mask(n: int, orders: Sequence[float]) -> np.ndarray:
     """Boolean mask over the rfft bins of an n-sample one-revolution signal, True at `orders`."""
     n_bins = n // 2 + 1
     mask = np.zeros(n_bins, dtype=bool)
@@ -132,7 +132,7 @@ def _remove_orders(tsa, orders: Sequence[int]):
     tsa = _as_array(tsa)
     xp = _xp(tsa)
     n = tsa.shape[-1]
-    mask = _order_mask(n, orders, xp)
+    mask = _order_mask(n, orders)
     spec = xp.fft.rfft(tsa, axis=-1)
     keep = xp.asarray(~mask)
     return xp.fft.irfft(spec * keep, n=n, axis=-1)

@@ -259,3 +259,6 @@ def test_cli_spectrum_labels_the_paper_family(tmp_path, capsys):
         main(["spectrum", str(path), "--channel", "nope"])
     assert e.value.code == 2
     assert "unknown channel" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["spectrum", str(path), "--band", "2000", "3000"])  # above Nyquist (2500 Hz)
+    assert "half the record's sampling rate" in capsys.readouterr().err

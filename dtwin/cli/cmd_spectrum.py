@@ -151,6 +151,10 @@ def spectrum_report(
     )
 
     name, unit = channel_unit(record, channel)
+    nyq = record.sample_rate / 2
+    if not 0 <= band[0] < band[1] <= nyq:
+        raise RecordError(f"--band {band[0]:g} {band[1]:g} must satisfy 0 <= low < high <= "
+                          f"{nyq:g} Hz (half the record's sampling rate)")
     x = record.channel(channel)
     if not np.all(np.isfinite(x)):
         raise RecordError(f"channel {name!r} holds NaN or inf samples; clean the record first")
