@@ -70,6 +70,11 @@ def write(record: Record, path: str | os.PathLike, *, force: bool = False) -> Pa
     **Returns:** the path written.
     """
     path = Path(path)
+    for kind, names in (("channel name", record.channels), ("unit", record.units)):
+        for nm in names:
+            if "\x00" in nm:
+                raise RecordError(f"{kind} {nm!r} contains a NUL character, which HDF5 strings "
+                                  "cannot hold; rename it")
     if not path.name.endswith(".dtwin.h5"):
         raise RecordError(f"{path}: dtwin records are named '*.dtwin.h5'; rename the output")
     if path.exists() and not force:
