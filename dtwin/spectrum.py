@@ -450,13 +450,19 @@ def label_frequency(
 
 @dataclasses.dataclass(frozen=True)
 class LabelledPeak:
-    """A peak, its best labels (all candidates of the best rank: ties) and the number of further,
-    lower-ranked candidates within the tolerance."""
+    """A peak numbered `number` (1, 2, … by frequency), its best `labels` (all candidates of the
+    best rank: ties) and the further, lower-ranked `alternatives` within the tolerance, best
+    first. On the bench gearbox, where fs/3 = 4 fc exactly, a line at fm + 5fc carries the label
+    "fm + 5fc" and the alternative "fm + fs/3 + fc": both explain it."""
 
     number: int
     peak: Peak
     labels: tuple[Label, ...]
-    n_alternatives: int
+    alternatives: tuple[Label, ...] = ()
+
+    @property
+    def n_alternatives(self) -> int:
+        return len(self.alternatives)
 
     @property
     def text(self) -> str:
@@ -483,5 +489,6 @@ def label_peaks(
     for k, p in enumerate(sorted(peaks, key=lambda p: p.frequency), start=1):
         cands = label_frequency(p.frequency, basis, resolution, bounds)
         best = tuple(c for c in cands if c.rank == cands[0].rank)
-        out.append(LabelledPeak(k, p, best, len(cands) - len(best)))
+        rest = tuple(c for c in cands if c.rank != cands[0].rank)
+        out.append(LabelledPeak(k, p, best, rest))
     return out

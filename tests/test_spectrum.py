@@ -262,3 +262,17 @@ def test_cli_spectrum_labels_the_paper_family(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["spectrum", str(path), "--band", "2000", "3000"])  # above Nyquist (2500 Hz)
     assert "half the record's sampling rate" in capsys.readouterr().err
+
+
+def test_bench_degeneracy_is_reported_as_an_alternative():
+    # bench gearbox (Zs 21, Zr 84): fs/3 = 4 fc exactly, so fm + fs/3 + fc = fm + 5fc
+    fc = 29.7 * 21 / 105
+    bench = FrequencyBasis(f_mesh=84 * fc, f_carrier=fc, f_sun_fault=84 * fc * 3 / 21,
+                           f_planet_fault=84 * fc / 31)
+    from dtwin.spectrum import Peak
+
+    peak = Peak(0, 89 * fc, 1.0, 0.01, 40.0)
+    (lp,) = label_peaks([peak], bench, resolution=0.25)
+    assert lp.text == "fm + 5fc"
+    assert "fm + fs/3 + fc" in [a.text for a in lp.alternatives]
+    assert lp.n_alternatives == len(lp.alternatives) > 0

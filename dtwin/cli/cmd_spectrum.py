@@ -171,7 +171,7 @@ def spectrum_report(
     else:
         from ..spectrum import LabelledPeak
 
-        labelled = [LabelledPeak(k, p, (), 0) for k, p in enumerate(peaks, start=1)]
+        labelled = [LabelledPeak(k, p, ()) for k, p in enumerate(peaks, start=1)]
     stats = time_stats(x)
     sel = (freqs >= band[0]) & (freqs <= band[1])
     report = {
@@ -193,6 +193,7 @@ def spectrum_report(
              "labels": [lab.text for lab in lp.labels],
              "label_coefficients": [[lab.m, lab.a, lab.b, lab.c] for lab in lp.labels],
              "label_error_hz": [lab.error for lab in lp.labels],
+             "alternatives": [lab.text for lab in lp.alternatives[:5]],
              "n_alternatives": lp.n_alternatives}
             for lp in labelled
         ],
@@ -210,12 +211,14 @@ def _print_table(report: dict, title: str) -> None:
     table = Table(title=escape(title))
     for col, just in (("No.", "right"), ("f (Hz)", "right"), (f"amplitude ({report['unit']})",
                       "right"), ("dB over floor", "right"), ("label", "left"),
-                      ("more", "right")):
+                      ("next alternative", "left")):
         table.add_column(col, justify=just)
     for p in report["peaks"]:
         table.add_row(str(p["number"]), f"{p['frequency_hz']:.2f}", f"{p['amplitude']:.4g}",
                       f"{p['above_floor_db']:.1f}", " | ".join(p["labels"]) or "?",
-                      str(p["n_alternatives"]))
+                      (p["alternatives"][0] + (f" (+{p['n_alternatives'] - 1})"
+                                               if p["n_alternatives"] > 1 else ""))
+                      if p["alternatives"] else "")
     console = Console()
     console.print(table)
     s = report["time_stats"]
