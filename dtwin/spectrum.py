@@ -13,7 +13,7 @@ Scaling (one-sided amplitude spectrum, amplitude-corrected for tones)::
 
 so a sine ``A sin(2 pi f t)`` on a bin gives a peak ``A`` for every window (the window's coherent
 gain is divided out). Off a bin the peak is lower by the window's scalloping loss (up to 36 % for
-``rect``, 15 % for ``hann``, < 0.1 % for ``flattop``: use ``flattop`` to read amplitudes).
+``rect``, 15 % for ``hann``, < 0.2 % for ``flattop``: use ``flattop`` to read amplitudes).
 Noise is *not* amplitude-correct in this scaling; use :mod:`dtwin.psd` for noise levels.
 
 The noise floor (reference.md §7) is a running median of the linear amplitude over a window of
