@@ -38,7 +38,7 @@ from .registry import REGISTRY
 SPECS_DIR = Path(__file__).resolve().parent.parent / "data" / "specs"
 """Folder of the bundled preset specs (``data/specs/*.toml``)."""
 
-PRESETS = ("paper-sim", "paper-bench", "lin-parker")
+PRESETS = ("paper-sim", "paper-bench", "paper-like", "lin-parker")
 """Names of the bundled presets."""
 
 _REQUIRED = object()
@@ -570,7 +570,7 @@ def load_spec(source: str | os.PathLike | Mapping[str, Any]) -> Spec:
 
 
 def preset(name: str) -> Spec:
-    """A bundled preset spec: ``paper-sim``, ``paper-bench`` or ``lin-parker``."""
+    """A bundled preset spec: ``paper-sim``, ``paper-bench``, ``paper-like`` or ``lin-parker``."""
     if name not in PRESETS:
         close = difflib.get_close_matches(name, PRESETS, n=1)
         hint = f" Did you mean {close[0]!r}?" if close else ""

@@ -309,7 +309,9 @@ class Twin(eqx.Module):
         k_mean = jnp.concatenate([jnp.full((n,), lp.k_sun_planet), jnp.full((n,), lp.k_ring_planet)])
         eps = jnp.concatenate([jnp.full((n,), lp.eps_sp), jnp.full((n,), lp.eps_rp)])
         k = mesh_stiffness_waveform(ph, k_mean, eps, n_harmonics=self.n_harmonics)
-        k = k - jnp.concatenate([mod.dk_sp, mod.dk_rp])
+        # faults remove stiffness; a whole missing tooth in single contact can take the
+        # Fourier-smoothed waveform slightly below zero: floor at 0 (no-op when healthy)
+        k = jnp.maximum(k - jnp.concatenate([mod.dk_sp, mod.dk_rp]), 0.0)
         d = L @ self.pack(q) - jnp.concatenate([mod.e_sp, mod.e_rp])
         dd = L @ self.pack(qdot)
         c_sp, c_rp = mesh_damping(lp)

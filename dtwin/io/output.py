@@ -212,7 +212,7 @@ class OutputFolder:
         target = self.path / name
         if target.exists() and not self.force:
             raise OutputExistsError(f"{target} already exists; pass --force to overwrite")
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=target.suffix, dir=self.path)
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix="-" + target.name, dir=self.path)
         os.close(fd)
         try:
             writer(tmp)
