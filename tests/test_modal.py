@@ -462,3 +462,21 @@ def test_cli_refuses_bad_arguments():
     # issue 2: the simulation gearbox with 5 planets is refused (tip circles overlap)
     r = _invoke(["--preset", "paper-sim", "--planets", "5"])
     assert isinstance(r.exception, SpecError) and "tip diameter" in str(r.exception)
+
+
+def test_plot_modes_one_stem_per_distinct_frequency():
+    import matplotlib.pyplot as plt
+
+    from dtwin.plotting.modes import plot_modes
+
+    res = modal_analysis(lin_parker_example(4))
+    fig = plot_modes(res, f_mesh=500.0, sample_rate=5000.0)
+    top, bottom = fig.axes
+    # Lin & Parker, N = 4: 6 rotational + 6 translational pairs + 3 planet frequencies
+    assert len(top.collections) == 15
+    assert [t.get_text() for t in top.get_yticklabels()] == ["rotational", "translational",
+                                                              "planet"]
+    assert "Hz" in bottom.get_xlabel() and "N = 4" in top.get_title()
+    labels = top.get_legend_handles_labels()[1]
+    assert "Nyquist 2500 Hz" in labels
+    plt.close(fig)

@@ -69,7 +69,7 @@ def plot_modes(
         ax.axvline(sample_rate / 2, color="k", lw=1.0, ls="--",
                    label=f"Nyquist {sample_rate / 2:.0f} Hz")
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(loc="upper left", fontsize=8)
+        ax.legend(loc="upper right", fontsize=8, framealpha=0.9)
     ax.set_yticks(range(len(types)), types)
     ax.set_ylim(-0.7, len(types) - 0.2)
     ax.set_xlim(-0.01 * f_top, f_top)
