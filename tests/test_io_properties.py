@@ -61,6 +61,22 @@ def _valid_files() -> dict[str, bytes]:
             f["a"] = SIG[0]
             f["b"] = SIG[1]
         out[".h5"] = (d / "a.h5").read_bytes()
+        with h5py.File(d / "a73.mat", "w", userblock_size=512) as f:  # MATLAB v7.3 layout
+            ds = f.create_dataset("data", data=SIG)  # MATLAB 64 x 2, stored transposed
+            ds.attrs["MATLAB_class"] = np.bytes_("double")
+            ds = f.create_dataset("fs", data=np.array([[FS]]))
+            ds.attrs["MATLAB_class"] = np.bytes_("double")
+            refs = f.create_group("#refs#")
+            names = []
+            for k, nm in enumerate(("a", "b")):
+                r = refs.create_dataset(f"n{k}", data=np.array([[ord(nm)]], dtype=np.uint16))
+                r.attrs["MATLAB_class"] = np.bytes_("char")
+                names.append(r.ref)
+            ds = f.create_dataset("channels", data=np.array(names, dtype=h5py.ref_dtype)[:, None])
+            ds.attrs["MATLAB_class"] = np.bytes_("cell")
+        with open(d / "a73.mat", "r+b") as f:
+            f.write(b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".ljust(128))
+        out[".v73.mat"] = (d / "a73.mat").read_bytes()
         with TdmsWriter(d / "a.tdms") as w:
             w.write_segment([ChannelObject("g", "a", SIG[0], properties={"wf_increment": 1e-3})])
         out[".tdms"] = (d / "a.tdms").read_bytes()

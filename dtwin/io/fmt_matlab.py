@@ -85,6 +85,9 @@ def _h5_value(f: Any, obj: Any, where: str, depth: int = 0) -> Any:
 
     if depth > 8:
         raise UnreadableFileError(f"{where}: MATLAB structure nested too deeply")
+    if obj is None:  # a dangling link in a damaged file
+        raise UnreadableFileError(f"{where}: damaged MATLAB v7.3 file (a variable points "
+                                  "nowhere)")
     cls = obj.attrs.get("MATLAB_class", b"")
     cls = cls.decode() if isinstance(cls, bytes) else str(cls)
     if isinstance(obj, h5py.Group):
