@@ -409,6 +409,26 @@ def test_induction_steady_slip_gradient():
     np.testing.assert_allclose(-grad, slip_speed / r0, rtol=0.05)
 
 
+def test_induction_current_sidebands_of_a_fluctuating_load(im_start):
+    """MCSA with the V/f drive: a carrier load fluctuating at f_x gives f_e ± f_x in i_a."""
+    _, ys_const = im_start
+    t_mean, f_x = 15.0, 20.0
+    # a ramp completed before t = 0: at speed, and the same compiled rig as the start-up
+    drive = InductionMotor(SpeedProfile.ramp(W1800, 0.5, t_start=-1.0))
+    w0 = _steady_speed(InductionMotor(SpeedProfile.constant(W1800)), _f(t_mean))
+    load = FluctuatingLoad(t_mean * RATIO, 0.2 * t_mean * RATIO, f_x)
+    ys = _np(simulate(drive, load, drive.aux_init(w0, t_mean), w0, jnp.asarray(TS_IM)))
+    lines = {}
+    for name, y in (("const", ys_const), ("fluct", ys)):
+        freqs, spec = _amplitude_spectrum(_window(y, TS_IM, 1.0, 1.2)["i_a"], 5000.0)
+        lines[name] = {f: spec[np.argmin(np.abs(freqs - f))] for f in (40.0, 60.0, 80.0)}
+    top3 = set(np.round(freqs[np.argsort(spec)[-3:]], 6))
+    assert top3 == {60.0 - f_x, 60.0, 60.0 + f_x}
+    for f in (60.0 - f_x, 60.0 + f_x):
+        assert lines["fluct"][f] > 1e-2 * lines["fluct"][60.0]
+        assert lines["const"][f] < 1e-4 * lines["fluct"][f]
+
+
 def test_induction_aux_init_is_a_steady_state():
     drive = InductionMotor(SpeedProfile.constant(W1800))
     torque = 15.0
@@ -457,8 +477,8 @@ def test_ideal_source_aux_init_twist():
 @pytest.mark.parametrize(
     "profile",
     [SpeedProfile.step(100.0, t_start=0.1, initial=10.0), SpeedProfile.ramp(100.0, 0.3, t_start=0.05),
-     SpeedProfile.constant(50.0)],
-    ids=["step", "ramp", "constant"],
+     SpeedProfile.ramp(100.0, 0.3, t_start=-0.1, initial=20.0), SpeedProfile.constant(50.0)],
+    ids=["step", "ramp", "ramp-under-way", "constant"],
 )
 def test_speed_profile_angle_is_the_integral_of_the_speed(profile):
     t = np.linspace(0.0, 0.6, 600_001)
@@ -467,6 +487,12 @@ def test_speed_profile_angle_is_the_integral_of_the_speed(profile):
     closed = np.asarray(jax.vmap(profile.angle)(jnp.asarray(t)))
     np.testing.assert_allclose(closed, numeric, atol=1e-4)
     assert float(profile(_f(0.6))) == pytest.approx(float(profile.final))
+
+
+def test_profile_jump_times():
+    assert SpeedProfile.step(1.0, t_start=0.2).jump_times() == [0.2]
+    assert SpeedProfile.ramp(1.0, 0.3, t_start=0.1).jump_times() == pytest.approx([0.1, 0.4])
+    assert SpeedProfile.constant(1.0).jump_times() == []
 
 
 def test_profile_rejects_zero_ramp_time():

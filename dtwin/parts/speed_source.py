@@ -79,10 +79,14 @@ class SpeedProfile(eqx.Module):
         return self.initial + (self.final - self.initial) * frac
 
     def angle(self, t: Float[Array, ""]) -> Float[Array, ""]:
-        """Integral of the set point from 0 to `t`, `int_0^t omega_ref dt'` (rad) (t >= 0).
+        """Integral of the set point from 0 to `t`, `int_0^t omega_ref dt'` (rad).
 
-        Closed form: piecewise linear (step, constant) or linear + quadratic (ramp).
+        Closed form: piecewise linear (step, constant) or linear + quadratic (ramp); `t_start`
+        may be negative (a profile already under way at t = 0).
         """
+        return self._antiderivative(t) - self._antiderivative(0.0 * t)
+
+    def _antiderivative(self, t):
         if self.kind == "constant":
             return self.final * t
         if self.kind == "step":
@@ -91,6 +95,14 @@ class SpeedProfile(eqx.Module):
         after = jnp.maximum(t - self.t_start - self.ramp_time, 0.0)
         d = self.final - self.initial
         return self.initial * t + d * tau**2 / (2.0 * self.ramp_time) + d * after
+
+    def jump_times(self) -> list[float]:
+        """Times (s) where the set point is not smooth (a step's jump, a ramp's two kinks), to give
+        an adaptive solver as `diffrax.ClipStepSizeController(jump_ts=...)`; concrete values only."""
+        if self.kind == "constant":
+            return []
+        t0 = float(self.t_start)
+        return [t0] if self.kind == "step" else [t0, t0 + float(self.ramp_time)]
 
 
 def _f(x: ArrayLike) -> Float[Array, ""]:
