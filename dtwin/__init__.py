@@ -1,41 +1,66 @@
 """dtwin: a differentiable digital twin of planetary gearboxes.
 
 Importing dtwin turns on float64 in JAX and the persistent compilation cache
-(:mod:`dtwin._config`). Public names are re-exported here.
+(:mod:`dtwin._config`). Public names are re-exported here; scripts and notebooks import only
+these (and the submodules' documented functions).
 """
 
 from . import _config  # noqa: F401  (float64 + compilation cache, before anything else)
-from .errors import (
-    ChannelError as ChannelError,
-)
-from .errors import (
-    DtwinError as DtwinError,
-)
-from .errors import (
-    FitError as FitError,
-)
-from .errors import (
-    GeometryError as GeometryError,
-)
-from .errors import (
-    OutputExistsError as OutputExistsError,
-)
-from .errors import (
-    ParameterError as ParameterError,
-)
-from .errors import (
-    RecordError as RecordError,
-)
-from .errors import (
-    SolverError as SolverError,
-)
-from .errors import (
-    SpecError as SpecError,
-)
-from .errors import (
-    UnreadableFileError as UnreadableFileError,
-)
+from .build import build_twin as build_twin
+from .build import daq_from_spec as daq_from_spec
+from .errors import ChannelError as ChannelError
+from .errors import DtwinError as DtwinError
+from .errors import FitError as FitError
+from .errors import GeometryError as GeometryError
+from .errors import OutputExistsError as OutputExistsError
+from .errors import ParameterError as ParameterError
+from .errors import RecordError as RecordError
+from .errors import SolverError as SolverError
+from .errors import SpecError as SpecError
+from .errors import UnreadableFileError as UnreadableFileError
+from .faults import AbstractFault as AbstractFault
+from .faults import MissingTooth as MissingTooth
+from .faults import Pitting as Pitting
+from .faults import RootCrack as RootCrack
+from .faults import make_fault as make_fault
+from .faults import mesh_phases as mesh_phases
+from .faults import mesh_stiffnesses as mesh_stiffnesses
+from .faults import parse_fault as parse_fault
+from .faults import total_stiffness_loss as total_stiffness_loss
+from .gears import GearSet as GearSet
+from .gears import characteristic_frequencies as characteristic_frequencies
+from .gears import mesh_phasing as mesh_phasing
+from .io.output import OutputFolder as OutputFolder
+from .io.readers import read_record as read_record
+from .io.readers import write_record as write_record
+from .io.record import Record as Record
 from .lumped import LumpedParameters as LumpedParameters
+from .modal import modal_analysis as modal_analysis
 from .registry import REGISTRY as REGISTRY
+from .simulate import DAQ as DAQ
+from .simulate import SimResult as SimResult
+from .simulate import SolverOptions as SolverOptions
+from .simulate import simulate as simulate
+from .spec import Spec as Spec
+from .spec import load_spec as load_spec
+from .spec import lumped_from_spec as lumped_from_spec
+from .spec import preset as preset
+from .spec import spec_to_dict as spec_to_dict
+from .spectrum import FrequencyBasis as FrequencyBasis
+from .spectrum import amplitude_spectrum as amplitude_spectrum
+from .spectrum import envelope_spectrum as envelope_spectrum
+from .spectrum import find_peaks as find_peaks
+from .spectrum import label_peaks as label_peaks
+from .spectrum import level_at as level_at
+from .spectrum import noise_floor as noise_floor
+from .spectrum import time_stats as time_stats
+from .spectrum import to_db as to_db
+from .stiffness import mesh_stiffness_mean as mesh_stiffness_mean
+from .stiffness import mesh_stiffness_waveform as mesh_stiffness_waveform
+from .stiffness import single_pair_from_mean as single_pair_from_mean
+from .stiffness import single_pair_stiffness as single_pair_stiffness
+from .stiffness import transmission_error as transmission_error
+from .twin import Coords as Coords
+from .twin import Twin as Twin
 
 __version__ = "0.1.0"
