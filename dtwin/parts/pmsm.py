@@ -301,7 +301,7 @@ class PMSM(AbstractDrive):
 
     def outputs(self, t, aux, theta_sun, omega_sun) -> dict[str, Float[Array, ""]]:
         """Observables: `omega_motor`, `omega_ref`, `theta_motor` (rad/s, rad), `torque_em`,
-        `torque_shaft` (N·m), `i_d`, `i_q`, `i_a`, `i_b`, `i_c` (A), `v_d`, `v_q` (V),
+        `torque_shaft` (N·m), `i_d`, `i_q`, `i_q_ref`, `i_a`, `i_b`, `i_c` (A), `v_d`, `v_q` (V),
         `f_electrical` (Hz, `p omega_m / 2 pi`), `power_in` (`1.5 (v_d i_d + v_q i_q)`, W),
         `power_shaft` (to the sun, W), `power_copper` (`1.5 R_s (i_d² + i_q²)`), `power_friction`
         (`b omega_m²`), `power_shaft_damping`, `power_loss` (their sum, W) and `energy_stored`
