@@ -12,7 +12,7 @@ import pytest
 from dtwin.errors import OutputExistsError
 from dtwin.io import fmt_native
 from dtwin.io.output import OutputFolder, atomic_write_bytes, sha256_file
-from dtwin.io.readers import read_record
+from dtwin.io.readers import read_record, write_record
 from dtwin.io.record import Record
 
 
@@ -108,3 +108,8 @@ def test_failure_inside_the_record_writer(tmp_path, monkeypatch):
     folder = OutputFolder(tmp_path / "out")
     folder.write_record("sim.dtwin.h5", rec)
     np.testing.assert_array_equal(read_record(tmp_path / "out" / "sim.dtwin.h5").data, rec.data)
+    # the pattern `dtwin simulate` uses: our writer inside OutputFolder.write_with
+    folder.write_with("b.dtwin.h5", lambda p: write_record(rec, p, force=True))
+    np.testing.assert_array_equal(read_record(tmp_path / "out" / "b.dtwin.h5").data, rec.data)
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "b.dtwin.h5", "manifest.json", "sim.dtwin.h5"]

@@ -64,8 +64,10 @@ def write_into(record: Record, path: str | os.PathLike) -> None:
 def write(record: Record, path: str | os.PathLike, *, force: bool = False) -> Path:
     """Write `record` to `path` (``*.dtwin.h5``) atomically.
 
-    **Arguments:** `record`; `path` (a name ending in ``.dtwin.h5`` is expected); `force`:
-    overwrite an existing file (otherwise :class:`~dtwin.errors.OutputExistsError`).
+    **Arguments:** `record`; `path` (name it ``*.dtwin.h5`` so that :func:`read_record`
+    recognises it by extension; any ``.h5`` name is recognised by its ``dtwin_format``
+    attribute); `force`: overwrite an existing file (otherwise
+    :class:`~dtwin.errors.OutputExistsError`).
 
     **Returns:** the path written.
     """
@@ -75,8 +77,6 @@ def write(record: Record, path: str | os.PathLike, *, force: bool = False) -> Pa
             if "\x00" in nm:
                 raise RecordError(f"{kind} {nm!r} contains a NUL character, which HDF5 strings "
                                   "cannot hold; rename it")
-    if not path.name.endswith(".dtwin.h5"):
-        raise RecordError(f"{path}: dtwin records are named '*.dtwin.h5'; rename the output")
     if path.exists() and not force:
         raise OutputExistsError(f"{path} already exists; choose another name or pass force=True "
                                 "(CLI: --force) to overwrite")
