@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -480,3 +481,17 @@ def test_plot_modes_one_stem_per_distinct_frequency():
     labels = top.get_legend_handles_labels()[1]
     assert "Nyquist 2500 Hz" in labels
     plt.close(fig)
+
+
+def test_unequal_spacing_splits_pairs_and_mixes_types(lp3, result3):
+    # Lin & Parker (2000, J. Sound Vib. 233:921): with unequally spaced planets the central
+    # members' rotation and translation couple and the repeated (translational) frequencies
+    # split. Equal spacing keeps the 12 translational entries as 6 pairs.
+    trans = np.asarray(result3.of_type("translational"))
+    np.testing.assert_allclose(trans, np.repeat(LP_TRANSLATIONAL, 2), rtol=5e-3)
+    angles = jnp.asarray([0.0, 2 * np.pi / 3 + 0.1, 4 * np.pi / 3], dtype=jnp.float64)
+    lp = eqx.tree_at(lambda m: m.planet_angles, lp3, angles)
+    res = modal_analysis(lp)
+    assert set(res.multiplicities) == {1}
+    assert "mixed" in res.mode_types
+    assert float(res.frequencies[0]) < 1e-3  # the rigid-body mode survives any spacing
