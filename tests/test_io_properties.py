@@ -26,7 +26,7 @@ from dtwin.io.readers import read_record, write_record
 from dtwin.io.record import Record
 
 DOCUMENTED = (RecordError, ChannelError, UnreadableFileError)
-SETTINGS = settings(max_examples=int(os.environ.get("DTWIN_FUZZ_EXAMPLES", "40")), deadline=3000,
+SETTINGS = settings(max_examples=int(os.environ.get("DTWIN_FUZZ_EXAMPLES", "30")), deadline=3000,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 FS = 1000.0
 SIG = np.stack([np.sin(np.arange(64) * 0.3), np.cos(np.arange(64) * 0.2)])
