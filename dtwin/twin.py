@@ -114,7 +114,7 @@ def mesh_deflections(lp: LumpedParameters, q: Coords) -> tuple[Array, Array]:
     Linear in `q` (docs/conventions.md, "Mesh deflection"), excitations not included::
 
         delta_sp_i = n_sp_i . (d_s - d_p_i) + rb_s (theta_s - theta_c) + rb_p (theta_p_i - theta_c)
-        delta_rp_i = n_rp_i . (d_r - d_p_i) + rb_r (theta_r - theta_c) - rb_p (theta_p_i - theta_c)
+        delta_rp_i = n_rp_i . (d_p_i - d_r) + rb_r (theta_r - theta_c) - rb_p (theta_p_i - theta_c)
 
     **Returns:** `(delta_sp, delta_rp)`, each shape (N,).
     """
@@ -130,7 +130,7 @@ def mesh_deflections(lp: LumpedParameters, q: Coords) -> tuple[Array, Array]:
         + rot_p
     )
     d_rp = (
-        jnp.sum(n_rp * (q.ring_xy[None, :] - d_p), axis=-1)
+        jnp.sum(n_rp * (d_p - q.ring_xy[None, :]), axis=-1)
         + lp.rb_ring * (q.theta_r - q.theta_c)
         - rot_p
     )

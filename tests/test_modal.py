@@ -315,13 +315,6 @@ def test_twin_sun_mesh_agrees_with_lin_parker():
                                atol=1e-9 * np.abs(k_twin).max())
 
 
-@pytest.mark.xfail(
-    reason="docs/conventions.md and dtwin.twin.mesh_deflections write the ring-mesh deflection "
-    "as n_rp.(d_r - d_p) + rb_r theta_r - rb_p theta_p: the translational part has the sign of "
-    "the other flank (n_rp.(d_p - d_r) is consistent with the rotations and with Lin & Parker, "
-    "test_ring_mesh_line_of_action_sign_matters); see docs/modal.md",
-    strict=False,
-)
 def test_twin_ring_mesh_agrees_with_lin_parker():
     lp = _paper_sim_like(3)
     k_twin = _twin_mesh_stiffness(lp, "ring")

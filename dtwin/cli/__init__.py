@@ -27,13 +27,13 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(2) from None
     except SystemExit:
         raise
-    except Exception as e:  # click's usage errors are handled by typer; keep others visible
-        import click
-
-        if isinstance(e, click.exceptions.ClickException):
-            e.show()
-            raise SystemExit(e.exit_code) from None
-        if isinstance(e, click.exceptions.Abort):
+    except Exception as e:  # usage errors (click's, bundled in typer) print their message
+        show = getattr(e, "show", None)
+        code = getattr(e, "exit_code", None)
+        if callable(show) and isinstance(code, int):
+            show()
+            raise SystemExit(code) from None
+        if type(e).__name__ == "Abort":
             raise SystemExit(1) from None
         raise
 

@@ -5,9 +5,10 @@ from the mesh deflection (docs/conventions.md, "Mesh deflection"):
 
 - `PlanetPositionErrors`: planet i sits at ``psi_i + dpsi_i`` on the carrier. Its mesh phases
   shift by ``-Zs dpsi_i / 2 pi`` (sun) and ``+Zr dpsi_i / 2 pi`` (ring) and its pin moves by
-  ``a dpsi_i`` along ``e_t``, which changes the sun-mesh deflection by ``-a dpsi cos(alpha_sp)``
-  and the ring-mesh deflection by ``+a dpsi cos(alpha_rp)``. Breaks the sideband cancellation
-  of equally spaced planets (reference.md §2): sidebands at every multiple of f_carrier.
+  ``a dpsi_i`` along ``e_t``, which changes both mesh deflections by ``-a dpsi cos(alpha)``
+  (a planet placed ahead relieves both its meshes: unequal load sharing, which the planet's
+  rotation cannot absorb). Breaks the sideband cancellation of equally spaced planets
+  (reference.md §2): sidebands at every multiple of f_carrier.
 - `SunEccentricity`: the sun's centre runs out by `e` (m), the offset turning with the sun:
   carrier-frame direction ``theta_s - theta_c + phase``.
 - `CarrierEccentricity`: every pin is offset by the same vector `e` (m) at carrier-frame angle
@@ -52,7 +53,7 @@ class PlanetPositionErrors(AbstractPart):
             -lp.z_sun * self.dpsi / two_pi,
             lp.z_ring * self.dpsi / two_pi,
             a * self.dpsi * jnp.cos(lp.alpha_sp),
-            -a * self.dpsi * jnp.cos(lp.alpha_rp),
+            a * self.dpsi * jnp.cos(lp.alpha_rp),
         )
 
 
@@ -80,7 +81,8 @@ class CarrierEccentricity(AbstractPart):
         n_sp, n_rp = _lines_of_action(twin.lp)
         ecc = self.e * jnp.stack([jnp.cos(self.phase), jnp.sin(self.phase)])
         z = jnp.zeros(twin.n_planets)
-        return Modulation(z, z, z, z, n_sp @ ecc, n_rp @ ecc)
+        # pins displaced by ecc: delta_sp changes by -n_sp.ecc, delta_rp by +n_rp.ecc
+        return Modulation(z, z, z, z, n_sp @ ecc, -(n_rp @ ecc))
 
 
 class MeshOffsets(AbstractPart):
