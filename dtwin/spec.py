@@ -239,7 +239,7 @@ SPEED_PROFILE_SCHEMA: dict[str, FieldSpec] = {
     "f_sun": FieldSpec("floats", "Hz", _REQUIRED, 0.0, 500.0, doc="sun frequency at those times"),
 }
 
-_TOP_LEVEL = ("name", "description")
+_TOP_LEVEL = ("name", "description", "source")  # source: written by spec_to_dict (round trip)
 _SECTIONS = (*SCHEMA, "faults", "bearings")
 
 
