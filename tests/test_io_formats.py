@@ -380,3 +380,12 @@ def test_sensitivity_to_si(tmp_path, signals):
                       sensitivity={"acc": (10.2, "mV/(m/s²)")})
     np.testing.assert_allclose(rec.data[0], sig[0] / 10.2, rtol=1e-15)
     assert rec.units == ("m/s^2",)
+    # a datasheet in mV/g, results wanted in m/s^2: a = v / 0.1 V/g * 9.80665 (m/s^2)/g
+    rec = read_record(tmp_path / "v.npz", sensitivity={"acc": (100.0, "mV/g", "m/s²")})
+    np.testing.assert_allclose(rec.data[0], sig[0] / 0.1 * 9.80665, rtol=1e-14)
+    assert rec.units == ("m/s^2",)
+    assert rec.metadata["sensitivity"]["acc"]["input_unit"].startswith("V (assumed")
+    with pytest.raises(RecordError, match="acceleration"):
+        read_record(tmp_path / "v.npz", sensitivity={"acc": (100.0, "mV/g", "mm/s")})
+    with pytest.raises(RecordError, match="keys"):
+        read_record(tmp_path / "v.npz", sensitivity={1.5: (100.0, "mV/g")})

@@ -70,19 +70,17 @@ UNIT_KEYS = ("units", "unit")
 
 _TIME_UNITS = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "min": 60.0}
 _VOLT_UNITS = {"v": 1.0, "mv": 1e-3, "uv": 1e-6, "µv": 1e-6}
-#: Physical units a sensitivity may refer to: canonical name and factor to SI for conversions.
+#: Physical units a sensitivity may refer to (lower-case spelling → canonical unit).
 _PHYS_UNITS = {
-    "g": ("g", None),
-    "m/s^2": ("m/s^2", None),
-    "m/s2": ("m/s^2", None),
-    "m/s": ("m/s", None),
-    "mm/s": ("mm/s", None),
-    "m": ("m", None),
-    "mm": ("mm", None),
-    "um": ("um", None),
-    "µm": ("um", None),
-    "n": ("N", None),
-    "pa": ("Pa", None),
+    "g": "g", "m/s^2": "m/s^2", "m/s2": "m/s^2", "m/s": "m/s", "mm/s": "mm/s", "m": "m",
+    "mm": "mm", "um": "um", "µm": "um", "n": "N", "pa": "Pa",
+}
+#: Canonical physical unit → (quantity, factor to SI), for converting a sensitivity's unit.
+_SI_FACTOR = {
+    "g": ("acceleration", STANDARD_GRAVITY), "m/s^2": ("acceleration", 1.0),
+    "m/s": ("velocity", 1.0), "mm/s": ("velocity", 1e-3),
+    "m": ("displacement", 1.0), "mm": ("displacement", 1e-3), "um": ("displacement", 1e-6),
+    "N": ("force", 1.0), "Pa": ("pressure", 1.0),
 }
 _AXIS_RE = re.compile(r"^(?P<stem>.+?)[_.\-]?(?P<axis>[xyzXYZ])$")
 
@@ -426,18 +424,21 @@ def _expand_selection(
 
 
 def parse_sensitivity(spec: Any, channel: str) -> tuple[float, str, str]:
-    """Parse ``(value, "mV/g")`` → (volts per unit, physical unit, text as given).
+    """Parse ``(value, "mV/g")`` or ``(value, "mV/g", "m/s^2")`` → (volts per output unit,
+    output unit, text as given).
 
     The numerator is a voltage (``V``, ``mV``, ``uV``); the denominator the physical unit
     (``g``, ``m/s^2``, ``m/s``, ``mm/s``, ``m``, ``mm``, ``um``, ``N``, ``Pa``), optionally in
-    parentheses: ``"mV/(m/s^2)"``.
+    parentheses: ``"mV/(m/s^2)"``. The optional third item converts the output to another unit
+    of the same quantity (``g`` ↔ ``m/s^2`` with :data:`STANDARD_GRAVITY`, ``mm/s`` ↔ ``m/s``,
+    ``um``/``mm``/``m``): ``S_out = S · factor(unit) / factor(out)``.
     """
-    if not (isinstance(spec, Sequence) and not isinstance(spec, str) and len(spec) == 2):
+    if not (isinstance(spec, Sequence) and not isinstance(spec, str) and len(spec) in (2, 3)):
         raise RecordError(
             f"sensitivity for {channel!r} must be a pair (value, unit) such as (100.0, 'mV/g'), "
-            f"got {spec!r}"
+            f"or (value, unit, output unit) such as (100.0, 'mV/g', 'm/s^2'); got {spec!r}"
         )
-    value, text = spec
+    value, text = spec[0], spec[1]
     try:
         value = float(value)
     except (TypeError, ValueError):
@@ -451,9 +452,22 @@ def parse_sensitivity(spec: Any, channel: str) -> tuple[float, str, str]:
         raise RecordError(
             f"sensitivity unit {text!r} for {channel!r} not understood; write "
             "'<voltage>/<quantity>' with voltage V, mV or uV and quantity one of "
-            f"{sorted({v[0] for v in _PHYS_UNITS.values()})}, e.g. 'mV/g' or 'mV/(m/s^2)'"
+            f"{sorted(set(_PHYS_UNITS.values()))}, e.g. 'mV/g' or 'mV/(m/s^2)'"
         )
-    return value * _VOLT_UNITS[num.strip().lower()], _PHYS_UNITS[den.lower()][0], str(text)
+    volts_per_unit = value * _VOLT_UNITS[num.strip().lower()]
+    unit = _PHYS_UNITS[den.lower()]
+    if len(spec) == 3:
+        out = _PHYS_UNITS.get(normalise_unit(str(spec[2])).lower())
+        if out is None or _SI_FACTOR[out][0] != _SI_FACTOR[unit][0]:
+            raise RecordError(
+                f"sensitivity for {channel!r}: cannot express {_SI_FACTOR[unit][0]} in "
+                f"{spec[2]!r}; choose one of "
+                f"{[u for u, (q, _) in _SI_FACTOR.items() if q == _SI_FACTOR[unit][0]]}"
+            )
+        volts_per_unit *= _SI_FACTOR[out][1] / _SI_FACTOR[unit][1]
+        text = f"{text} -> {out}"
+        unit = out
+    return volts_per_unit, unit, str(text)
 
 
 def _apply_sensitivity(
@@ -465,14 +479,19 @@ def _apply_sensitivity(
 ) -> dict[str, Any]:
     applied: dict[str, Any] = {}
     for key, spec in sensitivity.items():
-        if isinstance(key, str) and key not in channels and key in groups:
+        if isinstance(key, str) and key in channels:
+            targets = [key]
+        elif isinstance(key, str) and key in groups:
             targets = list(groups[key])
-        elif isinstance(key, str) and key not in channels:
+        elif isinstance(key, str):
             raise ChannelError(
                 f"sensitivity given for unknown channel {key!r}; channels are {list(channels)}"
             )
-        else:
+        elif isinstance(key, (int, np.integer)) and not isinstance(key, bool):
             targets = [key]
+        else:
+            raise RecordError(f"sensitivity keys are channel names, group names or indices, "
+                              f"got {key!r}")
         for tgt in targets:
             i = channels.index(tgt) if isinstance(tgt, str) else int(tgt)
             if not -len(channels) <= i < len(channels):
@@ -494,7 +513,7 @@ def _apply_sensitivity(
             data[i] = data[i] * (to_volt / volts_per_unit)
             units[i] = phys
             applied[name] = {
-                "sensitivity": f"{float(spec[0])!r} {text}",
+                "sensitivity": f"{spec[0]} {text}",
                 "volts_per_unit": volts_per_unit,
                 "input_unit": unit_in or "V (assumed: the file gave no unit)",
                 "output_unit": phys,
@@ -516,6 +535,8 @@ def _units_override(
                         f"units given for unknown channel {k!r}; channels are {list(channels)}"
                     )
                 out[channels.index(k)] = normalise_unit(u)
+            elif not isinstance(k, (int, np.integer)) or isinstance(k, bool):
+                raise RecordError(f"units keys are channel names or indices, got {k!r}")
             else:
                 if not -len(channels) <= int(k) < len(channels):
                     raise ChannelError(f"units given for channel index {k}; there are "
@@ -538,7 +559,7 @@ def read_record(
     sample_rate: float | None = None,
     time_column: str | int | None = None,
     units: str | Sequence[str] | Mapping[str | int, str] | None = None,
-    sensitivity: Mapping[str | int, tuple[float, str]] | None = None,
+    sensitivity: Mapping[str | int, tuple[float, str] | tuple[float, str, str]] | None = None,
     tacho: str | int | None = None,
     tacho_ppr: int | None = None,
     tacho_shaft: str | None = None,
@@ -559,7 +580,8 @@ def read_record(
     - `time_column`: name (or CSV column index) of the time axis (s) if not auto-detected.
     - `units`: physical units overriding the file's: one for all, one per selected channel,
       or a mapping channel → unit.
-    - `sensitivity`: ``{channel or group: (value, "mV/g")}``; converts volts to the quantity.
+    - `sensitivity`: ``{channel or group: (value, "mV/g")}``; converts volts to the quantity
+      (a third item, e.g. ``(100.0, "mV/g", "m/s^2")``, gives the output unit).
     - `tacho`: the tachometer channel (name/index), moved to ``Record.tacho``.
     - `tacho_ppr`: tachometer pulses per revolution (positive integer).
     - `tacho_shaft`: ``"sun"`` (input) or ``"carrier"`` (output).
@@ -601,7 +623,7 @@ def finish_record(
     fmt: str | None = None,
     channels: Sequence[str | int] | None = None,
     units: str | Sequence[str] | Mapping[str | int, str] | None = None,
-    sensitivity: Mapping[str | int, tuple[float, str]] | None = None,
+    sensitivity: Mapping[str | int, tuple[float, str] | tuple[float, str, str]] | None = None,
     tacho: str | int | None = None,
     tacho_ppr: int | None = None,
     tacho_shaft: str | None = None,
