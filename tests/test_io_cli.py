@@ -84,6 +84,12 @@ def test_info_out_folder_and_bad_options(csv_file, tmp_path, capsys):
         main(["record", "info", str(path), "--channels", "acc_w"])
     assert ex.value.code == 2
     assert "acc_w" in capsys.readouterr().err
+    main(["record", "info", str(path), "--json", "--channels", "acc_x",
+          "--sensitivity", "acc_x=100 mV/g -> m/s^2"])
+    rep = json.loads(capsys.readouterr().out)
+    x = np.loadtxt(path, delimiter=",", skiprows=1)[:, 1]
+    assert rep["channels"][0]["unit"] == "m/s^2"
+    assert rep["channels"][0]["max"] == pytest.approx(x.max() / 0.1 * 9.80665, rel=1e-12)
     with pytest.raises(SystemExit) as ex:
         main(["record", "info", str(path), "--sensitivity", "acc=lots"])
     assert ex.value.code == 2

@@ -6,7 +6,8 @@
 
 Reading options (see :func:`dtwin.io.readers.read_record`): ``--channels a,b,2`` (names,
 indices or group names), ``--sample-rate HZ``, ``--time-column NAME``, ``--units g`` or
-``--units acc=g,mic=Pa``, ``--sensitivity "acc=100 mV/g"`` (repeatable), ``--tacho NAME``,
+``--units acc=g,mic=Pa``, ``--sensitivity "acc=100 mV/g"`` (repeatable; ``"acc=100 mV/g ->
+m/s^2"`` converts to m/s²), ``--tacho NAME``,
 ``--tacho-ppr N``, ``--tacho-shaft sun|carrier``, ``--group NAME``, ``--format FMT``.
 
 ``info`` prints a table of the channels (unit, min, max, RMS, problems), the rate, duration and
@@ -65,8 +66,9 @@ def parse_units(text: str | None) -> str | dict[str, str] | None:
     return out
 
 
-def parse_sensitivity(items: list[str] | None) -> dict[str | int, tuple[float, str]] | None:
-    """``["acc=100 mV/g"]`` → ``{"acc": (100.0, "mV/g")}``."""
+def parse_sensitivity(items: list[str] | None) -> dict[str | int, tuple] | None:
+    """``["acc=100 mV/g"]`` → ``{"acc": (100.0, "mV/g")}``; ``"acc=100 mV/g -> m/s^2"`` adds
+    the output unit."""
     if not items:
         return None
     out: dict[str | int, tuple[float, str]] = {}
@@ -80,7 +82,9 @@ def parse_sensitivity(items: list[str] | None) -> dict[str | int, tuple[float, s
         except ValueError:
             raise RecordError(f"--sensitivity {item!r}: {m.group('val')!r} is not a number"
                               ) from None
-        out[_channel_token(m.group("ch"))] = (value, m.group("unit"))
+        unit, arrow, target = m.group("unit").partition("->")
+        out[_channel_token(m.group("ch"))] = ((value, unit.strip(), target.strip()) if arrow
+                                              else (value, unit.strip()))
     return out
 
 
@@ -157,7 +161,8 @@ _RATE = typer.Option(None, "--sample-rate", help="Sampling rate (Hz) if the file
 _TIME = typer.Option(None, "--time-column", help="Name (or index) of the time column (s).")
 _UNITS = typer.Option(None, "--units", help="Unit for all channels ('g') or NAME=UNIT,...")
 _SENS = typer.Option(None, "--sensitivity", help="Sensor sensitivity 'NAME=100 mV/g' "
-                     "(repeatable); converts volts to the physical unit.")
+                     "(repeatable); converts volts to the physical unit; 'NAME=100 mV/g -> "
+                     "m/s^2' also converts the unit.")
 _TACHO = typer.Option(None, "--tacho", help="Tachometer channel (name or index).")
 _PPR = typer.Option(None, "--tacho-ppr", help="Tachometer pulses per revolution.")
 _SHAFT = typer.Option(None, "--tacho-shaft", help="Shaft the tacho sees: sun or carrier.")
