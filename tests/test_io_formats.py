@@ -244,6 +244,16 @@ def test_hdf5_datasets_with_attributes(tmp_path, signals):
     np.testing.assert_array_equal(rec.data, sig[:2].astype(np.float32))
     with pytest.raises(RecordError, match="group"):
         read_record(path, group="run2")
+    # a (samples, channels) matrix with names and units as attributes, the rate as a dataset
+    with h5py.File(tmp_path / "m.hdf5", "w") as f:
+        f["data"] = sig.T
+        f["data"].attrs["channels"] = ["u", "v", "w"]
+        f["data"].attrs["units"] = ["g", "g", "V"]
+        f["fs"] = FS
+    rec = read_record(tmp_path / "m.hdf5")
+    assert rec.channels == ("u", "v", "w") and rec.units == ("g", "g", "V")
+    assert rec.sample_rate == FS
+    np.testing.assert_array_equal(rec.data, sig)
 
 
 # ----------------------------------------------------------------------------------- TDMS
