@@ -54,6 +54,8 @@ class SolverOptions:
 
     rtol: float = 1e-5
     atol: float = 1e-5
+    pcoeff: float = 0.0
+    icoeff: float = 1.0
     dtmax: float | None = None
     max_steps: int | None = None
     adjoint: str = "forward"
@@ -232,7 +234,7 @@ def _observe(twin: Twin, ops, quantity, t, y):
 
 @eqx.filter_jit
 def _solve(twin: Twin, y0, t0, t1, ts, quantity: str, rtol, atol, dtmax, max_steps: int,
-           adjoint: str, progress: bool):
+           adjoint: str, progress: bool, pcoeff=0.0, icoeff=1.0):
     ops = twin.operators()
     sz, sv = state_scales(twin)
     n = twin.n_dof
@@ -257,13 +259,28 @@ def _solve(twin: Twin, y0, t0, t1, ts, quantity: str, rtol, atol, dtmax, max_ste
         dt0=None,
         y0=ys0,
         saveat=saveat,
-        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, dtmax=dtmax),
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, dtmax=dtmax, pcoeff=pcoeff,
+                                                  icoeff=icoeff),
         max_steps=max_steps,
         adjoint=adj,
         throw=False,
         progress_meter=meter,
     )
     return sol.ys, sol.result, sol.stats["num_accepted_steps"]
+
+
+def _check_finite(twin: Twin) -> None:
+    """Refuse NaN/inf parameters before solving, naming the field."""
+    leaves, _ = jax.tree_util.tree_flatten_with_path(eqx.filter(twin, eqx.is_array))
+    for path, leaf in leaves:
+        if isinstance(leaf, jax.core.Tracer):
+            continue
+        if not bool(jnp.all(jnp.isfinite(leaf))):
+            name = jax.tree_util.keystr(path)
+            raise SolverError(
+                f"parameter twin{name} is NaN or inf: the ODE cannot be solved; give it a finite "
+                "value"
+            )
 
 
 def _raise_for(result, t1) -> None:
@@ -315,6 +332,8 @@ def simulate(
     """
     daq = daq or DAQ()
     solver = solver or SolverOptions()
+    if check:
+        _check_finite(twin)
     if duration <= 0 or not math.isfinite(duration):
         raise ValueError(f"duration must be a positive number of seconds, got {duration}")
     if discard < 0:
@@ -342,7 +361,7 @@ def simulate(
     max_steps = solver.max_steps or int(400_000 * (t1 - t0) + 10_000)
     ys, result, nsteps = _solve(
         twin, y0, t0, t1, ts, daq.quantity, solver.rtol, solver.atol, dtmax, max_steps,
-        solver.adjoint, progress,
+        solver.adjoint, progress, solver.pcoeff, solver.icoeff,
     )
     if check:
         _raise_for(result, t1)

@@ -133,7 +133,7 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
         "k_bearing_planet": _reg("k_bearing_planet", 1e8),
         "k_torsion_sun": FieldSpec("float", "N*m/rad", 0.0, 0.0, 1e10,
                                    doc="sun torsional spring to ground (normally 0)"),
-        "k_torsion_ring": _reg("k_torsion_ring", 1e8),
+        "k_torsion_ring": _reg("k_torsion_ring", 6e6, doc="ring torsional support stiffness; the default is Lin & Parker's 1e9 N/m on u = r θ for the paper's ring (r_b ≈ 76 mm)"),
         "k_torsion_carrier": FieldSpec("float", "N*m/rad", 0.0, 0.0, 1e10,
                                        doc="carrier torsional spring to ground (normally 0)"),
     },
@@ -564,6 +564,8 @@ def load_spec(source: str | os.PathLike | Mapping[str, Any]) -> Spec:
         raise UnreadableFileError(f"spec file {path} does not exist") from None
     except tomllib.TOMLDecodeError as e:
         raise SpecError([("", f"{path} is not valid TOML: {e}")]) from None
+    except UnicodeDecodeError as e:
+        raise SpecError([("", f"{path} is not UTF-8 text (TOML must be UTF-8): {e}")]) from None
     except OSError as e:
         raise UnreadableFileError(f"cannot read spec file {path}: {e}") from None
     return Spec(_validate(raw), str(path))

@@ -81,9 +81,6 @@ def test_mutated_specs_give_spec_errors(edits, drops, extra):
     _assert_documented(spec)
 
 
-@pytest.mark.xfail(raises=UnicodeDecodeError, strict=False,
-                   reason="dtwin/spec.py lets tomllib's UnicodeDecodeError (non-UTF-8 file) "
-                   "escape load_spec; it must become a SpecError/UnreadableFileError (reported)")
 @SETTINGS
 @given(data=st.binary(max_size=600))
 def test_random_toml_bytes(data):
