@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import OutputExistsError, RecordError, UnreadableFileError
-from .output import to_jsonable
+from .output import publish, to_jsonable
 from .readers import resolve_rate, str_list, to_str
 from .record import Record
 
@@ -85,7 +85,7 @@ def write(record: Record, path: str | os.PathLike, *, force: bool = False) -> Pa
     os.close(fd)
     try:
         write_into(record, tmp)
-        os.replace(tmp, path)
+        publish(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)

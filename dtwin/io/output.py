@@ -93,6 +93,19 @@ def _nan_to_str(val: Any) -> Any:
     return val
 
 
+def _default_mode() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def publish(tmp: str | os.PathLike, path: str | os.PathLike) -> None:
+    """Give a finished temporary file the usual permissions (``mkstemp`` makes it 0600) and
+    rename it onto `path` atomically."""
+    os.chmod(tmp, _default_mode())
+    os.replace(tmp, path)
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, force: bool = False) -> Path:
     """Write `data` to `path` atomically (temporary file in the same folder, then rename).
 
@@ -110,7 +123,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, force: bool = Fa
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        publish(tmp, path)
     except BaseException:
         try:
             os.unlink(tmp)
@@ -216,7 +229,7 @@ class OutputFolder:
         os.close(fd)
         try:
             writer(tmp)
-            os.replace(tmp, target)
+            publish(tmp, target)
         except BaseException:
             if os.path.exists(tmp):
                 os.unlink(tmp)
