@@ -371,7 +371,8 @@ class Twin(eqx.Module):
         """All forces at one instant.
 
         **Returns:** `(F, aux_dot, mesh, outputs)`: total generalised force (flat, coordinates
-        `q`), the parts' state derivatives, the `MeshState`, and the parts' named observables.
+        `q`), the parts' state derivatives, the `MeshState`, and named observables: the parts'
+        plus the dissipated powers ``power_mesh_damping`` and ``power_support_damping`` (W).
         Linear springs and dampers of parts (`linear_springs`) are included.
         """
         ops = self.operators() if ops is None else ops
@@ -388,6 +389,13 @@ class Twin(eqx.Module):
             aux_dots.append(jnp.asarray(ad).reshape(p.aux_size))
             outputs.update(out)
         aux_dot = jnp.concatenate(aux_dots) if aux_dots else jnp.zeros(0)
+        # dissipated power (W): mesh damping (contact-gated) and the linear support dampers
+        s = self.contact_smoothing
+        sig = jax.nn.sigmoid(jnp.concatenate([mesh.delta_sp, mesh.delta_rp]) / s)
+        dd = jnp.concatenate([mesh.ddelta_sp, mesh.ddelta_rp])
+        cc = jnp.concatenate([mesh.c_sp, mesh.c_rp])
+        outputs["power_mesh_damping"] = jnp.sum(cc * sig * dd**2)
+        outputs["power_support_damping"] = qdv @ (ops.C @ qdv)
         return F + self.pack(G), aux_dot, mesh, outputs
 
     def operators(self) -> Operators:
