@@ -1,0 +1,92 @@
+"""The identification API for users and scripts (re-exports; the CLI calls the same functions).
+
+    from identify.api import fit, estimate_severity, severity_series, ParameterSet, Features
+
+    res = fit(records, "bench.toml", ["k_sun_planet", "k_ring_planet", "zeta_mesh", "sun_fault"],
+              starts=9, refine=3)
+    print(res.table())           # values, 95 % intervals, "NOT DETERMINED" flags
+    res.to_dict()                # JSON-ready (values, intervals, correlations, loss history)
+
+See docs/identification.md.
+"""
+
+from __future__ import annotations
+
+from .fit import SOLVERS as SOLVERS
+from .fit import FitResult as FitResult
+from .fit import Problem as Problem
+from .fit import fit as fit
+from .fit import make_problem as make_problem
+from .operating_point import OperatingPoint as OperatingPoint
+from .operating_point import SpeedProfileEstimate as SpeedProfileEstimate
+from .operating_point import estimate_speed as estimate_speed
+from .operating_point import estimate_speed_profile as estimate_speed_profile
+from .params import ParameterSet as ParameterSet
+from .residuals import Features as Features
+from .residuals import Observation as Observation
+from .residuals import drive_at as drive_at
+from .residuals import observe as observe
+from .severity import SeverityEstimate as SeverityEstimate
+from .severity import SeveritySeries as SeveritySeries
+from .severity import estimate_severity as estimate_severity
+from .severity import severity_series as severity_series
+from .uncertainty import Uncertainty as Uncertainty
+from .uncertainty import analyse as analyse
+
+__all__ = [
+    "SOLVERS", "Features", "FitResult", "Observation", "OperatingPoint", "ParameterSet",
+    "Problem", "SeverityEstimate", "SeveritySeries", "SpeedProfileEstimate", "Uncertainty",
+    "analyse", "drive_at", "estimate_severity", "estimate_speed", "estimate_speed_profile",
+    "fit", "make_problem", "observe", "plot_fit", "plot_severity_series", "severity_series",
+]
+
+
+def plot_fit(result: FitResult, record_index: int = 0, *, label_peaks: bool = True):
+    """Figure of measured vs fitted levels of one record of `result`, peaks labelled with their
+    gear-frequency combinations (:func:`dtwin.spectrum.label_frequency`)."""
+    import numpy as np
+
+    from dtwin.plotting.fit import plot_fit_spectrum
+
+    freqs, meas, model = result.spectra()[record_index]
+    labels = []
+    if label_peaks:
+        try:
+            labels = _labels(result, record_index, freqs, meas)
+        except Exception as e:  # noqa: BLE001 — labels are decoration; say why they are missing
+            labels = [(float(freqs[int(np.argmax(meas))]), f"(labels unavailable: {e})")]
+    return plot_fit_spectrum(freqs, meas, model, labels=labels)
+
+
+def _labels(result: FitResult, i: int, freqs, meas, n: int = 8):
+    import numpy as np
+
+    from dtwin.spectrum import FrequencyBasis, label_frequency
+
+    from .operating_point import gear_orders
+
+    p = result.problem
+    obs = p.observations[i]
+    f_sun = float(obs.speed[0])
+    o = gear_orders(p.twin)
+    basis = FrequencyBasis(f_mesh=o["mesh"] * f_sun, f_carrier=o["carrier"] * f_sun,
+                           f_sun_fault=o["sun_fault"] * f_sun,
+                           f_planet_fault=o["planet_fault"] * f_sun, n_planets=p.twin.lp.n_planets)
+    idx = np.argsort(np.asarray(meas))[::-1][:n]
+    res = 1.0 / obs.duration
+    out = []
+    for k in sorted(idx, key=lambda j: freqs[j]):
+        lab = label_frequency(float(freqs[k]), basis, res)
+        text = lab[0].text if lab else "no kinematic match"
+        out.append((float(freqs[k]), text))
+    return out
+
+
+def plot_severity_series(series: SeveritySeries, truth=None):
+    """Figure of the trajectories of a :class:`SeveritySeries` (one panel per parameter)."""
+    from dtwin.plotting.fit import plot_trajectories
+
+    vals = {n: series.trajectory(n)[0] for n in series.names}
+    lo = {n: series.trajectory(n)[1] for n in series.names}
+    hi = {n: series.trajectory(n)[2] for n in series.names}
+    return plot_trajectories(series.labels, vals, lo, hi, truth=truth)

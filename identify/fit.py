@@ -1,0 +1,501 @@
+"""Fit the twin's parameters to measured records: optimistix least squares through diffrax.
+
+:func:`fit` runs, in order, before any simulation: the parameter names against the registry
+(:class:`identify.params.ParameterSet`), the records (NaN, rate, length:
+:func:`identify.residuals.observe`), the operating point of each record
+(:mod:`identify.operating_point`). Then
+
+1. **multi-start**: a coarse grid of starts in the nondimensional θ (every combination of
+   ``{-spread, 0, +spread}`` per parameter, sub-sampled with `seed` to `n_starts`, always with
+   θ = 0, the initial values) is evaluated in **one** batched ``jax.vmap`` call; the `refine`
+   best go on;
+2. **refinement**: ``optimistix.least_squares`` (Levenberg–Marquardt by default, Gauss–Newton or
+   Dogleg) from those starts, again in one batched ``vmap`` call; Jacobians in forward mode
+   through diffrax (``SolverOptions(adjoint="forward")``, ``options=dict(jac="fwd")``) — about
+   2× one simulation for a few parameters (reference.md §6) — or reverse mode (``jac="rev"``:
+   checkpointed adjoint, for many parameters);
+3. the best converged start is the answer; :mod:`identify.uncertainty` adds intervals,
+   correlations and identifiability flags from ``jax.jacfwd`` of the residuals there.
+
+Several records are fitted jointly by concatenating their residual vectors (steady records at
+several speeds, run-ups). Failures are reported in :class:`FitResult` (``converged``,
+``at_bound``, ``message``); with ``throw=True`` a :class:`~dtwin.errors.FitError` is raised.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from dtwin.errors import FitError, ParameterError
+
+from .params import ParameterSet
+from .residuals import (
+    Features,
+    Observation,
+    fitted_levels,
+    model_signal,
+    observation_residuals,
+    observe,
+    point_groups,
+)
+from .uncertainty import Uncertainty, analyse
+
+__all__ = ["FitResult", "Problem", "fit", "make_problem", "SOLVERS"]
+
+SOLVERS = ("lm", "gauss-newton", "dogleg")
+#: Residual value substituted for a failed (NaN) simulation: a huge loss the solver rejects.
+_FAILED = 30.0
+
+
+class Problem(eqx.Module):
+    """A fitting problem: the prepared twin, the parameter set and the observations.
+
+    A pytree: arrays (twin parameters, measured levels) are leaves, shapes and settings are
+    static, so one compiled residual serves every problem of the same structure (other records
+    of the same length, other noise, other starting values).
+    """
+
+    twin: Any
+    pset: ParameterSet
+    observations: tuple[Observation, ...]
+    rtol: float = eqx.field(static=True, default=1e-5)
+    atol: float = eqx.field(static=True, default=1e-5)
+    adjoint: str = eqx.field(static=True, default="forward")
+
+    def solver_options(self):
+        from dtwin.simulate import SolverOptions
+
+        return SolverOptions(rtol=self.rtol, atol=self.atol, adjoint=self.adjoint)
+
+    def signals(self, theta):
+        values = self.pset.values(theta)
+        tw = self.pset.apply(self.twin, values)
+        return [model_signal(tw, o, self.solver_options()) for o in self.observations], values
+
+    def residuals(self, theta):
+        """The residual vector (all records, then priors) at the unconstrained `theta`."""
+        sigs, values = self.signals(theta)
+        gain = self.pset.gain(values)
+        rs = [observation_residuals(s, o, gain) for s, o in zip(sigs, self.observations, strict=True)]
+        rs.append(self.pset.prior_residuals(values))
+        r = jnp.concatenate(rs)
+        return jnp.where(jnp.isfinite(r), r, _FAILED)
+
+    @property
+    def n_profiled_gains(self) -> int:
+        if "sensor_gain" in self.pset.free:
+            return 0
+        return sum(1 for o in self.observations if o.gain_mode == "profile")
+
+
+def _loss(theta, problem: Problem):
+    r = problem.residuals(theta)
+    return 0.5 * jnp.sum(r * r)
+
+
+@eqx.filter_jit
+def _batched_loss(thetas, problem: Problem):
+    return jax.vmap(_loss, in_axes=(0, None))(thetas, problem)
+
+
+@eqx.filter_jit
+def _batched_residuals(thetas, problem: Problem):
+    return jax.vmap(lambda t: problem.residuals(t))(thetas)
+
+
+@eqx.filter_jit
+def _jacobian(theta, problem: Problem):
+    r = problem.residuals(theta)
+    return r, jax.jacfwd(problem.residuals)(theta)
+
+
+def _make_solver(name: str, rtol: float, atol: float):
+    if name == "lm":
+        return optx.LevenbergMarquardt(rtol=rtol, atol=atol)
+    if name == "gauss-newton":
+        return optx.GaussNewton(rtol=rtol, atol=atol)
+    if name == "dogleg":
+        return optx.Dogleg(rtol=rtol, atol=atol)
+    raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
+
+
+#: Losses of the residual evaluations during refinement, per start (filled by a debug callback;
+#: cleared by `fit`). The callback is traced once, so it writes into this module-level store.
+_HISTORY: dict[int, list[float]] = {}
+
+
+def _record_loss(idx, loss) -> None:
+    _HISTORY.setdefault(int(idx), []).append(float(loss))
+
+
+@eqx.filter_jit
+def _refine(thetas, problem: Problem, solver_name: str, rtol: float, atol: float, jac: str,
+            max_steps: int):
+    solver = _make_solver(solver_name, rtol, atol)
+
+    def one(theta0, idx):
+        def fn(theta, args):
+            r = args.residuals(theta)
+            jax.debug.callback(_record_loss, idx, 0.5 * jnp.sum(r * r))
+            return r
+
+        sol = optx.least_squares(fn, solver, theta0, args=problem,
+                                 options=dict(jac="fwd" if jac == "fwd" else "bwd"),
+                                 max_steps=max_steps, throw=False)
+        r = problem.residuals(sol.value)
+        return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"], \
+            0.5 * jnp.sum(r * r)
+
+    return jax.vmap(one)(thetas, jnp.arange(thetas.shape[0]))
+
+
+# ------------------------------------------------------------------------------------ result
+@dataclasses.dataclass
+class FitResult:
+    """Outcome of :func:`fit`.
+
+    - `names`, `values` (SI, dict), `theta` (unconstrained optimum), `initial` (SI, dict);
+    - `uncertainty` (:class:`identify.uncertainty.Uncertainty`, or None);
+    - `loss` (½‖r‖² at the optimum), `loss_history` (½‖r‖² at every residual evaluation of the
+      solver from the chosen start: the loss over iterations, rejected trial steps included), `start_losses` (the batched multi-start evaluation), `starts` (θ),
+      `refined` (per refined start: θ, converged, steps, loss);
+    - `converged`, `at_bound` (names), `message`, `iterations` (solver steps), `wall_time` (s),
+      `operating_points` (Hz per record), `problem` (for figures and re-evaluation).
+    """
+
+    names: tuple[str, ...]
+    values: dict[str, float]
+    theta: np.ndarray
+    initial: dict[str, float]
+    uncertainty: Uncertainty | None
+    loss: float
+    loss_history: list[float]
+    start_losses: np.ndarray
+    starts: np.ndarray
+    refined: list[dict[str, Any]]
+    converged: bool
+    at_bound: list[str]
+    message: str
+    iterations: int
+    wall_time: float
+    operating_points: list[dict[str, float]]
+    problem: Problem | None = dataclasses.field(default=None, repr=False)
+
+    @property
+    def not_determined(self) -> dict[str, str]:
+        return {} if self.uncertainty is None else dict(self.uncertainty.not_determined)
+
+    def interval(self, name: str) -> tuple[float, float]:
+        i = self.names.index(name)
+        lo, hi = self.uncertainty.interval[i]
+        return float(lo), float(hi)
+
+    def table(self) -> str:
+        """A readable table: value, 95 % interval, determined or not."""
+        rows = [f"{'parameter':<18} {'initial':>12} {'fitted':>12} {'95 % interval':>28}  status"]
+        for i, n in enumerate(self.names):
+            if self.uncertainty is not None:
+                lo, hi = self.uncertainty.interval[i]
+                iv = f"[{lo:.5g}, {hi:.5g}]"
+                st = "NOT DETERMINED" if n in self.uncertainty.not_determined else "ok"
+            else:
+                iv, st = "", ""
+            rows.append(f"{n:<18} {self.initial[n]:>12.5g} {self.values[n]:>12.5g} {iv:>28}  {st}")
+        rows.append(f"loss {self.loss:.5g}, {self.iterations} iterations, "
+                    f"{self.wall_time:.1f} s, {'converged' if self.converged else 'NOT converged'}"
+                    + (f"; at bound: {', '.join(self.at_bound)}" if self.at_bound else ""))
+        for n, why in self.not_determined.items():
+            rows.append(f"  {n}: not determined by these data ({why})")
+        return "\n".join(rows)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {
+            "names": list(self.names), "values": self.values, "initial": self.initial,
+            "theta": self.theta.tolist(), "loss": self.loss, "loss_history": self.loss_history,
+            "start_losses": self.start_losses.tolist(), "refined": self.refined,
+            "converged": self.converged, "at_bound": self.at_bound, "message": self.message,
+            "iterations": self.iterations, "wall_time_s": self.wall_time,
+            "operating_points": self.operating_points,
+        }
+        if self.uncertainty is not None:
+            out["uncertainty"] = self.uncertainty.to_dict()
+            out["intervals_95"] = {n: list(map(float, self.uncertainty.interval[i]))
+                                   for i, n in enumerate(self.names)}
+            out["not_determined"] = dict(self.uncertainty.not_determined)
+        return out
+
+    def spectra(self):
+        """Per record: (freqs, measured, fitted) linear levels at the fitted points (numpy)."""
+        p = self.problem
+        sigs, values = p.signals(jnp.asarray(self.theta))
+        gain = p.pset.gain(values)
+        out = []
+        for s, o in zip(sigs, p.observations, strict=True):
+            model, meas = fitted_levels(s, o, gain)
+            out.append((np.asarray(o.freqs), meas, model))
+        return out
+
+
+# ------------------------------------------------------------------------------------ fit
+def _as_twin(spec_or_twin, kind: str):
+    from dtwin.twin import Twin
+
+    if isinstance(spec_or_twin, Twin):
+        return spec_or_twin
+    from dtwin.build import build_twin
+
+    return build_twin(spec_or_twin, kind=kind)
+
+
+def _nominal_speed(spec_or_twin, twin) -> float | None:
+    from dtwin.twin import Twin
+
+    if not isinstance(spec_or_twin, Twin):
+        from dtwin.spec import Spec, load_spec
+
+        spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
+        f = spec["operating"]["f_sun"]
+        return None if f is None else float(f)
+    from dtwin.parts.drive import DrivePart
+
+    for p in twin.parts:
+        if isinstance(p, DrivePart):
+            return float(p.drive.speed.final) / (2 * np.pi)
+    return None
+
+
+def make_problem(
+    records,
+    spec_or_twin,
+    free: Sequence[str] | str | ParameterSet,
+    *,
+    kind: str = "torsional",
+    f_sun: float | Sequence[float | None] | None = None,
+    runup: tuple[float, float] | Sequence[tuple[float, float] | None] | None = None,
+    features: Features | Sequence[Features] | None = None,
+    weights: Sequence[float] | None = None,
+    initial: Mapping[str, float] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    priors: Mapping[str, tuple[float, float]] | None = None,
+    channel: int | str = 0,
+    discard: float = 0.05,
+    oversample: int = 4,
+    rtol: float = 1e-5,
+    atol: float = 1e-5,
+    jac: str = "fwd",
+) -> tuple[Problem, list[dict[str, float]]]:
+    """Checks, operating points and observations → a :class:`Problem` (no simulation yet).
+
+    Arguments as :func:`fit`. **Returns:** ``(problem, operating_points)``.
+    """
+    from .operating_point import estimate_speed, estimate_speed_profile
+
+    if isinstance(free, ParameterSet):
+        pset = free
+    else:
+        # names first: an unknown name fails before the twin is even built
+        names = [s.strip() for s in free.split(",")] if isinstance(free, str) else list(free)
+        from dtwin.registry import lookup
+
+        for n in names:
+            lookup(n)
+        for n in list(fixed or {}) + list(initial or {}):
+            lookup(n)
+    if jac not in ("fwd", "rev"):
+        raise ValueError(f"jac must be 'fwd' or 'rev', got {jac!r}")
+    if not isinstance(records, (list, tuple)):
+        records = [records]
+    if not records:
+        raise FitError("no record to fit")
+    twin = _as_twin(spec_or_twin, kind)
+    if not isinstance(free, ParameterSet):
+        pset = ParameterSet.build(names, twin, initial=initial, fixed=fixed, bounds=bounds,
+                                  priors=priors)
+    twin = pset.prepare(twin)
+    n = len(records)
+    f_list = list(f_sun) if isinstance(f_sun, (list, tuple)) else [f_sun] * n
+    r_list = list(runup) if isinstance(runup, list) else [runup] * n
+    feat_list = list(features) if isinstance(features, (list, tuple)) else [features] * n
+    w_list = list(weights) if weights is not None else [1.0] * n
+    if not (len(f_list) == len(r_list) == len(feat_list) == len(w_list) == n):
+        raise FitError("f_sun, runup, features and weights need one entry per record")
+    nominal = _nominal_speed(spec_or_twin, twin)
+    obs, ops = [], []
+    for i, rec in enumerate(records):
+        # cheap input checks before the speed estimate
+        x = np.asarray(rec.channel(channel))
+        if not np.all(np.isfinite(x)):
+            from dtwin.errors import RecordError
+
+            bad = np.flatnonzero(~np.isfinite(x))
+            raise RecordError(f"record {i} holds {bad.size} NaN/inf samples (first at sample "
+                              f"{bad[0]}); clean or cut it before identification")
+        if r_list[i] is not None:
+            prof = estimate_speed_profile(rec, twin, r_list[i], channel=channel)
+            f0, f1 = prof.f_start, prof.f_end
+            ops.append({"f_sun_start": f0, "f_sun_end": f1, "method": prof.method})
+        else:
+            f0 = f_list[i]
+            if f0 is None:
+                if nominal is None:
+                    raise FitError("no input speed: pass f_sun or a spec with operating.f_sun")
+                from .residuals import _check
+
+                _check(rec, twin, nominal, channel)
+                op = estimate_speed(rec, twin, nominal, channel=channel)
+                f0 = op.f_sun
+                ops.append({"f_sun": f0, "std_f_sun": op.std_f_sun, "method": op.method})
+            else:
+                ops.append({"f_sun": float(f0), "method": "given"})
+            f1 = None
+        obs.append(observe(rec, twin, f_sun=f0, f_end=f1, features=feat_list[i], channel=channel,
+                           weight=w_list[i], discard=discard, oversample=oversample))
+    problem = Problem(twin, pset, tuple(obs), rtol=rtol, atol=atol,
+                      adjoint="forward" if jac == "fwd" else "reverse")
+    return problem, ops
+
+
+def start_grid(p: int, n_starts: int, spread: float, seed: int) -> np.ndarray:
+    """θ starts: 0 first, then the corners and edges of ``{-spread, 0, spread}^p`` sub-sampled."""
+    pts = np.array(list(itertools.product((-spread, 0.0, spread), repeat=p)), dtype=float)
+    pts = pts[np.any(pts != 0, axis=1)]
+    rng = np.random.default_rng(seed)
+    rng.shuffle(pts)
+    return np.concatenate([np.zeros((1, p)), pts[: max(n_starts - 1, 0)]])
+
+
+def fit(
+    records,
+    spec_or_twin,
+    free: Sequence[str] | str | ParameterSet,
+    *,
+    solver: str = "lm",
+    starts: int | np.ndarray | Sequence[Mapping[str, float]] = 1,
+    refine: int = 1,
+    spread: float = 0.3,
+    seed: int = 0,
+    jac: str = "fwd",
+    max_steps: int = 40,
+    tol: float = 1e-4,
+    uncertainty: bool = True,
+    progress: bool = False,
+    throw: bool = False,
+    problem: Problem | None = None,
+    **problem_kwargs: Any,
+) -> FitResult:
+    """Fit the free parameters of a twin to one or several records.
+
+    **Arguments:**
+
+    - `records`: a `dtwin.io.Record` or a list (fitted jointly).
+    - `spec_or_twin`: a spec (path, mapping, `Spec`; built with ``kind``, default torsional) or
+      a `Twin`.
+    - `free`: registry names (list or ``"a,b,c"``) or a `ParameterSet`.
+    - `solver`: ``lm`` (Levenberg–Marquardt), ``gauss-newton`` or ``dogleg``.
+    - `starts`: number of grid starts (batched evaluation), or an array of θ starts ``(k, p)``,
+      or a list of dicts of physical starting values; `refine`: how many of the best starts are
+      refined (batched); `spread`: grid half-width in θ (0.3 ≈ ±30 % for log parameters).
+    - `jac`: ``fwd`` (forward mode through diffrax) or ``rev``.
+    - `max_steps`, `tol`: solver steps and its rtol (atol = tol / 100) on θ and the residuals.
+    - `uncertainty`: compute covariance, intervals and flags.
+    - `progress`: print the stages and losses (stderr).
+    - `throw`: raise `FitError` when not converged or at a bound.
+    - keyword arguments of :func:`make_problem`: ``f_sun``, ``runup``, ``features``,
+      ``weights``, ``initial``, ``fixed``, ``bounds``, ``priors``, ``channel``, ``discard``,
+      ``oversample``, ``kind``, ``rtol``, ``atol``.
+
+    **Returns:** :class:`FitResult`.
+    """
+    if solver not in SOLVERS:
+        raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    t0 = time.perf_counter()
+    if problem is None:
+        problem, ops = make_problem(records, spec_or_twin, free, jac=jac, **problem_kwargs)
+    else:
+        ops = []
+    pset = problem.pset
+    p = pset.size
+    def say(m):
+        if progress:
+            print(f"[{time.perf_counter() - t0:7.1f} s] {m}", file=sys.stderr, flush=True)
+
+    say(pset.summary())
+    if isinstance(starts, (int, np.integer)):
+        thetas = start_grid(p, int(starts), spread, seed)
+    elif len(starts) and isinstance(starts[0], Mapping):
+        thetas = np.stack([pset.theta(s) for s in starts])
+    else:
+        thetas = np.atleast_2d(np.asarray(starts, dtype=float))
+    thetas = jnp.asarray(thetas)
+    if thetas.shape[0] > 1:
+        say(f"evaluating {thetas.shape[0]} starts in one batch …")
+        losses = np.asarray(_batched_loss(thetas, problem))
+    else:
+        losses = np.asarray([np.nan])
+    order = np.argsort(np.where(np.isfinite(losses), losses, np.inf)) if thetas.shape[0] > 1 \
+        else np.arange(1)
+    chosen = thetas[np.asarray(order[: max(1, refine)])]
+    say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
+    _HISTORY.clear()
+    th, ok, steps, fl = _refine(chosen, problem, solver, tol, tol * 1e-2, jac, max_steps)
+    th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
+    refined = [{"theta": th[i].tolist(), "converged": bool(ok[i]), "steps": int(steps[i]),
+                "loss": float(fl[i]), "values": pset.as_dict(th[i])} for i in range(th.shape[0])]
+    score = np.where(np.isfinite(fl), fl, np.inf)
+    best = int(np.argmin(score))
+    theta = th[best]
+    say(f"refined losses: {np.array2string(fl, precision=5)}; best {fl[best]:.6g} after "
+        f"{int(steps[best])} steps")
+    unc = None
+    if uncertainty:
+        r, J = _jacobian(jnp.asarray(theta), problem)
+        unc = analyse(pset, theta, np.asarray(r), np.asarray(J),
+                      point_groups(problem.observations),
+                      n_profiled_gains=problem.n_profiled_gains,
+                      profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem))
+    at_bound = pset.at_bound(theta)
+    converged = bool(ok[best])
+    msgs = []
+    if not converged:
+        msgs.append(f"not converged after {int(steps[best])} steps (max_steps={max_steps}); "
+                    "raise max_steps, use more starts, or free fewer parameters")
+    if at_bound:
+        msgs.append(f"parameters at a bound: {', '.join(at_bound)} (the data push them out of "
+                    "their range: check the spec, the bounds or the model)")
+    message = "; ".join(msgs) or "converged"
+    res = FitResult(
+        names=pset.free, values=pset.as_dict(theta), theta=theta,
+        initial=pset.as_dict(np.zeros(p)), uncertainty=unc, loss=float(fl[best]),
+        loss_history=list(_HISTORY.get(best, [])) or [float(fl[best])],
+        start_losses=losses, starts=np.asarray(thetas), refined=refined, converged=converged,
+        at_bound=at_bound, message=message, iterations=int(steps[best]),
+        wall_time=time.perf_counter() - t0, operating_points=ops, problem=problem,
+    )
+    say(res.table())
+    if throw and (not converged or at_bound):
+        raise FitError(message)
+    return res
+
+
+def check_free(free: Sequence[str] | str) -> list[str]:
+    """Registry names of a `--free` list, checked (unknown → `ParameterError`)."""
+    from dtwin.registry import lookup
+
+    names = [s.strip() for s in free.split(",") if s.strip()] if isinstance(free, str) else list(free)
+    if not names:
+        raise ParameterError("no free parameter given")
+    for n in names:
+        lookup(n)
+    return names

@@ -1,0 +1,394 @@
+"""Which twin parameters a fit moves, and how: registry names ↔ an unconstrained vector θ.
+
+A :class:`ParameterSet` names the free parameters (registry names, :mod:`dtwin.registry`), their
+initial values (from the twin or given), bounds, optional Gaussian priors and the parameters held
+fixed at given values. A fit works on a nondimensional, unconstrained vector ``θ`` (one entry per
+free parameter, ``θ = 0`` at the initial value) mapped to physical values by the registry's
+transform:
+
+- ``log``:   ``x = x0 exp(θ)``                          (positive quantities; θ ≈ relative change)
+- ``logit``: ``x = lo + (hi - lo) sigmoid(θ + logit((x0 - lo)/(hi - lo)))``   (inside (lo, hi))
+- ``none``:  ``x = x0 + s θ`` with ``s = max(|x0|, 1)``
+
+so every θ is of order one and the bounds can never be crossed (optimistix has no bounds for
+least squares, reference.md §6). :meth:`ParameterSet.apply` writes values into a `Twin`:
+
+- lumped fields (``k_sun_planet``, ``zeta_support``, ``J_sun`` …) with :func:`dtwin.lumped.replace`;
+- ties (``zeta_mesh`` → ``zeta_sun_planet`` and ``zeta_ring_planet``);
+- fault severities (``sun_fault``, ``planet_fault``, ``ring_fault``) into the `LocalFault` part
+  at that location (:func:`ensure_fault_parts` adds a zero-severity missing-tooth part when the
+  twin has none, before any compute: severity 0 is bit-identical to healthy);
+- ``te_amplitude`` into the `TransmissionError` part (added with amplitude 0 when missing);
+- ``load_torque`` into the load part;
+- ``sensor_gain`` is not a twin field: the residuals multiply the simulated signal by it
+  (:meth:`ParameterSet.gain`).
+
+Unknown names raise :class:`~dtwin.errors.ParameterError` when the set is built, before any
+simulation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from dtwin.errors import ParameterError
+from dtwin.lumped import LumpedParameters, replace
+from dtwin.registry import ParameterInfo, lookup
+
+__all__ = ["ParameterSet", "current_value", "ensure_fault_parts", "settable"]
+
+_FAULTS = {"sun_fault": "sun", "planet_fault": "planet", "ring_fault": "ring"}
+_LUMPED = set(LumpedParameters.__dataclass_fields__)
+_SPECIAL = {"load_torque", "te_amplitude", "sensor_gain"} | set(_FAULTS)
+#: Smallest distance (as a fraction of the range) an initial value keeps from a logit bound.
+_EDGE = 1e-3
+
+
+def settable(name: str) -> bool:
+    """Whether :meth:`ParameterSet.apply` can write the registry parameter `name` into a twin."""
+    info = lookup(name)
+    return bool(info.ties) or name in _LUMPED or name in _SPECIAL
+
+
+def _fault_index(twin, location: str) -> int | None:
+    from dtwin.parts.local_fault import LocalFault
+
+    for i, p in enumerate(twin.parts):
+        if isinstance(p, LocalFault) and p.fault.location == location:
+            return i
+    return None
+
+
+def _part_index(twin, cls) -> int | None:
+    for i, p in enumerate(twin.parts):
+        if isinstance(p, cls):
+            return i
+    return None
+
+
+def ensure_fault_parts(twin, names: Sequence[str]):
+    """A twin holding every part the free `names` need: a zero-severity `MissingTooth` for a
+    free ``<location>_fault`` without a fault there, a zero-amplitude `TransmissionError` for a
+    free ``te_amplitude``. Severity/amplitude 0 leaves the dynamics bit-identical."""
+    from dtwin.faults import MissingTooth
+    from dtwin.parts.imperfections import TransmissionError
+    from dtwin.parts.local_fault import LocalFault
+
+    for n in names:
+        if n in _FAULTS and _fault_index(twin, _FAULTS[n]) is None:
+            twin = twin.with_parts(LocalFault(MissingTooth(0.0, location=_FAULTS[n])))
+        if n == "te_amplitude" and _part_index(twin, TransmissionError) is None:
+            twin = twin.with_parts(TransmissionError(jnp.zeros(())))
+    return twin
+
+
+def current_value(twin, name: str) -> float:
+    """The value of registry parameter `name` in `twin` (a tie: the mean of its members)."""
+    from dtwin.parts.drive import LoadPart
+    from dtwin.parts.imperfections import TransmissionError
+
+    info = lookup(name)
+    if info.ties:
+        return float(np.mean([current_value(twin, t) for t in info.ties]))
+    if name in _LUMPED:
+        return float(getattr(twin.lp, name))
+    if name in _FAULTS:
+        i = _fault_index(twin, _FAULTS[name])
+        return 0.0 if i is None else float(twin.parts[i].fault.severity)
+    if name == "te_amplitude":
+        i = _part_index(twin, TransmissionError)
+        return 0.0 if i is None else float(twin.parts[i].amplitude)
+    if name == "load_torque":
+        i = _part_index(twin, LoadPart)
+        if i is None:
+            return 0.0
+        load = twin.parts[i].load
+        if not hasattr(load, "torque_value"):
+            raise ParameterError("load_torque: the twin's load is not a ConstantLoad")
+        return float(load.torque_value)
+    if name == "sensor_gain":
+        return 1.0
+    raise ParameterError(
+        f"parameter {name!r} is registered but identify cannot set it in a twin yet "
+        f"(settable: lumped fields, ties, fault severities, te_amplitude, load_torque, "
+        f"sensor_gain)"
+    )
+
+
+def _set(twin, name: str, value):
+    from dtwin.parts.drive import LoadPart
+    from dtwin.parts.imperfections import TransmissionError
+
+    info = lookup(name)
+    if info.ties:
+        for t in info.ties:
+            twin = _set(twin, t, value)
+        return twin
+    if name in _LUMPED:
+        return eqx.tree_at(lambda t: t.lp, twin, replace(twin.lp, **{name: value}))
+    if name in _FAULTS:
+        i = _fault_index(twin, _FAULTS[name])
+        if i is None:
+            raise ParameterError(f"{name}: the twin has no fault at the {_FAULTS[name]}; "
+                                 "call ensure_fault_parts first")
+        return eqx.tree_at(lambda t: t.parts[i].fault.severity, twin,
+                           jnp.asarray(value, dtype=jnp.float64))
+    if name == "te_amplitude":
+        i = _part_index(twin, TransmissionError)
+        return eqx.tree_at(lambda t: t.parts[i].amplitude, twin,
+                           jnp.asarray(value, dtype=jnp.float64))
+    if name == "load_torque":
+        i = _part_index(twin, LoadPart)
+        if i is None or not hasattr(twin.parts[i].load, "torque_value"):
+            raise ParameterError("load_torque: the twin's load has no constant torque to fit")
+        return eqx.tree_at(lambda t: t.parts[i].load.torque_value, twin,
+                           jnp.asarray(value, dtype=jnp.float64))
+    if name == "sensor_gain":
+        return twin
+    raise ParameterError(f"parameter {name!r} cannot be set in a twin by identify")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Free:
+    name: str
+    transform: str
+    x0: float
+    lower: float
+    upper: float
+
+
+class ParameterSet(eqx.Module):
+    """Free and fixed parameters of a fit, with transforms, bounds and priors (module docstring).
+
+    Build with :meth:`build`. Fields (static except `x0`, an array so that fits from other
+    initial values reuse one compiled function):
+
+    - `free`: registry names of the free parameters, in θ order.
+    - `transforms`, `x0`, `lower`, `upper`: per free parameter (initial value and bounds in SI).
+    - `fixed`: names → values written into the twin once, before the fit.
+    - `priors`: names → ``(mean, sd)`` (SI): a residual ``(x - mean)/sd`` per prior.
+    """
+
+    free: tuple[str, ...] = eqx.field(static=True)
+    transforms: tuple[str, ...] = eqx.field(static=True)
+    x0: jax.Array
+    lower: tuple[float, ...] = eqx.field(static=True)
+    upper: tuple[float, ...] = eqx.field(static=True)
+    fixed: tuple[tuple[str, float], ...] = eqx.field(static=True, default=())
+    priors: tuple[tuple[str, float, float], ...] = eqx.field(static=True, default=())
+
+    @classmethod
+    def build(
+        cls,
+        free: Sequence[str] | str,
+        twin=None,
+        *,
+        initial: Mapping[str, float] | None = None,
+        fixed: Mapping[str, float] | None = None,
+        bounds: Mapping[str, tuple[float, float]] | None = None,
+        priors: Mapping[str, tuple[float, float]] | None = None,
+    ) -> ParameterSet:
+        """A parameter set; every name is checked against the registry first.
+
+        **Arguments:**
+
+        - `free`: registry names (a list, or one comma-separated string as on the CLI).
+        - `twin`: the twin giving initial values (unless `initial` names them).
+        - `initial`: initial values (SI) overriding the twin's.
+        - `fixed`: values (SI) to hold fixed (written into the twin by :meth:`prepare`).
+        - `bounds`: (lower, upper) overriding the registry's; a ``log`` parameter with finite
+          bounds becomes ``logit`` between them.
+        - `priors`: ``(mean, sd)`` in SI per parameter (regularisation residuals).
+
+        **Raises:** `ParameterError` for an unknown, duplicated, unsettable or tied-and-member
+        name, an initial value outside its bounds, or a ``log`` parameter starting at 0.
+        """
+        if isinstance(free, str):
+            free = [s.strip() for s in free.split(",") if s.strip()]
+        free = list(free)
+        if not free:
+            raise ParameterError("no free parameter given; name at least one registry parameter")
+        infos: list[ParameterInfo] = [lookup(n) for n in free]  # unknown names raise here
+        for n in list(fixed or {}) + list(initial or {}) + list(bounds or {}) + list(priors or {}):
+            lookup(n)
+        if len(set(free)) != len(free):
+            raise ParameterError(f"free parameters repeat a name: {free}")
+        for info in infos:
+            if info.name == "f_sun":
+                raise ParameterError(
+                    "f_sun is the operating point: it is estimated from the record before the "
+                    "fit (identify.operating_point) and held fixed; do not list it as free"
+                )
+            if not settable(info.name):
+                raise ParameterError(f"parameter {info.name!r} cannot be fitted by identify yet")
+            for t in info.ties:
+                if t in free:
+                    raise ParameterError(f"{info.name} ties {', '.join(info.ties)}: do not free "
+                                         f"{t} as well")
+        fixed = dict(fixed or {})
+        both = set(fixed) & set(free)
+        if both:
+            raise ParameterError(f"parameters both free and fixed: {sorted(both)}")
+        frees = []
+        for info in infos:
+            lo, hi = (bounds or {}).get(info.name, info.bounds)
+            lo, hi = float(lo), float(hi)
+            tr = info.transform
+            if tr == "log" and math.isfinite(hi) and lo > 0 and (bounds or {}).get(info.name):
+                tr = "logit"
+            if (initial or {}).get(info.name) is not None:
+                x0 = float(initial[info.name])
+            elif twin is not None:
+                x0 = current_value(twin, info.name)
+            else:
+                raise ParameterError(f"{info.name}: give an initial value or a twin to read it")
+            if tr == "log":
+                if not x0 > 0:
+                    raise ParameterError(
+                        f"{info.name} starts at {x0:g} {info.unit}; its log transform needs a "
+                        "positive initial value: pass initial={...}"
+                    )
+            elif tr == "logit":
+                if not (lo <= x0 <= hi):
+                    raise ParameterError(f"{info.name} = {x0:g} lies outside its bounds "
+                                         f"[{lo:g}, {hi:g}] {info.unit}")
+                span = hi - lo
+                x0 = min(max(x0, lo + _EDGE * span), hi - _EDGE * span)
+            frees.append(_Free(info.name, tr, x0, lo, hi))
+        pri = tuple((n, float(m), float(s)) for n, (m, s) in (priors or {}).items())
+        for n, _, s in pri:
+            if n not in free:
+                raise ParameterError(f"prior on {n!r}, which is not free")
+            if not s > 0:
+                raise ParameterError(f"prior on {n!r} needs a positive sd, got {s}")
+        return cls(
+            free=tuple(f.name for f in frees),
+            transforms=tuple(f.transform for f in frees),
+            x0=jnp.asarray([f.x0 for f in frees], dtype=jnp.float64),
+            lower=tuple(f.lower for f in frees),
+            upper=tuple(f.upper for f in frees),
+            fixed=tuple((k, float(v)) for k, v in fixed.items()),
+            priors=pri,
+        )
+
+    # ---------------------------------------------------------------------------- mapping
+    @property
+    def size(self) -> int:
+        return len(self.free)
+
+    def _offset(self, i: int):
+        lo, hi, x0 = self.lower[i], self.upper[i], self.x0[i]
+        u = (x0 - lo) / (hi - lo)
+        return jnp.log(u / (1.0 - u))
+
+    def values(self, theta) -> jax.Array:
+        """Physical values (SI), shape ``(p,)``, of the unconstrained vector `theta`."""
+        theta = jnp.asarray(theta, dtype=jnp.float64)
+        out = []
+        for i, tr in enumerate(self.transforms):
+            t = theta[..., i]
+            if tr == "log":
+                out.append(self.x0[i] * jnp.exp(t))
+            elif tr == "logit":
+                lo, hi = self.lower[i], self.upper[i]
+                out.append(lo + (hi - lo) * jax.nn.sigmoid(t + self._offset(i)))
+            else:
+                out.append(self.x0[i] + jnp.maximum(jnp.abs(self.x0[i]), 1.0) * t)
+        return jnp.stack(out, axis=-1)
+
+    def theta(self, values) -> np.ndarray:
+        """The unconstrained vector of physical `values` (a sequence in `free` order, or a
+        mapping by name); values on a logit bound are pulled inside by 1e-3 of the range."""
+        if isinstance(values, Mapping):
+            values = [values[n] for n in self.free]
+        out = []
+        x0s = [float(v) for v in np.asarray(self.x0)]
+        for i, (tr, x) in enumerate(zip(self.transforms, values, strict=True)):
+            x = float(x)
+            if tr == "log":
+                out.append(math.log(x / x0s[i]))
+            elif tr == "logit":
+                lo, hi = self.lower[i], self.upper[i]
+                u = min(max((x - lo) / (hi - lo), _EDGE), 1 - _EDGE)
+                out.append(math.log(u / (1 - u)) - float(self._offset(i)))
+            else:
+                out.append((x - x0s[i]) / max(abs(x0s[i]), 1.0))
+        return np.asarray(out)
+
+    def dvalues_dtheta(self, theta) -> jax.Array:
+        """Derivative of each physical value by its θ (the transform is diagonal)."""
+        return jax.jacfwd(lambda t: self.values(t))(jnp.asarray(theta, dtype=jnp.float64)).diagonal()
+
+    def as_dict(self, theta) -> dict[str, float]:
+        """Physical values by name (floats)."""
+        return {n: float(v) for n, v in zip(self.free, np.asarray(self.values(theta)), strict=True)}
+
+    # ---------------------------------------------------------------------------- twin
+    def prepare(self, twin):
+        """The twin a fit starts from: the parts the free names need added and the fixed
+        values written (call once, outside any jit)."""
+        twin = ensure_fault_parts(twin, self.free + tuple(n for n, _ in self.fixed))
+        for n, v in self.fixed:
+            twin = _set(twin, n, v)
+        return twin
+
+    def apply(self, twin, values):
+        """`twin` with the free parameters set to `values` (SI, shape ``(p,)`` or a mapping);
+        differentiable. The twin must come from :meth:`prepare`."""
+        if isinstance(values, Mapping):
+            values = jnp.stack([jnp.asarray(values[n], dtype=jnp.float64) for n in self.free])
+        for i, n in enumerate(self.free):
+            twin = _set(twin, n, values[i])
+        return twin
+
+    def gain(self, values) -> jax.Array:
+        """The sensor gain among `values` (1 when ``sensor_gain`` is not free)."""
+        if "sensor_gain" in self.free:
+            return values[self.free.index("sensor_gain")]
+        return jnp.ones((), dtype=jnp.float64)
+
+    def prior_residuals(self, values) -> jax.Array:
+        """``(x - mean)/sd`` for every prior (empty without priors)."""
+        if not self.priors:
+            return jnp.zeros(0)
+        return jnp.stack([(values[self.free.index(n)] - m) / s for n, m, s in self.priors])
+
+    def at_bound(self, theta, tol: float = 1e-3) -> list[str]:
+        """Free logit parameters within `tol` of the range from a bound."""
+        vals = np.asarray(self.values(theta))
+        out = []
+        for i, tr in enumerate(self.transforms):
+            if tr == "logit":
+                u = (vals[i] - self.lower[i]) / (self.upper[i] - self.lower[i])
+                if u < tol or u > 1 - tol:
+                    out.append(self.free[i])
+        return out
+
+    def summary(self) -> str:
+        """A readable table of the free (initial value, bounds, transform, prior) and fixed
+        parameters."""
+        rows = [f"{'parameter':<18} {'status':<6} {'initial/value':>14} {'unit':<8} "
+                f"{'bounds':<22} transform"]
+        pri = {n: (m, s) for n, m, s in self.priors}
+        for i, n in enumerate(self.free):
+            info = lookup(n)
+            b = f"[{self.lower[i]:.3g}, {self.upper[i]:.3g}]"
+            extra = f"  prior {pri[n][0]:.3g} ± {pri[n][1]:.3g}" if n in pri else ""
+            rows.append(f"{n:<18} {'free':<6} {float(self.x0[i]):>14.5g} {info.unit:<8} {b:<22} "
+                        f"{self.transforms[i]}{extra}")
+        for n, v in self.fixed:
+            rows.append(f"{n:<18} {'fixed':<6} {v:>14.5g} {lookup(n).unit:<8}")
+        return "\n".join(rows)
+
+
+def describe_free(names: Sequence[str]) -> list[dict[str, Any]]:
+    """Registry entries of `names` as dicts (unit, description, transform, bounds)."""
+    return [dataclasses.asdict(lookup(n)) for n in names]
