@@ -6,17 +6,16 @@ mesh harmonic and sideband would sit in the wrong bins. So the speed is measured
 **Steady record** (:func:`estimate_speed`):
 
 1. with a tachometer channel: the mean speed from its pulses (:func:`dtwin.order.tacho_angle`);
-2. otherwise from the spectrum: the largest line within ±`search` (default 5 %) of the nominal
-   mesh frequency of each harmonic ``h = 1 … H`` below 0.45 × the rate is located (Hann window,
-   zero padding ×4, parabolic interpolation of the log amplitude around the maximum bin); each
-   harmonic gives ``f_mesh = f_h / h``, with a precision ~ ``1/(h T SNR)``: the estimates are
-   averaged with weights ``h² × level above the noise floor`` (a higher harmonic pins the speed
-   more precisely). The carrier sidebands ``f_mesh ± k N f_carrier`` confirm the line: a line
+2. otherwise from the spectrum (Hann window, zero padding ×4): a harmonic-sum search within
+   ±`search` (default 5 %) of the nominal speed, then each mesh harmonic ``h`` below 0.45 × the
+   rate standing 15 dB above the floor is interpolated (parabola on the log amplitude); each
+   gives ``f_mesh = f_h / h`` with a precision ~ ``1/(h T SNR)``, so they are averaged with
+   weights ``h²`` (a higher harmonic pins the speed more precisely). The carrier sidebands ``f_mesh ± k N f_carrier`` confirm the line: a line
    whose ``± N f_carrier`` neighbours are not above the floor is reported as ``weak``.
 
-**Run-up / coast-down** (:func:`estimate_speed_profile`): the shaft angle from the tachometer or
-from the phase of the mesh harmonic (:func:`dtwin.order.mesh_angle`), its speed, and the least-
-squares straight line ``f_sun(t) = f0 + (f1 - f0) t / T`` (the twin's ramp set point).
+**Run-up / coast-down** (:func:`estimate_speed_profile`): the shaft angle from the tachometer, or
+a per-frame harmonic-sum speed and a de-chirp refinement, giving the straight line
+``f_sun(t) = f0 + (f1 - f0) t / T`` (the twin's ramp set point).
 """
 
 from __future__ import annotations
@@ -72,14 +71,33 @@ def _peak(freqs, amp, lo, hi):
     return float(freqs[k] + d * (freqs[1] - freqs[0])), float(np.exp(b - 0.25 * (a - c) * d))
 
 
+def _harmonic_sum(freqs, amp, floor, cands, mesh_order, fs, harmonics):
+    """Score of each candidate speed: sum over mesh harmonics of log(level / floor)."""
+    score = np.zeros(cands.shape)
+    la = np.log(amp + 1e-300) - np.log(floor)
+    for h in range(1, harmonics + 1):
+        fh = h * mesh_order * cands
+        ok = fh < 0.45 * fs
+        if not ok.any():
+            break
+        score[..., :] += np.where(ok, np.interp(np.where(ok, fh, 0.0), freqs, la), 0.0)
+    return score
+
+
 def estimate_speed(
     record, twin, f_sun_nominal: float, *, channel: int | str = 0, search: float = 0.05,
-    max_harmonics: int = 8,
+    max_harmonics: int = 8, min_level_db: float = 15.0,
 ) -> OperatingPoint:
     """Input speed of a steady record (module docstring).
 
     **Arguments:** `record` (`dtwin.io.Record`); `twin` (tooth numbers); `f_sun_nominal` (Hz);
-    `channel`; `search`: relative half-width of the search window; `max_harmonics`.
+    `channel`; `search`: relative half-width of the search window; `max_harmonics`;
+    `min_level_db`: a harmonic counts when it stands this far above the noise floor.
+
+    A coarse speed maximises the sum over the harmonics of the log level above the floor (a
+    harmonic-sum estimator: a noise peak near one harmonic cannot win against all of them);
+    each harmonic's peak within ±1.5 bins of that comb is then interpolated (parabola on the
+    log amplitude) and the speeds are averaged with weights ``h²``.
 
     **Returns:** :class:`OperatingPoint`.
     """
@@ -99,44 +117,45 @@ def estimate_speed(
     if not np.all(np.isfinite(x)):
         raise RecordError("the record holds NaN or inf samples; clean or cut it first")
     n = x.size
-    xp = np.concatenate([(x - x.mean()) * np.hanning(n), np.zeros(3 * n)])
+    pad = 4
+    xp = np.concatenate([(x - x.mean()) * np.hanning(n), np.zeros((pad - 1) * n)])
     amp = np.abs(np.fft.rfft(xp))
-    freqs = np.fft.rfftfreq(4 * n, 1.0 / fs)
-    floor = noise_floor(amp, 4 * 31 + 1)
-    fm0 = f_sun_nominal * orders["mesh"]
+    freqs = np.fft.rfftfreq(pad * n, 1.0 / fs)
+    floor = noise_floor(amp, pad * 31 + 1)
+    mo = orders["mesh"]
+    df = fs / n  # one bin of the unpadded record
+    cands = f_sun_nominal * (1 + np.linspace(-search, search, int(8 * search * f_sun_nominal
+                                                                  * mo * max_harmonics / df) + 3))
+    coarse = float(cands[np.argmax(_harmonic_sum(freqs, amp, floor, cands, mo, fs, max_harmonics))])
     found = []
     for h in range(1, max_harmonics + 1):
-        if h * fm0 * (1 + search) > 0.45 * fs:
+        c = h * mo * coarse
+        if c + 2 * df > 0.45 * fs:
             break
-        p = _peak(freqs, amp, h * fm0 * (1 - search / h), h * fm0 * (1 + search / h)) if h > 1 \
-            else _peak(freqs, amp, fm0 * (1 - search), fm0 * (1 + search))
+        p = _peak(freqs, amp, c - 1.5 * df, c + 1.5 * df)
         if p is None:
             continue
-        fl = float(np.interp(p[0], freqs, floor))
-        level = 20 * np.log10(p[1] / fl)
-        if level > 10.0:
-            found.append((h, p[0], level))
-        if h == 1 and found:
-            fm0 = found[0][1]  # later harmonics searched around the refined fundamental
+        level = 20 * np.log10(p[1] / float(np.interp(p[0], freqs, floor)))
+        if level >= min_level_db:
+            found.append((h, p[0], float(level)))
     if not found:
         raise RecordError(
-            f"no mesh line stands 10 dB above the noise near {f_sun_nominal * orders['mesh']:.1f} "
-            f"Hz (±{100 * search:.0f} %): check the spec's speed (operating.f_sun), the channel, "
-            "or pass the speed explicitly"
+            f"no mesh harmonic stands {min_level_db:g} dB above the noise near "
+            f"{f_sun_nominal * mo:.1f} Hz (±{100 * search:.0f} %): check the spec's speed "
+            "(operating.f_sun), the channel, or pass the speed explicitly"
         )
     h = np.array([f[0] for f in found], dtype=float)
     fm = np.array([f[1] / f[0] for f in found])
-    w = h**2 * np.array([f[2] for f in found])
+    w = h**2
     f_mesh = float(np.sum(w * fm) / np.sum(w))
-    std = float(np.std(fm) / np.sqrt(len(fm))) / orders["mesh"] if len(fm) > 1 else 0.0
-    # sideband check on the fundamental
-    spacing = twin.lp.n_planets * orders["carrier"] * f_mesh / orders["mesh"]
+    std = float(np.std(fm) / np.sqrt(len(fm))) / mo if len(fm) > 1 else 0.0
+    spacing = twin.lp.n_planets * orders["carrier"] * f_mesh / mo
     weak = True
-    for s in (-spacing, spacing):
-        p = _peak(freqs, amp, f_mesh + s - 0.2 * spacing, f_mesh + s + 0.2 * spacing)
+    for s_ in (-spacing, spacing):
+        p = _peak(freqs, amp, f_mesh + s_ - 0.2 * spacing, f_mesh + s_ + 0.2 * spacing)
         if p is not None and p[1] > 2.0 * np.interp(p[0], freqs, floor):
             weak = False
-    return OperatingPoint(f_mesh / orders["mesh"], f_mesh, std, "spectrum", tuple(found), weak)
+    return OperatingPoint(f_mesh / mo, f_mesh, std, "spectrum", tuple(found), weak)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,36 +172,84 @@ class SpeedProfileEstimate:
     method: str
 
 
+def _dechirp_energy(x, t, mo, harmonics, fs, f0, f1, T):
+    ang = 2 * np.pi * (f0 * t + 0.5 * (f1 - f0) / T * t * t)
+    w = np.hanning(x.size)
+    e = 0.0
+    for h in range(1, harmonics + 1):
+        if h * mo * max(f0, f1) > 0.45 * fs:
+            break
+        e += np.abs(np.sum(w * x * np.exp(-1j * h * mo * ang))) ** 2
+    return e
+
+
 def estimate_speed_profile(
     record, twin, speed_range: tuple[float, float], *, channel: int | str = 0,
-    harmonic: int = 1, bandwidth: float | None = None,
+    harmonics: int = 6, segment: float = 0.04,
 ) -> SpeedProfileEstimate:
-    """Input-speed profile of a run-up or coast-down (module docstring).
+    """Input-speed profile of a run-up or coast-down, taken as a linear ramp.
 
-    **Arguments:** `record`; `twin`; `speed_range`: (lowest, highest) input speed in the record
-    (Hz); `harmonic`: mesh harmonic tracked; `bandwidth` (orders) of the tracking band (default
-    0.4 × the sideband spacing N × carrier order).
+    With a tachometer: the angle from its pulses. Otherwise: per short-time frame (`segment`
+    s, half overlap) the speed that maximises the harmonic sum of the mesh harmonics (module
+    :func:`estimate_speed`'s comb) inside `speed_range` (Hz); a straight line through those
+    speeds (least squares) gives the start and end; then the line is refined by maximising the
+    energy of the record demodulated ("de-chirped") at the first `harmonics` mesh orders along
+    the ramp's angle ``2 pi (f0 t + (f1 - f0) t² / 2T)`` (Nelder–Mead): a maximum-likelihood
+    estimate of a linear chirp, precise to a small fraction of ``1 / (T × mesh order)`` Hz.
+
+    **Returns:** :class:`SpeedProfileEstimate`.
     """
-    from dtwin.order import mesh_angle, shaft_speed, tacho_angle
+    import scipy.optimize
+    import scipy.signal
+
+    from dtwin.order import shaft_speed, tacho_angle
 
     fs = float(record.sample_rate)
     orders = gear_orders(twin)
+    mo = orders["mesh"]
+    T = record.duration
+    x = np.asarray(record.channel(channel), dtype=np.float64)
+    if not np.all(np.isfinite(x)):
+        raise RecordError("the record holds NaN or inf samples; clean or cut it first")
+    t = np.arange(x.size) / fs
     if record.tacho is not None and record.tacho_ppr:
         ang = tacho_angle(np.asarray(record.tacho), fs, int(record.tacho_ppr))
         if record.tacho_shaft == "carrier":
             ang = ang / orders["carrier"]
-        method = "tacho"
-    else:
-        bw = bandwidth or 0.4 * twin.lp.n_planets * orders["carrier"]
-        ang = mesh_angle(np.asarray(record.channel(channel)), fs, harmonic * orders["mesh"],
-                         speed_range, bandwidth=bw)
-        method = "mesh_phase"
-    speed = shaft_speed(ang, fs)
-    t = np.arange(speed.size) / fs
-    # fit the angle (smooth) rather than the differentiated speed: theta = 2 pi (a t + b t^2/2)
-    a = np.vstack([t, 0.5 * t**2, np.ones_like(t)]).T
-    coef, *_ = np.linalg.lstsq(a, ang / (2 * np.pi), rcond=None)
-    f0, slope = float(coef[0]), float(coef[1])
-    T = record.duration
-    line = f0 + slope * t
-    return SpeedProfileEstimate(speed, f0, f0 + slope * T, T, float(np.sqrt(np.mean((speed - line) ** 2))), method)
+        speed = shaft_speed(ang, fs)
+        a = np.vstack([t, 0.5 * t**2, np.ones_like(t)]).T
+        coef, *_ = np.linalg.lstsq(a, ang / (2 * np.pi), rcond=None)
+        f0, f1 = float(coef[0]), float(coef[0] + coef[1] * T)
+        line = f0 + (f1 - f0) * t / T
+        return SpeedProfileEstimate(speed, f0, f1, T, float(np.sqrt(np.mean((speed - line) ** 2))),
+                                    "tacho")
+    lo, hi = float(speed_range[0]), float(speed_range[1])
+    if not 0 < lo < hi:
+        raise RecordError(f"speed_range must be (low, high) in Hz, got {speed_range}")
+    seg = int(round(segment * fs))
+    f, tt, Z = scipy.signal.stft(x - x.mean(), fs=fs, window="hann", nperseg=seg,
+                                 noverlap=seg // 2, boundary=None, padded=False)
+    A = np.abs(Z)
+    from dtwin.spectrum import noise_floor
+
+    cands = np.linspace(lo, hi, 2001)
+    best = []
+    for j in range(A.shape[1]):
+        fl = noise_floor(A[:, j], 31)
+        best.append(cands[np.argmax(_harmonic_sum(f, A[:, j], fl, cands, mo, fs, harmonics))])
+    best = np.asarray(best)
+    coef = np.polyfit(tt, best, 1)
+    resid = best - np.polyval(coef, tt)
+    keep = np.abs(resid) <= 3 * np.median(np.abs(resid)) + 1e-9
+    coef = np.polyfit(tt[keep], best[keep], 1)
+    f0, f1 = float(np.polyval(coef, 0.0)), float(np.polyval(coef, T))
+    res = scipy.optimize.minimize(
+        lambda v: -_dechirp_energy(x - x.mean(), t, mo, harmonics, fs, v[0], v[1], T),
+        np.array([f0, f1]), method="Nelder-Mead",
+        options=dict(xatol=1e-5, fatol=1e-10, initial_simplex=np.array(
+            [[f0, f1], [f0 + 0.05, f1], [f0, f1 + 0.05]])))
+    f0, f1 = float(res.x[0]), float(res.x[1])
+    speed = np.interp(t, tt, best)
+    line = f0 + (f1 - f0) * t / T
+    return SpeedProfileEstimate(speed, f0, f1, T, float(np.sqrt(np.mean((speed - line) ** 2))),
+                                "harmonic_sum+dechirp")
