@@ -16,7 +16,9 @@ from .fit import SOLVERS as SOLVERS
 from .fit import FitResult as FitResult
 from .fit import Problem as Problem
 from .fit import fit as fit
+from .fit import fit_batch as fit_batch
 from .fit import make_problem as make_problem
+from .fit import stack_problems as stack_problems
 from .operating_point import OperatingPoint as OperatingPoint
 from .operating_point import SpeedProfileEstimate as SpeedProfileEstimate
 from .operating_point import estimate_speed as estimate_speed
@@ -37,7 +39,7 @@ __all__ = [
     "SOLVERS", "Features", "FitResult", "Observation", "OperatingPoint", "ParameterSet",
     "Problem", "SeverityEstimate", "SeveritySeries", "SpeedProfileEstimate", "Uncertainty",
     "analyse", "drive_at", "estimate_severity", "estimate_speed", "estimate_speed_profile",
-    "fit", "make_problem", "observe", "plot_fit", "plot_severity_series", "severity_series",
+    "fit", "fit_batch", "make_problem", "stack_problems", "observe", "plot_fit", "plot_severity_series", "severity_series",
 ]
 
 

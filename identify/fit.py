@@ -51,7 +51,7 @@ from .residuals import (
 )
 from .uncertainty import Uncertainty, analyse
 
-__all__ = ["FitResult", "Problem", "fit", "make_problem", "SOLVERS"]
+__all__ = ["FitResult", "Problem", "SOLVERS", "fit", "fit_batch", "make_problem", "stack_problems"]
 
 SOLVERS = ("lm", "gauss-newton", "dogleg")
 #: Residual value substituted for a failed (NaN) simulation: a huge loss the solver rejects.
@@ -499,3 +499,85 @@ def check_free(free: Sequence[str] | str) -> list[str]:
     for n in names:
         lookup(n)
     return names
+
+
+# ------------------------------------------------------------------------------------ batch
+def stack_problems(problems: Sequence[Problem]) -> Problem:
+    """Stack problems of one structure (same record length, rate, rounded speed, free names)
+    along a leading axis of every array, for ``vmap`` over records.
+
+    **Raises:** `FitError` when the structures differ (group records by length, rate and speed,
+    or use ``Features(grid="orders")`` with a common ``order_step``)."""
+    statics = [eqx.partition(p, eqx.is_array)[1] for p in problems]
+    shapes = [jax.tree.map(lambda a: a.shape, eqx.filter(p, eqx.is_array)) for p in problems]
+    if any(s != statics[0] for s in statics[1:]) or any(s != shapes[0] for s in shapes[1:]):
+        raise FitError("records of one batch must share length, rate, speed (to 0.1 Hz) and "
+                       "settings; group them, or fit them one by one")
+    arrays = [eqx.filter(p, eqx.is_array) for p in problems]
+    stacked = jax.tree.map(lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]), *arrays)
+    return eqx.combine(stacked, statics[0])
+
+
+@eqx.filter_jit
+def _refine_records(thetas, stacked: Problem, solver_name: str, rtol: float, atol: float,
+                    jac: str, max_steps: int):
+    solver = _make_solver(solver_name, rtol, atol)
+    arrays, static = eqx.partition(stacked, eqx.is_array)
+
+    def one(theta0, arr):
+        prob = eqx.combine(arr, static)
+        sol = optx.least_squares(lambda t, a: a.residuals(t), solver, theta0, args=prob,
+                                 options=dict(jac="fwd" if jac == "fwd" else "bwd"),
+                                 max_steps=max_steps, throw=False)
+        r = prob.residuals(sol.value)
+        return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"], \
+            0.5 * jnp.sum(r * r)
+
+    return jax.vmap(one)(thetas, arrays)
+
+
+def fit_batch(
+    records: Sequence,
+    spec_or_twin,
+    free: Sequence[str] | str,
+    *,
+    solver: str = "lm",
+    jac: str = "fwd",
+    max_steps: int = 40,
+    tol: float = 1e-4,
+    uncertainty: bool = True,
+    **problem_kwargs: Any,
+) -> list[FitResult]:
+    """Fit many records of one gearbox type in one compiled, ``vmap``-ed call (one start each,
+    θ = 0). Records must share length, rate and speed to 0.1 Hz (:func:`stack_problems`);
+    per-record keyword lists (``f_sun``…) are not taken here: pass scalars. Uncertainties are
+    computed per record with one compiled Jacobian. **Returns:** one :class:`FitResult` per
+    record, as :func:`fit` would."""
+    t0 = time.perf_counter()
+    made = [make_problem(r, spec_or_twin, free, jac=jac, **problem_kwargs) for r in records]
+    problems = [m[0] for m in made]
+    stacked = stack_problems(problems)
+    p = problems[0].pset.size
+    thetas = jnp.zeros((len(problems), p))
+    th, ok, steps, fl = _refine_records(thetas, stacked, solver, tol, tol * 1e-2, jac, max_steps)
+    th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
+    wall = time.perf_counter() - t0
+    out = []
+    for i, prob in enumerate(problems):
+        pset = prob.pset
+        unc = None
+        if uncertainty:
+            r, J = _jacobian(jnp.asarray(th[i]), prob)
+            unc = analyse(pset, th[i], np.asarray(r), np.asarray(J),
+                          point_groups(prob.observations),
+                          n_profiled_gains=prob.n_profiled_gains)
+        at_bound = pset.at_bound(th[i])
+        out.append(FitResult(
+            names=pset.free, values=pset.as_dict(th[i]), theta=th[i],
+            initial=pset.as_dict(np.zeros(p)), uncertainty=unc, loss=float(fl[i]),
+            loss_history=[float(fl[i])], start_losses=np.asarray([np.nan]),
+            starts=np.zeros((1, p)), refined=[], converged=bool(ok[i]), at_bound=at_bound,
+            message="converged" if ok[i] else f"not converged after {int(steps[i])} steps",
+            iterations=int(steps[i]), wall_time=wall, operating_points=made[i][1], problem=prob,
+        ))
+    return out
