@@ -102,8 +102,12 @@ class SimResult(eqx.Module):
     """A simulated record and the model's internal signals, at the DAQ rate.
 
     - `time` (s), `signal` (the sensor, unit of `quantity`), `tacho` (V, or None);
-    - `outputs`: named internal signals (shaft speeds `omega_sun`, `omega_carrier` rad/s, drive
-      and load outputs: torques N·m, currents A, powers W …), same time base;
+    - `outputs`: named internal signals, point-sampled at the DAQ rate (not anti-alias
+      filtered): shaft angles `theta_sun`, `theta_carrier` (rad) and speeds `omega_sun`,
+      `omega_carrier` (rad/s), total mesh forces `force_sun_planet`, `force_ring_planet` (N,
+      summed over planets), mean mesh deflections `deflection_sun_planet`,
+      `deflection_ring_planet` (m), dissipated powers (W), drive and load outputs (torques N·m,
+      currents A, powers W …);
     - `num_steps`: accepted solver steps; `f_sun`: nominal input speed (Hz).
     """
 
@@ -226,6 +230,10 @@ def _observe(twin: Twin, ops, quantity, t, y):
         "theta_carrier": q.theta_c,
         "omega_sun": qdot.theta_s,
         "omega_carrier": qdot.theta_c,
+        "force_sun_planet": jnp.sum(mesh.force_sp),
+        "force_ring_planet": jnp.sum(mesh.force_rp),
+        "deflection_sun_planet": jnp.mean(mesh.delta_sp),
+        "deflection_ring_planet": jnp.mean(mesh.delta_rp),
     }
     for k, v in outputs.items():
         out[k] = jnp.asarray(v)

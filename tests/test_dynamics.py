@@ -211,8 +211,10 @@ def _line_level(tw, p, fm, df_line, dur=0.4):
     t = k / FS
     w = 0.5 - 0.5 * jnp.cos(2 * jnp.pi * k / n)
     f0 = fm + df_line
-    c = jnp.sum(w * x * jnp.exp(-2j * jnp.pi * f0 * t)) * 2 / jnp.sum(w)
-    return jnp.abs(c)
+    arg = 2 * jnp.pi * f0 * t
+    c = jnp.sum(w * x * jnp.cos(arg))
+    s = jnp.sum(w * x * jnp.sin(arg))
+    return 2 * jnp.sqrt(c**2 + s**2) / jnp.sum(w)
 
 
 @pytest.mark.parametrize(
@@ -250,8 +252,9 @@ def test_resonance_moves_with_sun_planet_stiffness():
 
     The torsional model's rotational mode near 12 kHz is the one the sun-planet stiffness
     controls (relative sensitivity ~0.48, `dtwin.modal`); the 20th mesh harmonic (stiffness
-    series with 24 harmonics) sweeps across it. Raising k_sun_planet by 30 % must move the peak
-    of that harmonic's response by the ratio the modal analysis predicts.
+    series with 24 harmonics) sweeps across it, seen in the sun-mesh deflection. The peak
+    of that harmonic's response by the ratio the modal analysis predicts. Raising it by 20 %
+    moves the mode by ~9 %.
     """
     from dtwin.modal import frequency_sensitivities, modal_analysis
     from dtwin.parts.drive import DrivePart
@@ -260,7 +263,7 @@ def test_resonance_moves_with_sun_planet_stiffness():
 
     spec = preset("paper-sim")
     zr, zs = spec["gears"]["z_ring"], spec["gears"]["z_sun"]
-    h, fs_hi, dur = 20, 32000.0, 0.6
+    h, fs_hi, dur = 20, 48000.0, 0.6
     base = build_twin(spec, kind="torsional", n_harmonics=24)
     res0 = modal_analysis(base.lp, model="torsional")
     sens = np.asarray(frequency_sensitivities(base.lp, ("k_sun_planet",), "torsional")["k_sun_planet"])
@@ -268,16 +271,19 @@ def test_resonance_moves_with_sun_planet_stiffness():
     f_mode = float(res0.frequencies[j])
     assert sens[j] > 0.3 and f_mode > 5000.0
     mesh_per_sun = zr / (1 + zr / zs)  # f_mesh / f_sun
-    f_lo, f_hi = 0.85 * f_mode / h / mesh_per_sun, 1.3 * f_mode / h / mesh_per_sun
+    f_lo, f_hi = 0.85 * f_mode / h / mesh_per_sun, 1.25 * f_mode / h / mesh_per_sun
     i = next(k for k, p in enumerate(base.parts) if isinstance(p, DrivePart))
     peaks, modes = [], []
-    for scale in (1.0, 1.3):
+    for scale in (1.0, 1.2):
         tw = eqx.tree_at(lambda t: t.lp, base, replace(base.lp, k_sun_planet=base.lp.k_sun_planet * scale))
         modes.append(float(modal_analysis(tw.lp, model="torsional").frequencies[j]))
         prof = SpeedProfile.ramp(2 * math.pi * f_hi, dur, 0.0, 2 * math.pi * f_lo)
         tw = eqx.tree_at(lambda t: t.parts[i].drive, tw, IdealSpeedSource(prof, Shaft()))
-        res = simulate(tw, duration=dur, f_sun=f_lo, daq=DAQ(sample_rate=fs_hi))
-        x = np.asarray(res.signal)
+        res = simulate(tw, duration=dur, f_sun=f_lo, daq=DAQ(sample_rate=fs_hi, oversample=2))
+        # the sun-planet mode shows in the sun-mesh deflection (the housing sensor sees the
+        # ring mesh, in which this mode hardly participates; the mesh *force* adds the
+        # non-resonant k_h * delta_0 term, which shifts its peak)
+        x = np.asarray(res.outputs["deflection_sun_planet"])
         fmh = h * np.asarray(res.outputs["omega_sun"]) / (2 * np.pi) * mesh_per_sun
         phase = 2 * np.pi * np.cumsum(fmh) / fs_hi
         seg = 1024
@@ -288,5 +294,5 @@ def test_resonance_moves_with_sun_planet_stiffness():
             freqs.append(fmh[sl].mean())
         peaks.append(freqs[int(np.argmax(amps))])
     ratio_sim, ratio_modal = peaks[1] / peaks[0], modes[1] / modes[0]
-    assert ratio_modal > 1.08
+    assert ratio_modal > 1.06
     assert abs(ratio_sim - ratio_modal) < 0.3 * (ratio_modal - 1.0), (peaks, modes)
