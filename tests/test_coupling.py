@@ -124,14 +124,14 @@ class PowerProbe(AbstractPart):
 def _steady_run(coup, severity):
     tw = with_severity(coup, severity).with_parts(PowerProbe())
     daq = DAQ(sample_rate=FS_DAQ, oversample=2, quantity="acceleration")
-    res = simulate(tw, duration=3 * T_CARRIER + 3 / FS_DAQ, f_sun=F_SUN, discard=0.1, daq=daq)
+    res = simulate(tw, duration=2 * T_CARRIER + 3 / FS_DAQ, f_sun=F_SUN, discard=0.1, daq=daq)
     return tw, {k: np.asarray(v) for k, v in res.outputs.items()}, np.asarray(res.signal), \
         np.asarray(res.time)
 
 
 @pytest.fixture(scope="module")
 def coupled_steady(pair):
-    """The coupled twin with a whole missing sun tooth, 3 carrier periods after 0.1 s at speed."""
+    """The coupled twin with a whole missing sun tooth, 2 carrier periods after 0.1 s at speed."""
     return _steady_run(pair[1], 1.0)
 
 
@@ -149,7 +149,7 @@ def _mean(x, t, sl):
 def test_steady_torque_balance_through_the_gear_ratio(coupled_steady):
     tw, out, _, t = coupled_steady
     sl, n_per = _whole_periods(t)
-    assert n_per == 3
+    assert n_per == 2
     drive = tw.parts[_drive_index(tw)].drive
     w = _mean(out["omega_motor"], t, sl)
     assert abs(w - 2 * math.pi * F_SUN) < 1e-6 * w  # the speed loop has no steady error
@@ -256,40 +256,62 @@ def test_motor_current_carries_the_fault_as_sidebands_of_the_supply(coupled_stea
 
 
 # ------------------------------------------------------------------------------ the comparison
-def test_compare_drives_cli_figure_table_and_monotonic_rms(tmp_path, capsys):
+def _cli(out, *extra):
     from dtwin.cli import main
 
+    args = ["compare-drives", "--preset", "paper-sim", "--kind", "torsional",
+            "--severities", "0,0.5,1", "--duration", f"{T_CARRIER:.6f}", "--discard", "0.05",
+            "--quantity", "acceleration", *extra]
+    if out is not None:
+        args += ["--out", str(out)]
+    main(args)
+
+
+def test_compare_drives_cli_figure_table_and_monotonic_rms(tmp_path, capsys):
+    """The figure, the table and the JSON on one-carrier-period records; RMS rises with the
+    severity in both models (reduced form: no sensitivity, which the slow test covers)."""
     out = tmp_path / "cmp"
-    main(["compare-drives", "--preset", "paper-sim", "--kind", "torsional",
-          "--severities", "0,0.5,1", "--duration", f"{T_CARRIER:.6f}", "--discard", "0.05",
-          "--quantity", "acceleration", "--json", "--out", str(out)])
+    _cli(out, "--json", "--no-sensitivity")
     printed = json.loads(capsys.readouterr().out)
     data = json.loads((out / "compare_drives.json").read_text())
     assert printed == data
     manifest = json.loads((out / "manifest.json").read_text())
-    assert set(manifest["files"]) == {"comparison.png", "sensitivity.png", "compare_drives.json"}
-    for name in ("comparison.png", "sensitivity.png"):
-        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert set(manifest["files"]) == {"comparison.png", "compare_drives.json"}
+    assert manifest["settings"]["kind"] == "torsional"
+    assert (out / "comparison.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     rows = data["comparison"]["rows"]
     assert [r["severity"] for r in rows] == [0.0, 0.5, 1.0]
     for m in MODELS:
         rms = np.array([r[f"rms_{m}"] for r in rows])
-        slope = np.array([r[f"slope_{m}"] for r in rows])
         assert np.all(np.diff(rms) > 0), f"{m}: RMS {rms}"
-        # autodiff slope vs the secants: it lies between the neighbouring secants where the
-        # RMS is convex in the severity (a missing tooth's effect grows faster than linearly)
-        sec = np.diff(rms) / 0.5
-        assert sec[0] < slope[1] < sec[1], f"{m}: slope {slope} secants {sec}"
-        assert slope[2] > sec[1]
-    # the table (terminal form) prints without error
-    main(["compare-drives", "--preset", "paper-sim", "--kind", "torsional",
-          "--severities", "0,0.5,1", "--duration", f"{T_CARRIER:.6f}", "--discard", "0.05",
-          "--quantity", "acceleration"])
-    text = capsys.readouterr().out
-    assert "secant slope traditional" in text and "paper-sim" in text
+        assert rows[0][f"rise_{m}"] == 0.0
+    # results are never overwritten silently
+    with pytest.raises(SystemExit):
+        _cli(out, "--no-sensitivity")
+    assert "already" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------------------ slow forms
+@pytest.mark.slow
+def test_compare_drives_cli_with_sensitivity(tmp_path, capsys):
+    out = tmp_path / "cmp"
+    _cli(out)
+    text = capsys.readouterr().out
+    assert "secant slope traditional" in text
+    data = json.loads((out / "compare_drives.json").read_text())
+    assert (out / "sensitivity.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rows = data["comparison"]["rows"]
+    for m in MODELS:
+        rms = np.array([r[f"rms_{m}"] for r in rows])
+        slope = np.array([r[f"slope_{m}"] for r in rows])
+        assert np.all(np.diff(rms) > 0), f"{m}: RMS {rms}"
+        # the autodiff slope lies between the neighbouring secants where the RMS is convex in
+        # the severity (a missing tooth's effect grows faster than linearly); not at s = 1, where
+        # the floor k >= 0 of the mesh stiffness makes the RMS non-smooth (docs/coupling.md)
+        sec = np.diff(rms) / 0.5
+        assert sec[0] < slope[1] < sec[1], f"{m}: slope {slope} secants {sec}"
+
+
 @pytest.mark.slow
 def test_autodiff_sensitivity_matches_finite_differences(pair):
     from dtwin.simulate import SolverOptions
@@ -297,10 +319,11 @@ def test_autodiff_sensitivity_matches_finite_differences(pair):
     kw = dict(f_sun=F_SUN, duration=T_CARRIER, discard=0.05, daq=DAQ(quantity="acceleration"),
               solver=SolverOptions(rtol=1e-8, atol=1e-8))
     h = 1e-3
+    s = np.array([0.25, 0.5, 0.75])
     for tw in pair:
-        _, d = fault_rms_and_slope(tw, [0.5, 1.0 - h], **kw)
-        fd = (fault_rms(tw, [0.5 + h, 1.0], **kw) - fault_rms(tw, [0.5 - h, 1.0 - 2 * h], **kw)) / (2 * h)
-        np.testing.assert_allclose(d, fd, rtol=0.02)
+        _, d = fault_rms_and_slope(tw, s, **kw)
+        fd = (fault_rms(tw, s + h, **kw) - fault_rms(tw, s - h, **kw)) / (2 * h)
+        np.testing.assert_allclose(d, fd, rtol=0.01)
 
 
 @pytest.mark.slow

@@ -67,6 +67,15 @@ def compare_drives_cmd(
         raise SpecError([("--preset/--spec", "give --preset NAME or --spec FILE")])
     sev = _parse_list(severities, "--severities")
     daq = daq_from_spec(spec, **({"quantity": quantity} if quantity else {}))
+    folder = None
+    if out is not None:  # refuse an existing result before minutes of simulation
+        from ..io.output import OutputFolder
+        from ..spec import spec_to_dict
+
+        folder = OutputFolder(out, force=force, spec=spec_to_dict(spec), parameters={
+            "severities": sev, "duration_s": duration, "discard_s": discard, "kind": kind,
+            "quantity": daq.quantity, "k_shaft": k_shaft, "speed_bandwidth_hz": speed_bandwidth,
+            "sensitivity": not no_sensitivity, "sweep": sweep})
     cmp = compare_drives(spec, sev, kind=kind, duration=duration, discard=discard, daq=daq,
                          sensitivity=not no_sensitivity, k_shaft=k_shaft,
                          speed_bandwidth=speed_bandwidth)
@@ -75,17 +84,14 @@ def compare_drives_cmd(
     if sweep:
         swp = sensitivity_sweep(spec, kind=kind, duration=duration, discard=discard, daq=daq)
         summary["sweep"] = swp.to_dict()
-    if out is not None:
-        from ..io.output import OutputFolder
+    if folder is not None:
         from ..plotting.coupling import (
             plot_drive_comparison,
             plot_sensitivity,
             plot_sensitivity_sweep,
         )
-        from ..spec import spec_to_dict
 
-        folder = OutputFolder(out, force=force, spec=spec_to_dict(spec),
-                              parameters=cmp.settings)
+        folder.set("settings", cmp.settings)
         folder.savefig("comparison.png", plot_drive_comparison(cmp))
         if cmp.slope is not None:
             folder.savefig("sensitivity.png", plot_sensitivity(cmp))

@@ -15,6 +15,7 @@ from ..coupling import MODELS, DriveComparison, SensitivitySweep
 __all__ = ["plot_drive_comparison", "plot_sensitivity", "plot_sensitivity_sweep"]
 
 _COLOURS = {"traditional": "tab:gray", "coupled": "tab:blue"}
+_STYLES = {"traditional": "s--", "coupled": "o-"}
 _LABELS = {"traditional": "traditional (ideal speed source)", "coupled": "twin with PMSM drive"}
 
 
@@ -35,7 +36,8 @@ def plot_drive_comparison(cmp: DriveComparison, *, title: str | None = None) -> 
     for k, m in enumerate(MODELS):
         off = (k - (len(MODELS) - 1) / 2) * width
         ax1.bar(s + off, cmp.rms[m], width=width, color=_COLOURS[m], label=_LABELS[m])
-        ax2.plot(s, 100.0 * cmp.relative_rise(m), "o-", color=_COLOURS[m], label=_LABELS[m])
+        ax2.plot(s, 100.0 * cmp.relative_rise(m), _STYLES[m], color=_COLOURS[m], label=_LABELS[m],
+                 markerfacecolor="none" if m == "traditional" else None, markersize=8)
     lo = min(float(np.min(cmp.rms[m])) for m in MODELS)
     hi = max(float(np.max(cmp.rms[m])) for m in MODELS)
     pad = 0.15 * (hi - lo) if hi > lo else 0.05 * hi
@@ -73,7 +75,7 @@ def plot_sensitivity(cmp: DriveComparison, *, title: str | None = None) -> Figur
     fig = Figure(figsize=(6.5, 4.2))
     ax = fig.subplots()
     for m in MODELS:
-        ax.plot(s, cmp.slope[m], "o-", color=_COLOURS[m], label=f"{_LABELS[m]}: autodiff")
+        ax.plot(s, cmp.slope[m], _STYLES[m], color=_COLOURS[m], label=f"{_LABELS[m]}: autodiff")
         if s.size > 1:
             mid = 0.5 * (s[1:] + s[:-1])
             sec = np.diff(cmp.rms[m]) / np.diff(s)
