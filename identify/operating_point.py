@@ -8,7 +8,7 @@ mesh harmonic and sideband would sit in the wrong bins. So the speed is measured
 1. with a tachometer channel: the mean speed from its pulses (:func:`dtwin.order.tacho_angle`);
 2. otherwise from the spectrum (Hann window, zero padding ×4): a harmonic-sum search within
    ±`search` (default 5 %) of the nominal speed, then each mesh harmonic ``h`` below 0.45 × the
-   rate standing 15 dB above the floor is interpolated (parabola on the log amplitude); each
+   rate standing 10 dB above the floor (running median over 101 bins) is interpolated (parabola on the log amplitude); each
    gives ``f_mesh = f_h / h`` with a precision ~ ``1/(h T SNR)``, so they are averaged with
    weights ``h²`` (a higher harmonic pins the speed more precisely). The carrier sidebands ``f_mesh ± k N f_carrier`` confirm the line: a line
    whose ``± N f_carrier`` neighbours are not above the floor is reported as ``weak``.
@@ -86,7 +86,7 @@ def _harmonic_sum(freqs, amp, floor, cands, mesh_order, fs, harmonics):
 
 def estimate_speed(
     record, twin, f_sun_nominal: float, *, channel: int | str = 0, search: float = 0.05,
-    max_harmonics: int = 8, min_level_db: float = 15.0,
+    max_harmonics: int = 8, min_level_db: float = 10.0,
 ) -> OperatingPoint:
     """Input speed of a steady record (module docstring).
 
@@ -121,7 +121,7 @@ def estimate_speed(
     xp = np.concatenate([(x - x.mean()) * np.hanning(n), np.zeros((pad - 1) * n)])
     amp = np.abs(np.fft.rfft(xp))
     freqs = np.fft.rfftfreq(pad * n, 1.0 / fs)
-    floor = noise_floor(amp, pad * 31 + 1)
+    floor = noise_floor(amp, pad * 101 + 1)
     mo = orders["mesh"]
     df = fs / n  # one bin of the unpadded record
     cands = f_sun_nominal * (1 + np.linspace(-search, search, int(8 * search * f_sun_nominal
@@ -139,11 +139,16 @@ def estimate_speed(
         if level >= min_level_db:
             found.append((h, p[0], float(level)))
     if not found:
-        raise RecordError(
-            f"no mesh harmonic stands {min_level_db:g} dB above the noise near "
-            f"{f_sun_nominal * mo:.1f} Hz (±{100 * search:.0f} %): check the spec's speed "
-            "(operating.f_sun), the channel, or pass the speed explicitly"
-        )
+        best = float(np.max(_harmonic_sum(freqs, amp, floor, np.array([coarse]), mo, fs,
+                                          max_harmonics)))
+        if best <= 0:
+            raise RecordError(
+                f"no mesh harmonic stands above the noise near {f_sun_nominal * mo:.1f} Hz "
+                f"(±{100 * search:.0f} %): check the spec's speed (operating.f_sun), the "
+                "channel, or pass the speed explicitly"
+            )
+        # no single harmonic is clear, but the comb is: keep the harmonic-sum speed
+        return OperatingPoint(coarse, coarse * mo, 0.5 * df / mo, "spectrum", (), True)
     h = np.array([f[0] for f in found], dtype=float)
     fm = np.array([f[1] / f[0] for f in found])
     w = h**2
