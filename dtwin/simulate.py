@@ -194,9 +194,17 @@ def initial_state(twin: Twin, f_sun: float | Array, start: str = "steady"):
         z = jnp.zeros(n).at[keep].set(x)
         zd = jnp.zeros(n).at[ic].set(omega_c)
         aux = []
+        q0, qd0 = twin.unpack(A @ z), twin.unpack(A @ zd)
+        mesh0 = None
         for p in twin.parts:
             if isinstance(p, DrivePart):
                 aux.append(p.aux_init(twin, omega_s, torque_sun))
+            elif hasattr(p, "aux_from_state"):
+                # parts whose states follow the gear set (filters): start them in steady state
+                if mesh0 is None:
+                    t0 = jnp.zeros(())
+                    mesh0 = twin.mesh_state(t0, q0, qd0, twin.modulation(t0, q0, qd0))
+                aux.append(p.aux_from_state(twin, jnp.zeros(()), q0, qd0, mesh0))
             else:
                 aux.append(p.aux_init(twin, omega_s))
     else:
@@ -222,8 +230,9 @@ def _observe(twin: Twin, ops, quantity, t, y):
         sig = ring_velocity_fixed(q, qdot) @ d
     else:
         sig = jnp.zeros(())
-        for p in twin.find(AbstractTransferPath):
-            sig = sig + p.acceleration(twin, t, q, qdot, qddot, mesh)
+        for p, a in zip(twin.parts, twin.split_aux(y[2]), strict=True):
+            if isinstance(p, AbstractTransferPath):
+                sig = sig + p.acceleration(twin, t, q, qdot, qddot, mesh, a)
     out = {
         "signal": sig,
         "theta_sun": q.theta_s,

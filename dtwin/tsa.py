@@ -218,3 +218,76 @@ def planet_separation(
         rev = np.round((grid + psi[i] - sensor_angle) / (2 * np.pi))
         passes[i] = np.unique(rev[w > 0]).size
     return PlanetAverages(np.arange(n_bins) / spt, averages, weights, passes, window, width)
+
+
+@dataclasses.dataclass(frozen=True)
+class SunAverage:
+    """The sun gear's windowed average (McFadden 1994, sun-gear form of planet separation).
+
+    - `tooth`: sun-tooth positions (teeth, 0 … Zs), ``samples_per_tooth`` per tooth.
+    - `average`: the windowed average over every planet's passages, shape ``(Zs * spt,)``.
+    - `weights`: total window weight per position (coverage); `n_passes`: planet passages used.
+    """
+
+    tooth: np.ndarray
+    average: np.ndarray
+    weights: np.ndarray
+    n_passes: int
+
+
+def sun_separation(
+    x,
+    carrier_angle: np.ndarray,
+    z_sun: int,
+    z_ring: int,
+    n_planets: int,
+    *,
+    planet_angles: Sequence[float] | None = None,
+    sensor_angle: float = np.pi / 2,
+    samples_per_tooth: int = 16,
+    window: str = "hann",
+    window_teeth: float | None = None,
+    sample_rate: float | None = None,
+    channel: str | int = 0,
+) -> SunAverage:
+    """Average the vibration of the sun's teeth as they mesh with the planet under the sensor.
+
+    While planet i passes the sensor (window of its angle to the sensor, as in
+    :func:`planet_separation`), the sun tooth in mesh with it is
+    ``(phase_sp_i mod Zs)``, ``phase_sp_i = Zr theta_c / 2 pi - Zs psi_i / 2 pi`` (ring fixed,
+    docs/conventions.md). Each windowed sample is added at that sun-tooth position; every planet
+    contributes to the same average, so a local sun fault adds up coherently while what is not
+    synchronous with the sun's teeth (other gears, noise) averages out (McFadden 1994).
+
+    **Arguments:** as :func:`planet_separation`, with `z_sun`; `window_teeth` defaults to
+    ``2 gcd(Zr, Zs)`` mesh periods (hann).
+
+    **Returns:** :class:`SunAverage`.
+    """
+    sig, fs = as_signal(x, sample_rate, channel)
+    zs, zr, n = int(z_sun), int(z_ring), int(n_planets)
+    if min(zs, zr, n) < 1:
+        raise RecordError(f"Zs, Zr and N must be positive integers, got {z_sun}, {z_ring}, {n_planets}")
+    psi = (2 * np.pi * np.arange(n) / n if planet_angles is None
+           else np.asarray(planet_angles, dtype=np.float64))
+    if psi.shape != (n,):
+        raise RecordError(f"planet_angles must hold {n} angles (rad), got {len(psi)}")
+    g = math.gcd(zr, zs)
+    width = float(window_teeth) if window_teeth is not None else (2.0 * g if window == "hann" else float(g))
+    spt = int(samples_per_tooth)
+    grid, xa = resample_to_angle(sig, fs, carrier_angle, zr * spt)
+    n_bins = zs * spt
+    num = np.zeros(n_bins)
+    den = np.zeros(n_bins)
+    passes = 0
+    for i in range(n):
+        phi = np.angle(np.exp(1j * (grid + psi[i] - sensor_angle)))
+        w = _window_weight(phi * zr / (2 * np.pi) / width, window)
+        phase = (zr * grid - zs * psi[i]) / (2 * np.pi)  # sun-mesh cycles of planet i
+        idx = np.mod(np.round(phase * spt).astype(np.int64), n_bins)
+        num += np.bincount(idx, weights=w * xa, minlength=n_bins)
+        den += np.bincount(idx, weights=w, minlength=n_bins)
+        rev = np.round((grid + psi[i] - sensor_angle) / (2 * np.pi))
+        passes += np.unique(rev[w > 0]).size
+    avg = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
+    return SunAverage(np.arange(n_bins) / spt, avg, den, int(passes))

@@ -11,7 +11,12 @@ default `PlanetPassTransferPath` (McFadden & Smith 1985) sees
   acceleration scale), weighted by a window of the planet's angle to the sensor,
   ``w(phi) = ((1 + cos phi) / 2) ** window_exponent``, ``phi = theta_c + psi_i - sensor_angle``:
   1 when the planet passes under the sensor, 0 on the far side. ``window_exponent`` controls
-  the window width (1: raised cosine; larger: narrower).
+  the window width (1: raised cosine; larger: narrower). An accelerometer on a housing does not
+  see the quasi-static part of a force that travels past it (the static mesh load carried round
+  by the carrier), only its dynamic part: the windowed force goes through a high-pass
+  ``1 - L(s)``, ``L`` a second-order Butterworth low-pass at `highpass_hz` (default 50 Hz, far
+  below the mesh frequency), whose two states are the part's own. A run therefore needs a
+  short transient (a few /`highpass_hz`) discarded.
 
 The sensor direction is the unit vector at `direction_angle` in the fixed frame (default
 ``pi/2``: vertical, +y up), the sensor itself at `sensor_angle` (default ``pi/2``, on top).
@@ -50,10 +55,13 @@ def ring_velocity_fixed(q, qdot):
 
 
 class AbstractTransferPath(AbstractPart):
-    """A path from the gear set to the sensor; `acceleration` in m/s² along the sensor axis."""
+    """A path from the gear set to the sensor; `acceleration` in m/s² along the sensor axis.
+
+    `aux` are the path's own states (filters, housing modes), as returned by its `forces`.
+    """
 
     @abc.abstractmethod
-    def acceleration(self, twin, t, q, qdot, qddot, mesh) -> Float[Array, ""]: ...
+    def acceleration(self, twin, t, q, qdot, qddot, mesh, aux) -> Float[Array, ""]: ...
 
 
 class PlanetPassTransferPath(AbstractTransferPath):
@@ -64,13 +72,33 @@ class PlanetPassTransferPath(AbstractTransferPath):
     window_exponent: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(4.0))
     ring_weight: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(1.0))
     force_weight: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(1.0))
+    highpass_hz: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(50.0))
+
+    @property
+    def aux_size(self) -> int:
+        return 2
 
     def window(self, twin, q) -> Float[Array, " N"]:
         phi = q.theta_c + twin.lp.planet_angles - self.sensor_angle
         return (0.5 * (1.0 + jnp.cos(phi))) ** self.window_exponent
 
-    def acceleration(self, twin, t, q, qdot, qddot, mesh):
+    def windowed_force(self, twin, q, mesh) -> Float[Array, ""]:
+        """``sum_i w_i F_rp_i / m_ring`` (m/s²) before the high-pass."""
+        return jnp.sum(self.window(twin, q) * mesh.force_rp) / twin.lp.m_ring
+
+    def aux_from_state(self, twin, t, q, qdot, mesh):
+        """Filter states of a steady run: the low-pass holds the windowed force."""
+        return jnp.stack([self.windowed_force(twin, q, mesh), jnp.zeros(())])
+
+    def forces(self, twin, t, q, qdot, aux, mesh):
+        w = 2.0 * jnp.pi * self.highpass_hz
+        s = self.windowed_force(twin, q, mesh)
+        z1, z2 = aux[0], aux[1]
+        aux_dot = jnp.stack([z2, w**2 * (s - z1) - jnp.sqrt(2.0) * w * z2])
+        return None, aux_dot, {}
+
+    def acceleration(self, twin, t, q, qdot, qddot, mesh, aux):
         d = jnp.stack([jnp.cos(self.direction_angle), jnp.sin(self.direction_angle)])
         a_ring = ring_acceleration_fixed(q, qdot, qddot) @ d
-        a_force = jnp.sum(self.window(twin, q) * mesh.force_rp) / twin.lp.m_ring
+        a_force = self.windowed_force(twin, q, mesh) - aux[0]
         return self.ring_weight * a_ring + self.force_weight * a_force
