@@ -1,0 +1,31 @@
+"""The library of candidate effects (see :mod:`identify.effects.base`).
+
+Default candidates, in their look-alike groups:
+
+- ``carrier_sidebands`` (forbidden ``m fm + n fc`` lines): planet position errors, unequal load
+  sharing, carrier eccentricity, load-torque fluctuation at 1 fc, a ring local fault;
+- ``sun_rotation`` (``m fm ± j fs/N + n fc``): sun eccentricity, a sun local fault;
+- ``planet_fault`` (``m fm ± j fp + n fc``): a planet local fault;
+- ``motor`` (``± h fe + m fm``): torque ripple at 6 fe.
+"""
+
+from .base import AbstractEffect as AbstractEffect
+from .base import EffectParameter as EffectParameter
+from .base import SignatureLine as SignatureLine
+from .base import register_effect as register_effect
+from .base import registered_effects as registered_effects
+from .base import unregister_effect as unregister_effect
+from .eccentricity import CarrierEccentricityEffect as CarrierEccentricityEffect
+from .eccentricity import SunEccentricityEffect as SunEccentricityEffect
+from .load_fluctuation import LoadFluctuationEffect as LoadFluctuationEffect
+from .load_sharing import LoadSharingEffect as LoadSharingEffect
+from .local_fault import LocalFaultEffect as LocalFaultEffect
+from .planet_position import PlanetPositionEffect as PlanetPositionEffect
+from .torque_ripple import TorqueRippleEffect as TorqueRippleEffect
+
+for _e in (PlanetPositionEffect(), LoadSharingEffect(), CarrierEccentricityEffect(),
+           LoadFluctuationEffect(order=1), LocalFaultEffect(location="ring"),
+           SunEccentricityEffect(), LocalFaultEffect(location="sun"),
+           LocalFaultEffect(location="planet"), TorqueRippleEffect(harmonic=6)):
+    register_effect(_e)
+del _e

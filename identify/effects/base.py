@@ -1,0 +1,170 @@
+"""Candidate effects: what a discrepancy search may add to a twin.
+
+An effect is a final subclass of :class:`AbstractEffect`. It names
+
+- the **part(s)** it adds (physics lives in ``dtwin/parts``): :meth:`AbstractEffect.parts`
+  builds them from the effect's parameter vector ``theta`` (physical units);
+- its **parameters** (:meth:`AbstractEffect.parameters`): registry names (registered in
+  :mod:`dtwin.registry` on first use), units, the *scale* of one fitting unit and whether the
+  value is non-negative. ``theta = 0`` must give exactly the base model (nested models);
+- its **signature** (:meth:`AbstractEffect.signature`): the spectral lines it adds to an ideal
+  gearbox, as a function of the kinematics (:class:`identify.lines.Kinematics`);
+- its **main parameter** (:meth:`AbstractEffect.main`, a scalar of ``theta``: an amplitude) and
+  the **typical range** of that amplitude on real machines (`typical_range`, with a note);
+- its **group**: effects whose signatures coincide (look-alikes) share a group name; the search
+  names the group and the member only where the data tell members apart.
+
+Parameters enter the parts *linearly* wherever the physics allows (an eccentricity as its two
+components rather than magnitude and phase), so that the first-order response about the base
+model is exact in the parameters and the fit starts well (``identify/discover.py``).
+
+New effects plug in without touching the search: subclass, then pass an instance to
+:func:`identify.discover.discover` (``candidates=``) or call :func:`register_effect`.
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from dtwin.registry import REGISTRY, ParameterInfo, register
+
+from ..lines import Kinematics, LineBounds
+
+__all__ = ["AbstractEffect", "EffectParameter", "SignatureLine", "carrier_grid",
+           "register_effect", "registered_effects", "unregister_effect"]
+
+
+@dataclasses.dataclass(frozen=True)
+class EffectParameter:
+    """One fitted coordinate of an effect.
+
+    - `name`: registry name (e.g. ``sun_eccentricity_x``); `unit`: SI unit;
+    - `scale`: physical value of one fitting unit (fits work on ``theta / scale`` ~ 1);
+    - `nonnegative`: the value cannot be negative (fault severity, ripple amplitude bound);
+    - `bounds`: hard physical bounds; `description`: one line.
+    """
+
+    name: str
+    unit: str
+    scale: float
+    description: str
+    bounds: tuple[float, float] = (-float("inf"), float("inf"))
+    nonnegative: bool = False
+
+    def register(self) -> None:
+        """Add to :mod:`dtwin.registry` (once)."""
+        if self.name in REGISTRY:
+            return
+        lo, hi = self.bounds
+        register(ParameterInfo(
+            self.name, self.unit, self.description, f"effects.{self.name}",
+            (lo if lo > -float("inf") else -1e12, hi if hi < float("inf") else 1e12),
+            "log" if self.nonnegative else "none", (lo, hi)))
+
+
+@dataclasses.dataclass(frozen=True)
+class SignatureLine:
+    """A line an effect adds: `frequency` (Hz) and its kinematic `label` ("fm + 2fc")."""
+
+    frequency: float
+    label: str
+
+
+class AbstractEffect(eqx.Module):
+    """A candidate model augmentation (module docstring).
+
+    Subclasses also provide `name` and `group` (str), as class variables or, when they depend
+    on a field (a fault's location, a ripple's harmonic), as properties.
+    """
+
+    description: eqx.AbstractClassVar[str]
+    main_name: eqx.AbstractClassVar[str]
+    main_unit: eqx.AbstractClassVar[str]
+    typical_range: eqx.AbstractClassVar[tuple[float, float]]
+    typical_note: eqx.AbstractClassVar[str]
+
+    @abc.abstractmethod
+    def parameters(self, twin) -> tuple[EffectParameter, ...]:
+        """The fitted coordinates (their number may depend on the twin, e.g. N planets)."""
+
+    @abc.abstractmethod
+    def parts(self, theta: Float[Array, " p"], twin, kin: Kinematics) -> tuple:
+        """The parts for parameter values `theta` (physical units); theta = 0 → no effect."""
+
+    @abc.abstractmethod
+    def signature(self, kin: Kinematics, f_max: float) -> list[SignatureLine]:
+        """Lines (Hz, up to `f_max`) the effect adds to the ideal gearbox."""
+
+    @abc.abstractmethod
+    def main(self, theta: Float[Array, " p"]) -> Float[Array, ""]:
+        """The main amplitude (physical unit `main_unit`) of parameter values `theta`."""
+
+
+_REGISTERED: dict[str, AbstractEffect] = {}
+
+
+def register_effect(effect: AbstractEffect) -> AbstractEffect:
+    """Make `effect` one of the default candidates of the search (by its `name`)."""
+    _REGISTERED[effect.name] = effect
+    return effect
+
+
+def unregister_effect(name: str) -> None:
+    _REGISTERED.pop(name, None)
+
+
+def registered_effects() -> list[AbstractEffect]:
+    """The default candidates, in registration order."""
+    return list(_REGISTERED.values())
+
+
+def carrier_grid(kin: Kinematics, f_max: float, *, forbidden_only: bool = True,
+                 mesh_orders: Sequence[int] = range(0, 5), bounds: LineBounds = LineBounds()
+                 ) -> list[SignatureLine]:
+    """Lines ``m fm + n fc`` (|n| ≤ carrier bound) up to `f_max`; with `forbidden_only` only
+    those the ideal gearbox's sideband rule cancels (reference.md §2)."""
+    out = []
+    for m in mesh_orders:
+        for n in range(-bounds.carrier, bounds.carrier + 1):
+            f = m * kin.f_mesh + n * kin.f_carrier
+            if not 0 < f < f_max or (m == 0 and n <= 0):
+                continue
+            if forbidden_only and kin.allowed_by_sideband_rule(m, n):
+                continue
+            out.append(SignatureLine(f, _fmt(((f"{m}fm" if m > 1 else "fm", m and 1), ("fc", n)))))
+    return out
+
+
+def family_grid(kin: Kinematics, f_max: float, symbol: str, g: float, orders: Sequence[int],
+                carrier: int = 2, mesh_orders: Sequence[int] = range(0, 5)) -> list[SignatureLine]:
+    """Lines ``m fm + j g + n fc`` for j in `orders`, |n| ≤ `carrier`, up to `f_max`."""
+    out = []
+    for m in mesh_orders:
+        for j in orders:
+            for n in range(-carrier, carrier + 1):
+                f = m * kin.f_mesh + j * g + n * kin.f_carrier
+                if 0 < f < f_max:
+                    out.append(SignatureLine(f, _fmt(((f"{m}fm" if m > 1 else "fm", m and 1),
+                                                      (symbol, j), ("fc", n)))))
+    return out
+
+
+def _fmt(terms) -> str:
+    s = ""
+    for sym, c in terms:
+        if not c:
+            continue
+        body = sym if abs(c) == 1 else f"{abs(c)}{sym}"
+        s += (body if c > 0 else f"−{body}") if not s else (f" + {body}" if c > 0 else f" − {body}")
+    return s
+
+
+def rms(theta: Float[Array, " p"]) -> Float[Array, ""]:
+    """Euclidean norm (used as the main amplitude of vector-valued effects)."""
+    return jnp.sqrt(jnp.sum(theta**2))

@@ -1,0 +1,59 @@
+"""A further local tooth fault (pitting) on the sun, a planet or the ring."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import equinox as eqx
+
+from dtwin.faults import Pitting
+from dtwin.parts.local_fault import LocalFault
+
+from .base import AbstractEffect, EffectParameter, carrier_grid, family_grid
+
+_GROUPS = {"sun": "sun_rotation", "planet": "planet_fault", "ring": "carrier_sidebands"}
+
+
+class LocalFaultEffect(AbstractEffect):
+    """Pitting of one tooth (severity = fraction of the flank band lost, ≥ 0).
+
+    Part: :class:`dtwin.parts.local_fault.LocalFault` of a :class:`dtwin.faults.Pitting`
+    (stiffness loss linear in the severity). Lines: sun ``m fm + j fs/N + n fc``; planet
+    ``m fm + j fp + n fc``; ring ``m fm + n fc`` (fr = N fc lies on the carrier grid: the ring
+    fault belongs to the ``carrier_sidebands`` group). |j| ≤ 3, |n| ≤ 2.
+    """
+
+    location: str = eqx.field(static=True, default="sun")
+    description: ClassVar[str] = "a local tooth fault (pitting)"
+    main_name: ClassVar[str] = "pitting severity"
+    main_unit: ClassVar[str] = "1"
+    typical_range: ClassVar[tuple[float, float]] = (0.05, 0.6)
+    typical_note: ClassVar[str] = ("pitting from first visible pits (~5 % of the band) to "
+                                   "progressive pitting (~60 %) on inspected industrial gears")
+
+    @property
+    def name(self) -> str:
+        return f"{self.location}_local_fault"
+
+    @property
+    def group(self) -> str:
+        return _GROUPS[self.location]
+
+    def parameters(self, twin):
+        return (EffectParameter(f"{self.location}_fault", "1", 0.1,
+                                f"severity of the {self.location} local fault", (0.0, 1.0),
+                                nonnegative=True),)
+
+    def parts(self, theta, twin, kin):
+        return (LocalFault(Pitting(theta[0], location=self.location)),)
+
+    def signature(self, kin, f_max):
+        if self.location == "sun":
+            return family_grid(kin, f_max, f"fs/{kin.n_planets}", kin.f_sun_fault_per_planet,
+                               (-3, -2, -1, 1, 2, 3))
+        if self.location == "planet":
+            return family_grid(kin, f_max, "fp", kin.f_planet_fault, (-3, -2, -1, 1, 2, 3))
+        return carrier_grid(kin, f_max, forbidden_only=False)
+
+    def main(self, theta):
+        return theta[0]

@@ -1,0 +1,47 @@
+"""Planet position (spacing) errors: planet i sits at ``psi_i + dpsi_i`` on the carrier."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import jax.numpy as jnp
+
+from dtwin.parts.imperfections import PlanetPositionErrors
+
+from .base import AbstractEffect, EffectParameter, carrier_grid, rms
+
+
+class PlanetPositionEffect(AbstractEffect):
+    """Angular position errors of planets 1 … N−1 relative to planet 0 (rad).
+
+    Part: :class:`dtwin.parts.imperfections.PlanetPositionErrors` (mesh phase shifts and a pin
+    offset ``a dpsi`` along the tangent, i.e. unequal load sharing). Breaks the sideband
+    cancellation of equally spaced planets: lines ``m fm + n fc`` the sideband rule forbids.
+    """
+
+    name: ClassVar[str] = "planet_position_errors"
+    group: ClassVar[str] = "carrier_sidebands"
+    description: ClassVar[str] = "planet position (spacing) errors on the carrier"
+    main_name: ClassVar[str] = "rms planet position error"
+    main_unit: ClassVar[str] = "rad"
+    typical_range: ClassVar[tuple[float, float]] = (1e-5, 1e-3)
+    typical_note: ClassVar[str] = (
+        "0.5–50 µm at a 50 mm pin radius: carrier pin-hole position tolerances of industrial "
+        "planetary sets are ~10–30 µm (AGMA 6123, ISO 1328 grades 5–8); a stiff (torsional) "
+        "model loses contact when the error exceeds the static mesh deflection (~0.5 µm for the "
+        "paper's gearbox at 50 N·m)")
+
+    def parameters(self, twin):
+        return tuple(EffectParameter(f"planet_position_error_{i}", "rad", 1e-5,
+                                     f"angular position error of planet {i} relative to planet 0",
+                                     (-0.1, 0.1))
+                     for i in range(1, twin.n_planets))
+
+    def parts(self, theta, twin, kin):
+        return (PlanetPositionErrors(jnp.concatenate([jnp.zeros(1), theta])),)
+
+    def signature(self, kin, f_max):
+        return carrier_grid(kin, f_max)
+
+    def main(self, theta):
+        return rms(theta)

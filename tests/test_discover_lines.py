@@ -1,0 +1,137 @@
+"""Residual-line descriptions, the gap, and the calibration of the discovery statistic (cheap:
+no ODE). Issue 8: order bound and chance-match rate; the gap's definition; ≥ 500 null draws of
+the significance statistic with a false-alarm rate within a factor 1.5 of nominal."""
+
+import numpy as np
+import pytest
+
+from dtwin.spec import preset
+from dtwin.spectrum import amplitude_spectrum, noise_floor
+from identify.gap import fold_segments, gap, named_bands, segment_spectra
+from identify.lines import (
+    Kinematics,
+    chance_match_probability,
+    describe,
+    estimate_speed,
+    residual_lines,
+)
+
+
+@pytest.fixture(scope="module")
+def kin():
+    return Kinematics.from_spec(preset("paper-sim"))
+
+
+def test_kinematics_match_reference(kin):
+    # reference.md §1 (paper Tables 1-2): fm 500.3, fc 6.18, fs 71.4, fp 16.7 (within 1 %)
+    assert kin.f_mesh == pytest.approx(500.3, rel=1e-3)
+    assert kin.f_carrier == pytest.approx(6.2, rel=0.01)
+    assert kin.f_sun_fault == pytest.approx(71.4, rel=0.01)
+    assert kin.f_planet_fault == pytest.approx(16.7, rel=0.01)
+    # fs/N = fsr - fc (exact identity of the kinematics)
+    assert kin.f_sun_fault_per_planet == pytest.approx(kin.f_sun - kin.f_carrier, rel=1e-12)
+
+
+def test_describe_paper_labels(kin):
+    # the paper's healthy-spectrum lines fm ± 7fc (reference.md §1)
+    assert [d.text for d in describe(kin.f_mesh - 7 * kin.f_carrier, kin, 0.1)] == ["fm − 7fc"]
+    assert [d.text for d in describe(kin.f_mesh + 7 * kin.f_carrier, kin, 0.1)] == ["fm + 7fc"]
+    # the motor family
+    assert [d.text for d in describe(6 * kin.f_electrical, kin, 0.1)] == ["6fe"]
+    # a planet-fault line
+    txt = [d.text for d in describe(kin.f_mesh + 2 * kin.f_planet_fault, kin, 0.1)]
+    assert txt == ["fm + 2fp"]
+
+
+def test_describe_reports_ties(kin):
+    # fs/N + fc = fsr exactly: both descriptions explain the line; the more parsimonious wins
+    # and lower-order ties are all listed
+    f = kin.f_mesh + kin.f_sun_fault_per_planet + kin.f_carrier
+    d = describe(f, kin, 0.1)
+    assert d[0].text == "fm + fsr"
+
+
+def test_no_match_far_from_every_combination(kin):
+    # scan for a frequency at least 3 bins (0.5 Hz bins) away from every combination
+    from identify.lines import _table
+
+    _, freq, _, _ = _table(kin, __import__("identify.lines").lines.LineBounds())
+    grid = np.arange(300.0, 2400.0, 0.05)
+    dist = np.min(np.abs(grid[:, None] - np.sort(freq)[None, :]), axis=1)
+    f = float(grid[np.argmax(dist)])
+    assert np.min(np.abs(freq - f)) >= 1.5
+    assert describe(f, kin, 0.125) == []
+
+
+def test_chance_match_probability_against_monte_carlo(kin):
+    # the union-of-intervals measure against random tones (independent method)
+    tol = 0.125
+    p = chance_match_probability(kin, tol, 2500.0)
+    rng = np.random.default_rng(0)
+    f = rng.uniform(0, 2500.0, 20000)
+    from identify.lines import LineBounds, _table
+
+    _, freq, _, _ = _table(kin, LineBounds())
+    freq = np.sort(freq)
+    idx = np.clip(np.searchsorted(freq, f), 1, len(freq) - 1)
+    near = np.minimum(np.abs(f - freq[idx - 1]), np.abs(f - freq[idx])) <= tol
+    assert p == pytest.approx(near.mean(), abs=0.01)
+    # at the default 0.25-bin tolerance of a 2 s record the chance match is rare (< 10 %)
+    assert p < 0.10
+
+
+def test_estimate_speed_from_lines(kin):
+    fs, n = 5000.0, 10000
+    t = np.arange(n) / fs
+    k2 = Kinematics.from_spec(preset("paper-sim"), 30.05)
+    x = sum(np.sin(2 * np.pi * (k2.f_mesh + j * k2.f_carrier) * t) for j in (-3, 0, 3))
+    x = x + np.sin(2 * np.pi * 2 * k2.f_mesh * t) + 0.01 * np.random.default_rng(1).normal(size=n)
+    f, a = amplitude_spectrum(x, fs, "hann")
+    assert estimate_speed(f, a, kin) == pytest.approx(30.05, rel=2e-5)
+
+
+def test_residual_lines_sides_and_excess(kin):
+    fs, n = 5000.0, 10000
+    t = np.arange(n) / fs
+    rng = np.random.default_rng(2)
+    common = np.sin(2 * np.pi * kin.f_mesh * t)
+    extra = 0.05 * np.sin(2 * np.pi * (kin.f_mesh + 7 * kin.f_carrier) * t)
+    noise = 1e-4 * rng.normal(size=n)
+    f, meas = amplitude_spectrum(common + extra + noise, fs, "hann")
+    _, model = amplitude_spectrum(common + 0.02 * np.sin(2 * np.pi * 777.7 * t), fs, "hann")
+    lines = residual_lines(f, meas, model, kin)
+    meas_side = [r for r in lines if r.side == "measured"]
+    model_side = [r for r in lines if r.side == "model"]
+    assert len(meas_side) == 1 and meas_side[0].text == "fm + 7fc"
+    # a 0.05 tone over a floor of ~1e-4 * median factor: excess ~ 20 log10(0.05 / floor)
+    fl = noise_floor(meas)[meas_side[0].bin]
+    assert meas_side[0].excess_db == pytest.approx(20 * np.log10(meas[meas_side[0].bin] / fl),
+                                                   abs=0.5)
+    assert len(model_side) == 1 and abs(model_side[0].frequency - 777.7) < 0.1
+
+
+def test_gap_definition_closed_form():
+    # two rows (folds), floor 1: a line of 100 missing in the model counts 20log10(101/1)...
+    freqs = np.arange(200) * 1.0
+    meas = np.ones((2, 200))
+    model = np.zeros((2, 200))
+    meas[:, 50] = 100.0
+    model[:, 50] = 100.0
+    meas[:, 120] = 10.0 ** (30 / 20)  # missing from the model
+    floor = np.ones((2, 200))
+    g = gap(freqs, meas, model, floor=floor)
+    d_missing = 20 * np.log10(10 ** 1.5 + 1) - 20 * np.log10(1.0)
+    assert g.total == pytest.approx(np.sqrt(d_missing**2 / 2), rel=1e-9)
+    assert g.counts["all"] == 4
+
+
+def test_named_bands_and_segments(kin):
+    b = named_bands(kin, 2500.0)
+    assert {"all", "low", "mesh1", "mesh2", "mesh3", "mesh4", "between"} <= set(b)
+    segs = fold_segments(10000, 2)
+    assert segs[0] == slice(0, 5000) and segs[1] == slice(5000, 10000)
+    x = np.sin(2 * np.pi * 100 * np.arange(10000) / 5000.0)
+    f, Z = segment_spectra(x, 5000.0)
+    # amplitude scaling as dtwin.spectrum.amplitude_spectrum (independent implementation)
+    f2, a2 = amplitude_spectrum(x[:5000], 5000.0, "hann")
+    np.testing.assert_allclose(np.abs(Z[0]), a2, atol=1e-12)
