@@ -1,0 +1,193 @@
+"""``dtwin fleet``: identify many records (Ray or one after another), gather a table, trends.
+
+    dtwin fleet identify 'records/**/*.dtwin.h5' (--spec FILE | --preset NAME) --out RESULTS
+                   [--free sun_fault,...] [--model torsional|translational] [--f-sun HZ]
+                   [--ray-address ADDRESS] [--engine auto|ray|local] [--num-cpus N]
+                   [--batch-size N] [--max-retries N] [--discover] [--manifest fleet.csv]
+                   [--max-steps N] [--starts N] [--refine K] [--order-step S]
+                   [--no-progress] [--json] [--force]
+    dtwin fleet table RESULTS [--csv] [--json] [--force]
+    dtwin fleet trends RESULTS [--threshold 'sun_fault>0.4' ...] [--horizon DAYS]
+                   [--out DIR] [--json] [--force]
+
+``identify`` runs :func:`identify.fleet.run_fleet`: Ray tasks (local Ray by default, an
+existing cluster with ``--ray-address``; without Ray installed the records run one after
+another here), a progress bar over records, per-task retries, one JSON file per record in
+``RESULTS/records`` written as each task finishes, a re-run skips what is done, and the table
+``RESULTS/table.parquet`` at the end (a new time-stamped file if one exists, unless
+``--force``). ``table`` rebuilds the table on demand. ``trends`` writes ``trends.json``,
+``trend_<machine>.png`` and ``overview.png`` (default into ``RESULTS/trends``) and prints one
+line per machine with its flagged parameters. See docs/fleet.md.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from ..errors import SpecError
+from .app import app
+
+fleet_app = typer.Typer(help="Fleet runs: many records in batch or on a Ray cluster, the "
+                        "results table and per-machine trends.", no_args_is_help=True)
+app.add_typer(fleet_app, name="fleet")
+
+
+def _echo_json(obj) -> None:
+    from ..io.output import to_jsonable
+
+    typer.echo(json.dumps(to_jsonable(obj), indent=2))
+
+
+@fleet_app.command("identify")
+def fleet_identify(
+    records: list[str] = typer.Argument(..., help="Record files or quoted glob patterns "
+                                        "('records/**/*.dtwin.h5')."),
+    out: Path = typer.Option(..., "--out", help="Results folder (re-used by a re-run)."),
+    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset."),
+    free: str = typer.Option("sun_fault", "--free", help="Comma-separated registry names."),
+    model: str = typer.Option("torsional", "--model", help="torsional or translational twin."),
+    f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz) of every "
+                                       "record; default: estimated from each."),
+    ray_address: str | None = typer.Option(None, "--ray-address", help="An existing Ray "
+                                           "cluster (ray://HOST:10001 or auto)."),
+    engine: str = typer.Option("auto", "--engine", help="auto (Ray if installed), ray, local."),
+    num_cpus: int | None = typer.Option(None, "--num-cpus", help="CPUs of a local Ray."),
+    batch_size: int = typer.Option(1, "--batch-size", help="Records per task, fitted in one "
+                                   "vmapped call when they share length, rate and speed."),
+    max_retries: int = typer.Option(2, "--max-retries", help="Retries of a failed task."),
+    discover: bool = typer.Option(False, "--discover", help="Also run discovery per record "
+                                  "(its own tasks; costly)."),
+    manifest: Path | None = typer.Option(None, "--manifest", help="Fleet manifest CSV: path, "
+                                         "machine, timestamp."),
+    max_steps: int = typer.Option(40, "--max-steps", help="Solver steps per fit."),
+    starts: int = typer.Option(1, "--starts", help="Grid starts (batch size 1 only)."),
+    refine: int = typer.Option(1, "--refine", help="Starts refined (batch size 1 only)."),
+    order_step: float | None = typer.Option(None, "--order-step", help="Residuals on an order "
+                                            "grid with this step (orders of the input speed)."),
+    channel: str = typer.Option("0", "--channel", help="Channel name or index."),
+    no_progress: bool = typer.Option(False, "--no-progress", help="No progress bar."),
+    json_out: bool = typer.Option(False, "--json", help="Print the run summary as JSON."),
+    force: bool = typer.Option(False, "--force", help="Refit results of other settings; "
+                               "overwrite the table."),
+) -> None:
+    """Identify every record of a fleet: Ray tasks, one result file per record, a table."""
+    from identify.fit import check_free
+    from identify.fleet import FleetSettings, run_fleet
+
+    from .cmd_spectrum import channel_token, load_gearbox
+
+    names = check_free(free)
+    gearbox = load_gearbox(preset, spec)
+    if gearbox is None:
+        raise SpecError([("--spec/--preset", "fleet identification needs the gearbox: pass "
+                          "--spec FILE or --preset NAME")])
+    if ray_address is not None and engine == "local":
+        raise SpecError([("--engine", "--ray-address needs the ray engine (or auto)")])
+    settings = FleetSettings(free=tuple(names), kind=model, f_sun=f_sun, starts=starts,
+                             refine=refine, max_steps=max_steps, channel=channel_token(channel),
+                             order_step=order_step, batch_size=batch_size,
+                             max_retries=max_retries, discover=discover)
+    run = run_fleet(records, gearbox, out, settings, manifest=manifest,
+                    engine="ray" if ray_address and engine == "auto" else engine,
+                    address=ray_address, num_cpus=num_cpus, progress=not no_progress,
+                    force=force)
+    if json_out:
+        _echo_json(run.to_dict())
+        return
+    for note in run.notes:
+        typer.echo(f"note: {note}", err=True)
+    typer.echo(f"{run.records} records: {run.skipped} already done, {run.fitted} fitted, "
+               f"{run.failed} failed" + (f"; discovery {run.discovered} done, "
+                                         f"{run.discover_failed} failed" if discover else "")
+               + f" ({run.engine}, {run.wall_time_s:.1f} s)")
+    for f in run.failures:
+        typer.echo(f"  FAILED {f['record']} [{f.get('stage')}]: {f.get('error_type')}: "
+                   f"{str(f.get('error')).splitlines()[0] if f.get('error') else ''}")
+    if run.table is not None:
+        typer.echo(f"table: {run.table}")
+
+
+@fleet_app.command("table")
+def fleet_table(
+    results: Path = typer.Argument(..., help="Results folder of `dtwin fleet identify`."),
+    csv_out: bool = typer.Option(False, "--csv", help="CSV instead of Parquet."),
+    json_out: bool = typer.Option(False, "--json", help="Print the rows as JSON."),
+    force: bool = typer.Option(False, "--force", help="Overwrite the existing table."),
+) -> None:
+    """Gather the per-record results into one table (a new file unless --force)."""
+    from identify.fleet import load_results, table_rows, write_table
+
+    if not (results / "records").is_dir() and not (results / "failed").is_dir():
+        raise SpecError([("RESULTS", f"{results} holds no fleet results (records/ or failed/)")])
+    path, note = write_table(results, force=force, fmt="csv" if csv_out else "auto")
+    rows, names = table_rows(load_results(results))
+    if json_out:
+        _echo_json({"table": str(path), "rows": rows})
+        return
+    if note:
+        typer.echo(f"note: {note}", err=True)
+    head = f"{'machine':<14} {'timestamp':<26} {'status':<7} " + " ".join(
+        f"{n:>26}" for n in names) + f" {'gap dB':>7}  record"
+    typer.echo(head)
+    for r in rows:
+        cells = []
+        for n in names:
+            v, lo, hi = r.get(n), r.get(f"{n}_lo95"), r.get(f"{n}_hi95")
+            cells.append(f"{'':>26}" if v is None else
+                         f"{v:>9.4g} [{lo if lo is not None else float('nan'):.3g}, "
+                         f"{hi if hi is not None else float('nan'):.3g}]".rjust(26))
+        gap = r.get("gap_db")
+        typer.echo(f"{str(r['machine']):<14} {str(r['timestamp'] or '-'):<26} "
+                   f"{str(r['status']):<7} " + " ".join(cells)
+                   + f" {gap if gap is not None else float('nan'):>7.2f}  {r['record']}")
+    typer.echo(f"table: {path}")
+
+
+@fleet_app.command("trends")
+def fleet_trends(
+    results: Path = typer.Argument(..., help="Results folder of `dtwin fleet identify`."),
+    threshold: list[str] = typer.Option([], "--threshold", help="name>value, name<value or "
+                                        "name<-20% (relative to the first record); repeatable."),
+    horizon: float = typer.Option(90.0, "--horizon", help="Days ahead for 'approaching'."),
+    out: Path | None = typer.Option(None, "--out", help="Folder of the figures and "
+                                    "trends.json (default RESULTS/trends)."),
+    json_out: bool = typer.Option(False, "--json", help="Print the trends as JSON."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing trends folder."),
+) -> None:
+    """Per-machine severity and mesh-parameter trends, flags, a plot per machine and an
+    overview."""
+    from identify.fleet import load_results
+    from identify.trends import machine_trends, parse_threshold
+
+    from ..io.output import OutputFolder
+    from ..plotting.fleet import plot_fleet_overview, plot_machine_trend
+
+    try:
+        th = dict(parse_threshold(t) for t in threshold)
+    except ValueError as e:
+        raise SpecError([("--threshold", str(e))]) from None
+    rows = load_results(results, failed=False)
+    if not rows:
+        raise SpecError([("RESULTS", f"{results} holds no fitted record")])
+    trends = machine_trends(rows, th, horizon_days=horizon)
+    report = {"results": str(results), "machines": {m: t.to_dict() for m, t in trends.items()}}
+    folder = OutputFolder(out or results / "trends", force=force,
+                          parameters={"thresholds": th, "horizon_days": horizon})
+    folder.write_json("trends.json", report)
+    for m, t in trends.items():
+        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in m)
+        folder.savefig(f"trend_{safe}.png", plot_machine_trend(t))
+    folder.savefig("overview.png", plot_fleet_overview(trends))
+    if json_out:
+        _echo_json(report)
+        return
+    typer.echo(f"{'machine':<16} {'records':>7}  {'state':<12} flagged")
+    for m, t in trends.items():
+        flagged = "; ".join(f"{n}: {t.parameters[n].flag.reason}" for n in t.flagged)
+        typer.echo(f"{m:<16} {len(t.records):>7}  {t.state:<12} {flagged or '-'}")
+    typer.echo(f"wrote {folder.path}/trends.json, trend_<machine>.png, overview.png",
+               err=True)

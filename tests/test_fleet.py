@@ -1,0 +1,311 @@
+"""identify.fleet / identify.trends / `dtwin fleet` (issue 10 "Tests that must pass").
+
+A fleet of three short synthetic records (torsional twin, 0.35 s at 5 kHz, 20 dB SNR, sun-fault
+severity 0.2 / 0.35 / 0.5, machine and timestamp in the record metadata) plus one corrupt file.
+One free parameter (sun_fault), the speed given, so each fit is a few LM steps.
+
+- sequential path (no Ray): a task raising for one record (injected) and a corrupt record are
+  reported per record while the others complete; an interrupted run keeps its finished results;
+  a re-run fits only the missing records;
+- Ray (local cluster of 2 workers; skipped without Ray): a worker killed mid-run (injected
+  ``os._exit``) is retried, and the results equal the sequential ones;
+- batched (one vmapped fit_batch call) vs single fits: equal to solver tolerance;
+- table (Parquet, or CSV without pyarrow), never overwritten without --force;
+- trend flags on synthetic rising / flat / slowly rising severity series, figures, CLI.
+"""
+
+import dataclasses
+import json
+import os
+
+import numpy as np
+import pytest
+
+from dtwin.build import build_twin
+from dtwin.faults import MissingTooth
+from dtwin.io.readers import write_record
+from dtwin.simulate import DAQ, simulate
+from dtwin.spec import preset
+
+SEVERITIES = (0.2, 0.35, 0.5)
+DURATION = 0.35  # s: just over 2 / f_carrier (6.18 Hz), the shortest record the fit accepts
+F_SUN = 30.0
+
+
+def _settings(**kw):
+    from identify.fleet import FleetSettings
+
+    base = dict(free=("sun_fault",), initial={"sun_fault": 0.3}, f_sun=F_SUN, max_steps=20,
+                tol=1e-4, max_retries=1)
+    base.update(kw)
+    return FleetSettings(**base)
+
+
+@pytest.fixture(scope="module")
+def spec():
+    return preset("paper-sim")
+
+
+@pytest.fixture(scope="module")
+def fleet_records(tmp_path_factory, spec):
+    root = tmp_path_factory.mktemp("fleet") / "records"
+    for i, sev in enumerate(SEVERITIES):
+        tw = build_twin(spec, kind="torsional", faults=(MissingTooth(sev, location="sun"),))
+        rec = simulate(tw, duration=DURATION, f_sun=F_SUN, daq=DAQ(sample_rate=5000.0,
+                       snr_db=20.0), discard=0.05, seed=i).to_record()
+        rec = dataclasses.replace(rec, metadata={**rec.metadata, "machine": f"m{i % 2}",
+                                                 "timestamp": f"2026-01-0{i + 1}T00:00:00Z"})
+        write_record(rec, root / f"m{i}" / f"rec{i}.dtwin.h5")
+    bad = root / "z_bad" / "rec_bad.dtwin.h5"
+    bad.parent.mkdir(parents=True)
+    bad.write_bytes(b"this is not an HDF5 file")
+    return root
+
+
+@pytest.fixture(scope="module")
+def sequential(fleet_records, spec, tmp_path_factory):
+    """Run 1: rec1's task raises (injected, every attempt) and the run is interrupted after the
+    second entry; run 2: no injection, runs to the end."""
+    from identify.fleet import run_fleet
+
+    out = tmp_path_factory.mktemp("fleet-seq") / "results"
+    pattern = str(fleet_records / "**" / "*.dtwin.h5")
+    seen = []
+
+    def stop_after_two(entry):
+        seen.append(entry)
+        if len(seen) == 2:
+            raise KeyboardInterrupt
+
+    os.environ["DTWIN_FLEET_FAIL"] = "rec1"
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_fleet([pattern], spec, out, _settings(), engine="local", progress=False,
+                      on_result=stop_after_two)
+    finally:
+        del os.environ["DTWIN_FLEET_FAIL"]
+    first = {p.name: p.read_bytes() for p in (out / "records").glob("*.json")}
+    failed_first = {p.name: json.loads(p.read_text()) for p in (out / "failed").glob("*.json")}
+    run2 = run_fleet([pattern], spec, out, _settings(), engine="local", progress=False)
+    return dict(out=out, pattern=pattern, seen=seen, first=first, failed_first=failed_first,
+                run2=run2)
+
+
+def _values(out):
+    from identify.fleet import load_results
+
+    return {r["record"].split("/")[-1]: r for r in load_results(out) if r["status"] == "ok"}
+
+
+def test_failure_reported_per_record_and_interrupt_keeps_results(sequential):
+    seen = sequential["seen"]
+    assert [e["status"] for e in seen] == ["ok", "failed"]
+    assert seen[0]["record"].endswith("rec0.dtwin.h5")
+    assert seen[1]["record"].endswith("rec1.dtwin.h5")
+    assert seen[1]["error_type"] == "RuntimeError" and "injected" in seen[1]["error"]
+    assert seen[1]["attempts"] == 2  # max_retries=1: tried twice, then reported
+    # the finished result was on disk when the run was interrupted, complete and readable
+    (name,) = sequential["first"]
+    d = json.loads(sequential["first"][name])
+    assert d["status"] == "ok" and d["machine"] == "m0" and "sun_fault" in d["intervals_95"]
+    assert list(sequential["failed_first"].values())[0]["stage"] == "task"
+
+
+def test_rerun_finishes_only_the_missing(sequential):
+    run2 = sequential["run2"]
+    assert run2.records == 4
+    assert run2.skipped == 1  # rec0 was done
+    assert run2.fitted == 2  # rec1 (failed before) and rec2 (never reached)
+    assert run2.failed == 1  # the corrupt file, reported (read stage, not retried)
+    (bad,) = run2.failures
+    assert bad["stage"] == "read" and bad["error_type"] == "UnreadableFileError"
+    assert bad["record"].endswith("rec_bad.dtwin.h5")
+    out = sequential["out"]
+    # rec0's file untouched by the re-run; rec1's failure entry removed once it succeeded
+    for name, data in sequential["first"].items():
+        assert (out / "records" / name).read_bytes() == data
+    assert not any(p.name.startswith("rec1") for p in (out / "failed").glob("*.json"))
+    vals = _values(out)
+    assert set(vals) == {"rec0.dtwin.h5", "rec1.dtwin.h5", "rec2.dtwin.h5"}
+    for i, sev in enumerate(SEVERITIES):
+        r = vals[f"rec{i}.dtwin.h5"]
+        assert r["converged"], r["message"]
+        lo, hi = r["intervals_95"]["sun_fault"]
+        # same-model truth, 20 dB SNR: the estimate is near the truth, inside its interval
+        assert abs(r["values"]["sun_fault"] - sev) < 0.05, r["values"]
+        assert lo <= sev <= hi, (lo, hi, sev)
+        assert np.isfinite(r["gap_db"]) and r["gap_db"] < 6.0
+    runs = sorted((out / "runs").glob("*.json"))
+    assert [json.loads(p.read_text())["status"] for p in runs] == ["interrupted", "finished"]
+
+
+def test_ray_cluster_matches_sequential(sequential, spec, tmp_path):
+    ray = pytest.importorskip("ray", reason="Ray not installed: pip install 'dtwin[fleet]' "
+                              "(ray>=2.9, pyarrow>=15) to run the cluster test")
+    from identify.fleet import run_fleet
+
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        os.environ["DTWIN_FLEET_FAIL"] = "rec2:exit@1"  # rec2's worker dies on the 1st attempt
+        try:
+            run = run_fleet([sequential["pattern"]], spec, tmp_path / "ray", _settings(),
+                            engine="ray", progress=False)
+        finally:
+            del os.environ["DTWIN_FLEET_FAIL"]
+    finally:
+        ray.shutdown()
+    assert run.engine == "ray" and run.fitted == 3 and run.failed == 1
+    attempts = list((tmp_path / "ray" / ".attempts").glob("rec2-*.attempts"))
+    assert len(attempts) == 1 and attempts[0].stat().st_size == 2  # killed once, retried
+    seq, par = _values(sequential["out"]), _values(tmp_path / "ray")
+    assert set(par) == set(seq)
+    for name, r in seq.items():
+        assert par[name]["engine"] == "ray"
+        np.testing.assert_allclose(par[name]["values"]["sun_fault"], r["values"]["sun_fault"],
+                                   rtol=1e-8)
+        np.testing.assert_allclose(par[name]["intervals_95"]["sun_fault"],
+                                   r["intervals_95"]["sun_fault"], rtol=1e-6)
+
+
+def test_batched_fit_agrees_with_single_fits(sequential, spec, tmp_path):
+    """All three records in one task: one vmapped fit_batch call; values equal the single fits
+    (identify.fit.fit, same start, same solver) to the solver tolerance."""
+    from identify.fleet import run_fleet
+
+    settings = _settings(batch_size=3)
+    run = run_fleet([sequential["pattern"]], spec, tmp_path / "batch", settings, engine="local",
+                    progress=False, table=False)
+    assert run.fitted == 3
+    seq, bat = _values(sequential["out"]), _values(tmp_path / "batch")
+    for name, r in seq.items():
+        assert bat[name]["batched_with"] == 3
+        th_s, th_b = r["fit"]["theta"][0], bat[name]["fit"]["theta"][0]
+        assert abs(th_b - th_s) < 10 * settings.tol, (name, th_s, th_b)
+        assert abs(bat[name]["values"]["sun_fault"] - r["values"]["sun_fault"]) < 1e-3
+
+
+def test_table_and_cli(sequential, capsys):
+    from dtwin.cli import main
+    from identify.fleet import TABLE_NAME
+
+    out = sequential["out"]
+    first = sequential["run2"].table
+    assert first is not None and first.exists()
+    main(["fleet", "table", str(out)])
+    tables = sorted(out.glob("table*"))
+    assert len(tables) == 2  # rebuilt into a new file, the old one kept
+    main(["fleet", "table", str(out), "--force"])
+    assert len(sorted(out.glob("table*"))) == 2
+    capsys.readouterr()
+    if first.name == TABLE_NAME:
+        pq = pytest.importorskip("pyarrow.parquet")
+        tbl = pq.read_table(first).to_pylist()
+    else:  # without pyarrow: CSV
+        import csv
+
+        tbl = list(csv.DictReader(first.read_text().splitlines()))
+    assert len(tbl) == 4
+    ok = [r for r in tbl if r["status"] == "ok"]
+    assert {r["machine"] for r in ok} == {"m0", "m1"}
+    for r in ok:
+        assert {"sun_fault", "sun_fault_lo95", "sun_fault_hi95", "gap_db", "timestamp",
+                "effects"} <= set(r)
+    main(["fleet", "table", str(out), "--json"])
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert sum(r["status"] == "failed" for r in rows) == 1
+
+
+def test_without_ray_runs_locally_and_skips_done(sequential, spec, monkeypatch):
+    import identify.fleet as fleet
+
+    monkeypatch.setattr(fleet, "ray_available", lambda: False)
+    run = fleet.run_fleet([sequential["pattern"]], spec, sequential["out"], _settings(),
+                          engine="auto", progress=False, table=False)
+    assert run.engine == "local" and run.skipped == 3 and run.fitted == 0
+    assert any("Ray is not installed" in n for n in run.notes)
+
+
+def test_other_settings_refused(sequential, spec):
+    from dtwin.errors import OutputExistsError
+    from identify.fleet import run_fleet
+
+    with pytest.raises(OutputExistsError, match="other fit settings"):
+        run_fleet([sequential["pattern"]], spec, sequential["out"], _settings(max_steps=7),
+                  engine="local", progress=False)
+
+
+# ------------------------------------------------------------------------------ identity
+def test_manifest_overrides_metadata_and_folder(tmp_path, fleet_records):
+    from identify.fleet import _make_job, read_fleet_manifest
+
+    rec0 = fleet_records / "m0" / "rec0.dtwin.h5"
+    csv = tmp_path / "fleet.csv"
+    csv.write_text(f"path,machine,timestamp\n{rec0},turbine-7,2026-03-01 12:00\n")
+    man = read_fleet_manifest(csv)
+    job = _make_job(rec0, man)
+    assert (job.machine, job.timestamp, job.identity_source) == (
+        "turbine-7", "2026-03-01T12:00:00+00:00", "manifest")
+    job = _make_job(rec0, None)
+    assert (job.machine, job.identity_source) == ("m0", "metadata")
+    assert job.timestamp == "2026-01-01T00:00:00+00:00"
+    bad = fleet_records / "z_bad" / "rec_bad.dtwin.h5"
+    job = _make_job(bad, None)
+    assert (job.machine, job.timestamp, job.identity_source) == ("z_bad", None, "folder")
+    csv.write_text("path,machine\nx,y\n")
+    from dtwin.errors import RecordError
+
+    with pytest.raises(RecordError, match="timestamp"):
+        read_fleet_manifest(csv)
+
+
+# ------------------------------------------------------------------------------ trends
+def _series(machine, days, sev, half=0.03):
+    return [{"status": "ok", "machine": machine, "record": f"{machine}/d{d}",
+             "timestamp": f"2026-02-{1 + d:02d}T00:00:00+00:00", "names": ["sun_fault"],
+             "values": {"sun_fault": s}, "intervals_95": {"sun_fault": [s - half, s + half]}}
+            for d, s in zip(days, sev, strict=True)]
+
+
+def test_trend_flags_on_synthetic_series():
+    from identify.trends import fit_trend, machine_trends
+
+    rng = np.random.default_rng(0)
+    days = list(range(7))
+    rising = 0.1 + 0.08 * np.arange(7)  # 0.10 … 0.58: crosses 0.4 at day 3.75
+    flat = 0.15 + 0.01 * rng.standard_normal(7)
+    slow = 0.1 + 0.02 * np.arange(7)  # 0.22 at day 6, reaches 0.4 at day 15
+    res = (_series("rising", days, rising) + _series("flat", days, flat)
+           + _series("slow", days, slow))
+    tr = machine_trends(res, {"sun_fault": (0.4, "above")}, horizon_days=30)
+    f = tr["rising"].parameters["sun_fault"].flag
+    assert f.state == "crossed"
+    assert f.crossing_time.startswith("2026-02-04T18")  # day 3.75 after Feb 1
+    assert tr["flat"].parameters["sun_fault"].flag.state == "ok"
+    g = tr["slow"].parameters["sun_fault"].flag
+    assert g.state == "approaching" and g.crossing_time.startswith("2026-02-16")
+    assert tr["rising"].state == "crossed" and tr["flat"].flagged == []
+    # the weighted line equals numpy's polyfit for equal intervals
+    a, b, _ = fit_trend(days, rising, rising - 0.03, rising + 0.03)
+    np.testing.assert_allclose([b, a], np.polyfit(days, rising, 1), rtol=1e-10)
+    # relative thresholds: a stiffness falling 30 % is flagged below "-20%"
+    k = 1e8 * (1 - 0.05 * np.arange(7))
+    res_k = [{"status": "ok", "machine": "k", "record": f"d{d}",
+              "timestamp": f"2026-02-{1 + d:02d}T00:00:00+00:00", "names": ["k_sun_planet"],
+              "values": {"k_sun_planet": v}, "intervals_95": {"k_sun_planet": [v * .98, v * 1.02]}}
+             for d, v in enumerate(k)]
+    fk = machine_trends(res_k)["k"].parameters["k_sun_planet"].flag
+    assert fk.state == "crossed" and fk.threshold == pytest.approx(0.8e8)
+
+
+def test_trend_figures_and_cli(sequential, capsys):
+    from dtwin.cli import main
+
+    out = sequential["out"]
+    main(["fleet", "trends", str(out), "--threshold", "sun_fault>0.45", "--json"])
+    rep = json.loads(capsys.readouterr().out)
+    assert set(rep["machines"]) == {"m0", "m1"}
+    m0 = rep["machines"]["m0"]  # rec0 (0.2) and rec2 (0.5): two records, no trend yet
+    assert m0["records"][0].endswith("rec0.dtwin.h5") and len(m0["records"]) == 2
+    assert m0["parameters"]["sun_fault"]["flag"]["state"] == "ok"
+    files = set(json.loads((out / "trends" / "manifest.json").read_text())["files"])
+    assert {"trends.json", "trend_m0.png", "trend_m1.png", "overview.png"} <= files
