@@ -36,8 +36,10 @@ Any other part raises `NotImplementedError` rather than being silently ignored.
 - Drive: rotor angle ``theta_m' = omega_ref``, torque on the sun
   ``k_shaft (theta_m - theta_s) + c_shaft (omega_ref - theta_s')``.
 - Sensor (m/s², along the sensor direction ``d``): the ring's fixed-frame acceleration
-  ``R(theta_c) [r'' + 2 W J r' - W^2 r + W' J r] . d`` plus
-  ``sum_i w_i F_rp_i / m_ring`` with ``w_i = ((1 + cos(theta_c + psi_i - sensor_angle)) / 2)^p``.
+  ``R(theta_c) [r'' + 2 W J r' - W^2 r + W' J r] . d`` plus the high-passed windowed force
+  ``s - z1``, ``s = sum_i w_i F_rp_i / m_ring``, ``w_i = ((1 + cos(theta_c + psi_i -
+  sensor_angle)) / 2)^p``, with the path's own states ``z1' = z2``,
+  ``z2' = wc^2 (s - z1) - sqrt(2) wc z2`` (second-order Butterworth low-pass at `highpass_hz`).
 
 **State.** `rhs(t, y)` works on the flat *scaled* state of `dtwin.simulate._solve`,
 ``y = [z / sz, z' / sv, aux]`` (scales of `dtwin.simulate.state_scales`, recomputed here:
@@ -129,6 +131,7 @@ class ReferenceModel:
                 self.sensor = tuple(_f(v) for v in (p.sensor_angle, p.direction_angle,
                                                     p.window_exponent, p.ring_weight,
                                                     p.force_weight))
+                self.highpass_hz = _f(p.highpass_hz)
             else:
                 raise NotImplementedError(f"reference model: part {type(p).__name__} "
                                           f"({getattr(p, 'drive', getattr(p, 'load', ''))!r:.60}) "
@@ -136,12 +139,14 @@ class ReferenceModel:
             aux_sizes.append(p.aux_size)
         self.aux_sizes = aux_sizes
         self.n_aux = sum(aux_sizes)
-        # index of the drive's rotor angle in aux
-        self.i_motor = None
+        # index of the drive's rotor angle and of the transfer path's filter states in aux
+        self.i_motor = self.i_path = None
         i = 0
         for p, s in zip(twin.parts, aux_sizes, strict=True):
             if isinstance(p, DrivePart):
                 self.i_motor = i
+            if isinstance(p, PlanetPassTransferPath):
+                self.i_path = i
             i += s
 
         self._layout()
@@ -365,7 +370,20 @@ class ReferenceModel:
         if self.load is not None:
             torque, engage = self.load
             F[self.i_tc] -= torque * (np.tanh(w / engage) if engage > 0.0 else 1.0)
+        if self.sensor is not None:
+            # second-order Butterworth low-pass of the windowed force; the sensor sees s - z1
+            wc = 2.0 * np.pi * self.highpass_hz
+            z1, z2 = aux[self.i_path], aux[self.i_path + 1]
+            s_force = self.windowed_force(tc, f_mesh)
+            aux_dot[self.i_path] = z2
+            aux_dot[self.i_path + 1] = wc * wc * (s_force - z1) - math.sqrt(2.0) * wc * z2
         return F, aux_dot, q, qd, f_mesh
+
+    def windowed_force(self, theta_c, f_mesh):
+        """``sum_i w_i F_rp_i / m_ring`` (m/s²), ``w_i = ((1 + cos phi_i)/2)^p``."""
+        sensor_angle, _, p, _, _ = self.sensor
+        window = (0.5 * (1.0 + np.cos(theta_c + self.psi - sensor_angle))) ** p
+        return np.sum(window * f_mesh[self.n :]) / self.m_ring
 
     def rhs_unscaled(self, t, z, zd, aux):
         """``(z', z'', aux')`` of the unscaled state (as `Twin.vector_field`)."""
@@ -394,7 +412,7 @@ class ReferenceModel:
         z, zd, aux = self._split(y)
         F, _, q, qd, f_mesh = self._forces(t, z, zd, aux)
         qdd = self.A @ (self.P @ F)
-        sensor_angle, direction, p, w_ring, w_force = self.sensor
+        _, direction, _, w_ring, w_force = self.sensor
         d = np.array([math.cos(direction), math.sin(direction)])
         tc = q[self.i_tc]
         acc = 0.0
@@ -407,8 +425,7 @@ class ReferenceModel:
             c, s = math.cos(tc), math.sin(tc)
             a_fix = np.array([c * a_rot[0] - s * a_rot[1], s * a_rot[0] + c * a_rot[1]])
             acc += w_ring * (a_fix @ d)
-        window = (0.5 * (1.0 + np.cos(tc + self.psi - sensor_angle))) ** p
-        acc += w_force * np.sum(window * f_mesh[self.n :]) / self.m_ring
+        acc += w_force * (self.windowed_force(tc, f_mesh) - aux[self.i_path])
         return acc
 
     def sensor_along(self, ts, ys):

@@ -24,7 +24,7 @@ import pytest
 
 from dtwin.build import build_twin
 from dtwin.faults import MissingTooth
-from dtwin.simulate import initial_state, state_scales
+from dtwin.simulate import _observe, initial_state, state_scales
 from dtwin.spec import preset
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -44,7 +44,8 @@ def _jax_rhs(twin, ts, z, zd, aux):
 
     def one(t, z1, zd1, a1):
         dz, dzd, daux = twin.vector_field(t, (z1, zd1, a1), ops)
-        return dz, dzd, daux, jnp.concatenate([dz / sz, dzd / sv, daux])
+        sensor = _observe(twin, ops, "acceleration", t, (z1, zd1, a1))["signal"]
+        return dz, dzd, daux, jnp.concatenate([dz / sz, dzd / sv, daux]), sensor
 
     return jax.vmap(one)(ts, z, zd, aux)
 
@@ -130,6 +131,18 @@ def _rounding_floor(ref: ReferenceModel, z):
     return 4.0 * np.abs(ref.P) @ (np.abs(ref.L).T @ (k_max * d_err))
 
 
+def _aux_rounding_floor(ref: ReferenceModel, z):
+    """The same rounding reaches the transfer path's filter (aux') through the ring-mesh forces:
+    ``wc^2 sum_i F_err_i / m_ring``; zero for the drive's rotor angle."""
+    q = ref.A @ z
+    d_err = np.finfo(float).eps * (np.abs(ref.L) @ np.abs(q))
+    k_max = np.max(ref.k_mean) * 1.75
+    floor = np.zeros(ref.n_aux)
+    wc = 2.0 * np.pi * ref.highpass_hz
+    floor[ref.i_path + 1] = 4.0 * wc**2 * np.sum(k_max * d_err[ref.n:]) / ref.m_ring
+    return floor
+
+
 def test_operators_match(case):
     """Mass matrix, deflection matrix, supports and state scales, entry by entry."""
     _, _, twin, ref, _, _, ops = case
@@ -145,7 +158,7 @@ def test_operators_match(case):
 
 def test_vector_field_matches_numpy(case):
     """`Twin.vector_field` = the NumPy right-hand side, unscaled and in `_solve`'s scaled form."""
-    kind, severity, _, ref, states, (dz, dzd, daux, flat), _ = case
+    kind, severity, _, ref, states, (dz, dzd, daux, flat, _), _ = case
 
     def what(j):
         return f"{kind} {severity} state {j}: |z''| relative difference"
@@ -156,13 +169,28 @@ def test_vector_field_matches_numpy(case):
         assert np.all(floor < 1e-6 * np.max(np.abs(rzd))), "rounding floor should be tiny"
         _close(dz[j], rz, f"{kind} {severity} state {j}: z'")
         _close(dzd[j], rzd, f"{kind} {severity} state {j}: z''", atol=floor)
-        _close(daux[j], raux, f"{kind} {severity} state {j}: aux'")
-        flat_atol = np.concatenate([np.zeros(ref.n_dof), floor / ref.sv, np.zeros(ref.n_aux)])
+        aux_floor = _aux_rounding_floor(ref, z)
+        _close(daux[j], raux, f"{kind} {severity} state {j}: aux'", atol=aux_floor)
+        flat_atol = np.concatenate([np.zeros(ref.n_dof), floor / ref.sv, aux_floor])
         _close(flat[j], ref.rhs(t, ref.scale(z, zd, aux)), f"{kind} {severity} state {j}: scaled",
                atol=flat_atol)
         # and in the norm: ~1e-9 relative (observed 1e-14 at small angles, ~1e-9 at the
         # hundreds of radians of the loaded states, from the rounding described above)
         assert np.linalg.norm(dzd[j] - rzd) <= 10 * RTOL * np.linalg.norm(rzd), what(j)
+
+
+def test_sensor_matches_numpy(case):
+    """The sensor acceleration (ring motion in the fixed frame + high-passed windowed ring-mesh
+    forces) of `dtwin.simulate._observe` equals the NumPy model's."""
+    kind, severity, _, ref, states, (*_, sensor), _ = case
+    for j, (t, z, zd, aux) in enumerate(states):
+        want = ref.sensor_acceleration(t, ref.scale(z, zd, aux))
+        # rounding floor: the ring-mesh force error over the ring mass, and the ring's z''
+        q = ref.A @ z
+        d_err = np.finfo(float).eps * (np.abs(ref.L) @ np.abs(q))
+        floor = (4.0 * np.sum(np.max(ref.k_mean) * 1.75 * d_err[ref.n:]) / ref.m_ring
+                 + np.max(_rounding_floor(ref, z)))
+        assert abs(sensor[j] - want) <= RTOL * abs(want) + floor, (kind, severity, j, sensor[j], want)
 
 
 def test_states_exercise_contact_and_fault(case):
