@@ -136,7 +136,8 @@ def test_rerun_finishes_only_the_missing(sequential):
         assert lo <= sev <= hi, (lo, hi, sev)
         assert np.isfinite(r["gap_db"]) and r["gap_db"] < 6.0
     runs = sorted((out / "runs").glob("*.json"))
-    assert [json.loads(p.read_text())["status"] for p in runs] == ["interrupted", "finished"]
+    statuses = [json.loads(p.read_text())["status"] for p in runs]
+    assert statuses[:2] == ["interrupted", "finished"], statuses
 
 
 def test_ray_cluster_matches_sequential(sequential, spec, tmp_path):

@@ -158,8 +158,7 @@ def fleet_trends(
     json_out: bool = typer.Option(False, "--json", help="Print the trends as JSON."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing trends folder."),
 ) -> None:
-    """Per-machine severity and mesh-parameter trends, flags, a plot per machine and an
-    overview."""
+    """Per-machine parameter trends and flags, a plot per machine and a fleet overview."""
     from identify.fleet import load_results
     from identify.trends import machine_trends, parse_threshold
 
