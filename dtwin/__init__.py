@@ -8,6 +8,13 @@ these (and the submodules' documented functions).
 from . import _config  # noqa: F401  (float64 + compilation cache, before anything else)
 from .build import build_twin as build_twin
 from .build import daq_from_spec as daq_from_spec
+from .coupling import DriveComparison as DriveComparison
+from .coupling import SensitivitySweep as SensitivitySweep
+from .coupling import compare_drives as compare_drives
+from .coupling import comparison_twins as comparison_twins
+from .coupling import fault_rms as fault_rms
+from .coupling import fault_rms_and_slope as fault_rms_and_slope
+from .coupling import sensitivity_sweep as sensitivity_sweep
 from .errors import ChannelError as ChannelError
 from .errors import DtwinError as DtwinError
 from .errors import FitError as FitError
@@ -34,8 +41,21 @@ from .io.output import OutputFolder as OutputFolder
 from .io.readers import read_record as read_record
 from .io.readers import write_record as write_record
 from .io.record import Record as Record
+from .io.validate import check_record as check_record
+from .io.validate import validate_record as validate_record
 from .lumped import LumpedParameters as LumpedParameters
+from .modal import ModalResult as ModalResult
+from .modal import frequency_sensitivities as frequency_sensitivities
 from .modal import modal_analysis as modal_analysis
+from .modal import natural_frequencies as natural_frequencies
+from .motor_spec import drive_from_spec as drive_from_spec
+from .parts.induction_motor import InductionMotor as InductionMotor
+from .parts.loads import ConstantLoad as ConstantLoad
+from .parts.loads import FluctuatingLoad as FluctuatingLoad
+from .parts.pmsm import PMSM as PMSM
+from .parts.shaft import Shaft as Shaft
+from .parts.speed_source import IdealSpeedSource as IdealSpeedSource
+from .parts.speed_source import SpeedProfile as SpeedProfile
 from .registry import REGISTRY as REGISTRY
 from .simulate import DAQ as DAQ
 from .simulate import SimResult as SimResult
