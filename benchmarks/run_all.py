@@ -33,6 +33,10 @@ HEADLINE = (
     (("RK45", "ratio_vs_jax_cpu"), "× vs scipy RK45 (CPU time)", "{:.0f}"),
     (("rel_diff", "jax_vs_RK45"), "rms diff JAX−RK45", "{:.1e}"),
     (("f_max_hz",), "f_max (Hz)", "{:.0f}"),
+    (("loop", "records_per_min"), "records/min, loop", "{:.2f}"),
+    (("batch", "records_per_min"), "records/min, batch", "{:.2f}"),
+    (("speedup_wall",), "speed-up (wall)", "{:.2f}"),
+    (("speedup_cpu",), "speed-up (CPU)", "{:.2f}"),
 )
 
 
@@ -80,10 +84,16 @@ def main(argv=None) -> int:
             rows.append((script.stem, "FAILED", "no JSON on stdout", ""))
             continue
         for rec in records:
+            shown = 0
             for path, label, fmt in HEADLINE:
                 v = _get(rec, path)
                 if v is not None:
-                    rows.append((script.stem, rec.get("kind", ""), label, fmt.format(v)))
+                    rows.append((script.stem, str(rec.get("kind", "")), label, fmt.format(v)))
+                    shown += 1
+            if not shown:  # a script with other figures: its top-level numbers
+                for key, v in rec.items():
+                    if isinstance(v, (int, float)) and not isinstance(v, bool):
+                        rows.append((script.stem, str(rec.get("kind", "")), key, f"{v:.4g}"))
         rows.append((script.stem, "", "script wall time", f"{wall:.0f} s"))
         rows.append((script.stem, "", "load average before / after",
                      f"{load_before} / {_loadavg()}"))
