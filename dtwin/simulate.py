@@ -368,9 +368,10 @@ def simulate(
         discard = half / fs_hi
     t_start = float(discard)
     # high-rate grid covering the output samples plus the filter's half-length on each side
-    ts = t_start + jnp.arange(-half, n_hi + half, dtype=jnp.float64) / fs_hi
-    t0 = float(ts[0]) if start == "steady" else 0.0
-    t1 = float(ts[-1])
+    ts_np = t_start + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
+    t0 = float(ts_np[0]) if start == "steady" else 0.0
+    t1 = float(ts_np[-1])
+    ts = jnp.asarray(ts_np)
     y0 = initial_state(twin, f_sun, start)
     rs, _ = twin.kinematic_ratios
     f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
