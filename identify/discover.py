@@ -83,6 +83,8 @@ P_MAX = 4
 #: Bins are padded to a multiple of this.
 BIN_BLOCK = 128
 _LN10_20 = 20.0 / np.log(10.0)
+#: Levenberg–Marquardt iterations per fit (the same in the data fit and every bootstrap draw).
+MAX_LM_STEPS = 60
 
 
 class FitInputs(eqx.Module):
@@ -157,7 +159,7 @@ _SOLVER = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8)
 
 def _solve(fn, y0, args):
     sol = optx.least_squares(fn, _SOLVER, y0, args=args, options=dict(jac="fwd"),
-                             max_steps=200, throw=False)
+                             max_steps=MAX_LM_STEPS, throw=False)
     r = fn(sol.value, args)
     return sol.value, jnp.sum(r**2)
 
@@ -225,7 +227,7 @@ def white_noise_spectra(rng: np.random.Generator, n_draws: int, seg_len: int, n_
 
 
 def null_statistics(inp: FitInputs, rng: np.random.Generator, n_draws: int, Z0_full,
-                    floor_full, sel: np.ndarray, seg_len: int, chunk: int = 200) -> np.ndarray:
+                    floor_full, sel: np.ndarray, seg_len: int, chunk: int = 100) -> np.ndarray:
     """Bootstrap draws of the held-out statistic under the null (module docstring).
 
     Each draw: the current model (gain of its fold) plus complex noise with the measured floor's
@@ -301,7 +303,8 @@ class DiscoverySettings:
 
     - `alpha`: family-wise level of each step's decision (Bonferroni over the candidates refit
       in the step): a candidate is kept only with p ≤ alpha / (number refit).
-    - `n_boot`: bootstrap draws of the null statistic per candidate (≥ number refit / alpha).
+    - `n_boot`: bootstrap draws of the null statistic per candidate (raised to K / alpha so that
+      the smallest attainable p-value lies below the level).
     - `threshold_db`, `excess_db`, `tolerance_bins`: residual-line detection (identify.lines).
     - `max_steps`: budget of effects added; `max_refit`: candidates refit per step (by coverage).
     - `min_coverage`: a candidate must cover this fraction of the residual line power.
@@ -314,7 +317,7 @@ class DiscoverySettings:
 
     n_folds: int = 2
     alpha: float = 0.01
-    n_boot: int = 1000
+    n_boot: int = 400
     threshold_db: float = 12.0
     excess_db: float = 6.0
     tolerance_bins: float = 0.25
@@ -655,12 +658,13 @@ def coverage(effect, kin: Kinematics, lines: list[ResidualLine], tol: float, f_m
     return float(sum(r.power_excess for r in matched) / total), matched
 
 
-def candidate_inputs(Z0, Jc, Y, floor, sig, model_line, nonnegative, log_g0):
+def candidate_inputs(Z0, Jc, Y, floor, sig, model_line, nonnegative, log_g0, near: int = 16):
     """The padded :class:`FitInputs` of one candidate on the bins that matter (its signature
-    bins `sig` and the current model's line bins `model_line`, masks of shape (F, K)).
+    bins `sig` and the current model's line bins `model_line` within `near` bins of them,
+    masks of shape (F, K)).
 
     **Returns:** ``(inputs, selected bin indices, padded size)``."""
-    fit_m = sig | model_line
+    fit_m = sig | (model_line & _dilate(sig, near))
     sel = np.flatnonzero(fit_m.any(axis=0))
     K = int(np.ceil(max(len(sel), 1) / BIN_BLOCK) * BIN_BLOCK)
     F, _, p = Jc.shape
@@ -818,7 +822,8 @@ def discover(
             break
         K_tried = len(ranked)
         level = settings.alpha / K_tried
-        n_boot = max(settings.n_boot, int(np.ceil(5 * K_tried / settings.alpha)))
+        # the smallest attainable p-value 1/(B+1) must lie below the level alpha/K
+        n_boot = max(settings.n_boot, int(np.ceil(K_tried / settings.alpha)))
         model.ensure_responses([i for _, i, _ in ranked])
         model_line = _dilate(np.abs(Z0) * np.exp(lg0)[:, None]
                              > floor * 10 ** (settings.threshold_db / 20.0))
