@@ -2,7 +2,7 @@
 
     dtwin discover RECORD (--spec FILE | --preset NAME) [--kind torsional|translational]
                    [--channel C] [--sample-rate HZ] [--max-steps 3] [--alpha 0.01]
-                   [--n-boot 1000] [--seed 0] [--json] [--out DIR] [--force]
+                   [--n-boot 400] [--seed 0] [--json] [--out DIR] [--force]
 
 Runs :func:`identify.discover.discover` (docs/discovery.md) on one channel of the record with
 the spec's base twin. Terminal: one line per step (effect named, why, main parameter with its
@@ -87,7 +87,7 @@ def discover(
                                              help="Sampling rate (Hz) for formats without one."),
     max_steps: int = typer.Option(3, "--max-steps", help="Budget of effects added."),
     alpha: float = typer.Option(0.01, "--alpha", help="Family-wise level per step (<= 0.01)."),
-    n_boot: int = typer.Option(1000, "--n-boot", help="Bootstrap draws of the null statistic."),
+    n_boot: int = typer.Option(400, "--n-boot", help="Bootstrap draws of the null statistic."),
     seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON on stdout."),
     out: Path | None = typer.Option(None, "--out", help="Write discover.json/.md, PNGs."),
