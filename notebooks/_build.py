@@ -536,18 +536,20 @@ NB03 = [
        model: translational, 20 stiffness harmonics, transmission error, position errors,
        25 dB SNR — so the fit is no inverse crime);
     2. estimates the operating point from the spectrum (the bench runs at 1782 rpm, not 1800);
-    3. fits the sun fault severity and the mesh parameters with `identify.api.fit`
-       (Levenberg–Marquardt through diffrax, forward-mode Jacobians), with 95 % intervals,
-       correlations and identifiability flags, and compares measured and fitted spectra;
+    3. fits the sun fault severity (and with `FULL = True` the mesh stiffnesses and damping)
+       with `identify.api.fit` (Levenberg–Marquardt through diffrax, forward-mode Jacobians),
+       with 95 % intervals, correlations and identifiability flags, and compares measured and
+       fitted spectra;
     4. follows the severity over a series of records (a fault growing), the paper's
        degradation-model idea.
     """),
     md("""
     ## Parameters
 
-    `FULL = False`: 0.5 s of the record, two free parameters, a series of three short
-    records (a few minutes on a laptop CPU). `FULL = True`: the whole 4 s record, four free
-    parameters (sun fault, both mesh stiffnesses, mesh damping), five records in the series.
+    `FULL = False`: 0.5 s of the record, the severity alone free, a series of three short
+    records (a few minutes on a laptop CPU; one compiled fit serves all four fits).
+    `FULL = True`: the whole 4 s record, four free parameters (sun fault, both mesh
+    stiffnesses, mesh damping) with their correlations, five records in the series.
     """),
     params("""
     FULL = False  # True: the whole 4 s record, 4 free parameters, 5 records in the series
@@ -555,12 +557,13 @@ NB03 = [
     code("""
     RECORD_S = 4.0 if FULL else 0.5  # s of the record used
     FREE = (["sun_fault", "k_sun_planet", "k_ring_planet", "zeta_mesh"] if FULL
-            else ["sun_fault", "k_sun_planet"])
+            else ["sun_fault"])
     SERIES = (0.0, 0.2, 0.4, 0.6, 0.8) if FULL else (0.1, 0.4, 0.7)  # true severities
     """),
     code(SETUP),
     code("""
     import dataclasses
+    import warnings
     from pathlib import Path
 
     from identify.api import (estimate_speed, fit, plot_fit, plot_severity_series,
@@ -568,35 +571,67 @@ NB03 = [
     from dtwin.cli.cmd_spectrum import spectrum_report
     from dtwin.plotting.fit import plot_loss_history
     from dtwin.plotting.spectrum import plot_spectrum_peaks
+
+    # the bench's 21/31/84 set needs profile shift: dtwin says so at every spec load
+    warnings.filterwarnings("ignore", message=".*needs profile shift")
     """),
     md("""
     ## Load a record
 
     `dtwin.read_record` reads any supported format (here dtwin's own `*.dtwin.h5`, which keeps
-    the truth in its metadata: we look at it only at the end).
+    the truth in its metadata: we look at it only at the end). The bundled records are made
+    by `data/make_samples.py`; where they have not been made, the notebook makes a stand-in
+    the same way (torsional instead of translational, to keep it short) with `make_record`,
+    which also makes the severity series at the end.
     """),
     code("""
+    spec = dtwin.preset("paper-bench")  # the paper's test bench: 21/31/84 teeth, 1782 rpm
+
+    # the "truth" configuration of data/make_samples.py: transmission error, 20 stiffness
+    # harmonics, planet position errors (the fitted model has none of these)
+    data_truth = dtwin.spec_to_dict(spec)
+    data_truth.pop("source", None)
+    data_truth["mesh"].update({"te_amplitude": 5e-7, "te_harmonics": [1.0, 0.3],
+                               "n_harmonics": 20})
+    data_truth["imperfections"]["planet_position_errors"] = [0.0, 4e-4, -3e-4]
+    spec_truth = dtwin.load_spec(data_truth)
+
+
+    def make_record(severity, duration, seed, snr_db=25.0, f_sun=29.7):
+        \"\"\"A record of the bench with a sun missing tooth of `severity`, truth configuration.\"\"\"
+        tw = dtwin.build_twin(spec_truth, kind="torsional",
+                              faults=(dtwin.parse_fault(f"sun:missing_tooth:{severity}"),))
+        sim = dtwin.simulate(tw, duration=duration, f_sun=f_sun, discard=0.1, seed=seed,
+                             daq=dtwin.daq_from_spec(spec_truth, snr_db=snr_db))
+        return sim.to_record(metadata={"f_sun": f_sun, "faults": [f"sun:missing_tooth:{severity}"],
+                                       "snr_db": snr_db, "truth": "notebook stand-in"})
+
+
     SAMPLE = Path("..") / "data" / "samples" / "bench_sun_fault.dtwin.h5"
-    full = dtwin.read_record(SAMPLE)
+    if SAMPLE.exists():
+        full = dtwin.read_record(SAMPLE)
+    else:
+        print(f"{SAMPLE} not found (run data/make_samples.py): making a 2 s stand-in")
+        full = make_record(0.6, 2.0, seed=2)
     n = int(round(RECORD_S * full.sample_rate))
     record = dataclasses.replace(full, data=full.data[:, :n])
-    spec = dtwin.preset("paper-bench")
     print(f"{SAMPLE.name}: {full.duration:g} s at {full.sample_rate:g} Hz, channel "
-          f"{full.channels[0]} ({full.units[0]}); using the first {record.duration:g} s")
+          f"{full.channels[0]} ({full.units[0]}); fitting the first {record.duration:g} s")
     """),
     md("""
     ## Operating point from the data
 
-    A harmonic-sum search over ±5 % of the nominal 1800 rpm, then every mesh harmonic's peak
-    interpolated (`identify.api.estimate_speed`). The fit then runs the twin at this speed.
+    A harmonic-sum search over ±5 % of the nominal speed, then every mesh harmonic's peak
+    interpolated (`identify.api.estimate_speed`), on the whole record (finer resolution; no
+    simulation needed). The fit then runs the twin at this speed.
     """),
     code("""
     twin = dtwin.build_twin(spec, kind="torsional")
-    op = estimate_speed(record, twin, spec["operating"]["f_sun"])
+    op = estimate_speed(full, twin, spec["operating"]["f_sun"])
     print(f"input speed {op.f_sun:.3f} Hz = {60 * op.f_sun:.1f} rpm (± {op.std_f_sun:.3f} Hz, "
           f"{op.method}); mesh frequency {op.f_mesh:.2f} Hz")
     fr = {k: float(v) for k, v in dtwin.characteristic_frequencies(spec.gear_set(), op.f_sun).items()}
-    rep, data = spectrum_report(record, frequencies=fr, n_planets=spec.gear_set().n_planets)
+    rep, data = spectrum_report(full, frequencies=fr, n_planets=spec.gear_set().n_planets)
     show(plot_spectrum_peaks(data["freqs"], data["spec"], data["labelled"], unit=data["unit"],
                              floor=data["floor"],
                              title=f"Measured spectrum 450–550 Hz at {60 * op.f_sun:.0f} rpm"))
@@ -612,7 +647,7 @@ NB03 = [
     """),
     code("""
     t0 = time.time()
-    res = fit(record, spec, FREE, f_sun=op.f_sun, initial={"sun_fault": 0.3})
+    res = fit(record, spec, FREE, f_sun=op.f_sun, initial={"sun_fault": 0.3}, max_steps=20)
     print(f"fit: {time.time() - t0:.0f} s")
     print(res.table())
     """),
@@ -624,8 +659,11 @@ NB03 = [
                        else "determined"]
                       for i, n in enumerate(res.names)],
                      ["parameter", "initial", "fitted", "95 % interval", "status"]))
-    display(md_table([[a] + [f"{unc.correlation[i, j]:+.2f}" for j in range(len(res.names))]
-                      for i, a in enumerate(res.names)], ["correlation"] + list(res.names)))
+    if len(res.names) > 1:
+        display(md_table([[a] + [f"{unc.correlation[i, j]:+.2f}" for j in range(len(res.names))]
+                          for i, a in enumerate(res.names)], ["correlation"] + list(res.names)))
+    else:
+        print("one free parameter: correlations need FULL = True (four free parameters)")
     print("singular values of the scaled Jacobian:", np.array2string(unc.singular_values,
                                                                      precision=3))
     """),
@@ -634,11 +672,13 @@ NB03 = [
     show(plot_loss_history(res.loss_history))
     """),
     md("""
-    The mesh stiffness is typically flagged as not determined by one steady 5 kHz record: the
-    torsional modes it controls lie at 5–12 kHz, above the record's Nyquist frequency, so below
-    them it acts only like a gain (notebook 01, modal analysis; docs/identification.md). The
-    severity is determined. Run-ups recorded at a higher rate sweep the mesh harmonics across
-    those modes and determine the stiffness too.
+    With `FULL = True` the mesh stiffnesses and damping are free too, and are typically flagged
+    as not determined by one steady 5 kHz record: the torsional modes they control lie at
+    5–12 kHz, above the record's Nyquist frequency, so below them stiffness acts only like a
+    gain (notebook 01, modal analysis; docs/identification.md). Run-ups recorded at a higher
+    rate sweep the mesh harmonics across those modes and determine the stiffness too. Whether
+    the fit converged, and whether the severity is determined, is in the table above: the
+    flags are computed, never assumed.
 
     ## What the record really was
     """),
@@ -653,31 +693,19 @@ NB03 = [
     ## A severity series (fault evolution)
 
     A machine recorded on successive days while a sun tooth loses more and more of its face
-    width. The records are made here with the twin in a richer configuration than the fitted
-    model (transmission error, planet position errors, 20 stiffness harmonics, 20 dB SNR);
+    width. The records are made by `make_record` above (the truth configuration, 20 dB SNR);
     `severity_series` fits each one (one compiled fit serves them all) and returns the
     trajectories with their intervals.
     """),
     code("""
-    data_truth = dtwin.spec_to_dict(spec)
-    data_truth.pop("source", None)
-    data_truth["mesh"].update({"te_amplitude": 5e-7, "te_harmonics": [1.0, 0.3],
-                               "n_harmonics": 20})
-    data_truth["imperfections"]["planet_position_errors"] = [0.0, 4e-4, -3e-4]
-    spec_truth = dtwin.load_spec(data_truth)
-    daq = dtwin.daq_from_spec(spec_truth, snr_db=20.0)
-    series_records = []
     t0 = time.time()
-    for k, sev in enumerate(SERIES):
-        tw = dtwin.build_twin(spec_truth, kind="torsional",
-                              faults=(dtwin.parse_fault(f"sun:missing_tooth:{sev}"),))
-        sim = dtwin.simulate(tw, duration=RECORD_S, f_sun=op.f_sun, daq=daq, discard=0.1, seed=k)
-        series_records.append(sim.to_record(metadata={"f_sun": op.f_sun}))
+    series_records = [make_record(sev, RECORD_S, seed=10 + k, snr_db=20.0, f_sun=op.f_sun)
+                      for k, sev in enumerate(SERIES)]
     print(f"{len(SERIES)} records simulated in {time.time() - t0:.0f} s")
     t0 = time.time()
     series = severity_series(series_records, spec, "sun", f_sun=op.f_sun,
                              labels=[f"day {k + 1}" for k in range(len(SERIES))],
-                             warm_start=True)
+                             free=FREE[1:], warm_start=True, max_steps=20)
     print(f"series fitted in {time.time() - t0:.0f} s")
     show(plot_severity_series(series, truth={"sun_fault": list(SERIES)}))
     v, lo, hi = series.trajectory("sun_fault")
@@ -685,7 +713,33 @@ NB03 = [
               for lab, t, x, a, b in zip(series.labels, SERIES, v, lo, hi)],
              ["record", "true severity", "fitted", "95 % interval"])
     """),
+    md("""
+    ## Reading the result
+
+    The fitted model is the bench's *nominal* spec: it has no transmission error and equally
+    spaced planets, while the records come from a gearbox that has both (and, for the bundled
+    record, the full translational model). On the default short records this model-form error
+    shows: compare the fitted severities with the truth above — in the default run they keep
+    the right order but come out well below the truth, with intervals that do not hold it. An
+    interval accounts for noise, not for a missing effect. Finding what the model is missing
+    before trusting its parameters is the subject of notebook 04.
+    """),
 ]
+
+NB04_STUB = [
+    md("""
+    # 04 — What is the model missing? (waiting for the discovery workflow)
+
+    The discrepancy-discovery workflow on a record with a hidden effect, step by step, with the
+    held-out gap shrinking. The cells are written (`NB04` in `notebooks/_build.py`) against
+    `identify.discover.discover` and `dtwin.plotting.discover`; they are switched on
+    (`READY_04 = True` there) once that workflow is committed. Until then this notebook is
+    this note, and `tests/test_notebooks.py` skips it.
+    """),
+]
+
+#: The discovery workflow (identify/discover.py, dtwin/plotting/discover.py) is committed.
+READY_04 = True
 
 NB04 = [
     md("""
@@ -707,17 +761,19 @@ NB04 = [
     md("""
     ## Parameters
 
-    `FULL = False`: a 2 s record, torsional model, at most two steps, 200 bootstrap draws per
-    candidate (a few minutes on a laptop CPU). `FULL = True`: the paper's 4 s, three steps and
-    the default 1000 draws.
+    `FULL = False`: a 2 s record, torsional model, one step with the three best-covering
+    candidates refit, 200 bootstrap draws per candidate (several minutes on a 2-core CPU).
+    `FULL = True`: the paper's 4 s, up to three steps, six candidates refit per step and the
+    default 1000 draws.
     """),
     params("""
     FULL = False  # True: 4 s record, up to 3 steps, 1000 bootstrap draws
     """),
     code("""
     RECORD_S = 4.0 if FULL else 2.0
-    MAX_STEPS = 3 if FULL else 2
-    N_BOOT = 1000 if FULL else 200
+    MAX_STEPS = 3 if FULL else 1  # effects added at most
+    MAX_REFIT = 6 if FULL else 3  # candidates refit per step (the best covering ones)
+    N_BOOT = 1000 if FULL else 200  # bootstrap draws of the null statistic per candidate
     KIND = "torsional"
     """),
     code(SETUP),
@@ -728,13 +784,17 @@ NB04 = [
     md("""
     ## The measurement, with a hidden effect
 
-    Truth: `paper-like` (planet position errors 0, +1.0 and −0.7 mrad), 25 dB SNR. Base model:
-    the same spec with `[imperfections]` emptied.
+    Truth: `paper-like` (planet position errors 0, +1.0 and −0.7 mrad) seen by an
+    accelerometer on the ring, 40 dB SNR. Base model: the same spec with `[imperfections]`
+    emptied.
     """),
     code("""
-    truth_spec = dtwin.preset("paper-like")
+    data = dtwin.spec_to_dict(dtwin.preset("paper-like"))
+    data.pop("source", None)
+    data["sensor"]["quantity"] = "acceleration"  # the mesh band dominates, not the planet pass
+    truth_spec = dtwin.load_spec(data)
     F_SUN = truth_spec["operating"]["f_sun"]
-    daq = dtwin.daq_from_spec(truth_spec, snr_db=25.0)
+    daq = dtwin.daq_from_spec(truth_spec, snr_db=40.0)
     t0 = time.time()
     truth = dtwin.build_twin(truth_spec, kind=KIND)
     record = dtwin.simulate(truth, duration=RECORD_S, f_sun=F_SUN, daq=daq, discard=0.1,
@@ -752,7 +812,7 @@ NB04 = [
     ## Discovery, step by step
     """),
     code("""
-    settings = DiscoverySettings(max_steps=MAX_STEPS, n_boot=N_BOOT, seed=0)
+    settings = DiscoverySettings(max_steps=MAX_STEPS, max_refit=MAX_REFIT, n_boot=N_BOOT, seed=0)
     t0 = time.time()
     result = discover(record, base_spec, kind=KIND, settings=settings, log=print)
     print(f"discovery: {time.time() - t0:.0f} s; stopped: {result.stop_reason}")
@@ -797,6 +857,23 @@ NB04 = [
     gearbox: where the data cannot tell them apart the step names the look-alike group, not a
     member. The hidden truth was the planet position errors printed above.
     """),
+    code("""
+    errs = np.asarray(hidden["planet_position_errors"], dtype=float)
+    print(f"hidden: planet position errors {errs.tolist()} rad; norm of planets 1..N-1 "
+          f"relative to planet 0: {np.linalg.norm(errs[1:] - errs[0]):.3g} rad")
+    for s in result.steps:
+        print(f"step {s.number}: named {s.named!r} (group {s.group!r}, effect fitted "
+              f"{s.effect!r}); {s.main['name']} = {s.main['value']:.3g} {s.main['unit']}")
+    if not result.steps:
+        print("nothing was added: no candidate passed the held-out test at this record length")
+    """),
+    md("""
+    The group is the right one. The fitted amplitude belongs to the effect's own part (mesh
+    phase shifts and pin offsets of `PlanetPositionErrors`, fitted as a first-order response
+    about zero), not to the preset's geometric planet angles, so the two numbers above are not
+    a like-for-like comparison: read the step as "something that adds carrier sidebands the
+    sideband rule forbids", which is what the data can say.
+    """),
 ]
 
 
@@ -819,7 +896,7 @@ NOTEBOOKS = {
     "01_the_twin.ipynb": NB01,
     "02_the_motor.ipynb": NB02,
     "03_identification.ipynb": NB03,
-    "04_what_is_missing.ipynb": NB04,
+    "04_what_is_missing.ipynb": NB04 if READY_04 else NB04_STUB,
 }
 
 

@@ -20,11 +20,12 @@ import pytest
 NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
 
 #: Notebooks whose subject does not exist yet, with the reason (skipped, not failed).
-SKIP: dict[str, str] = {
-    "03_identification.ipynb": "in progress: written against identify.api, not yet run "
-                               "end to end in CI time",
-    "04_what_is_missing.ipynb": "identify/discover.py (the discovery workflow) is not "
-                                "committed yet",
+SKIP: dict[str, str] = {}
+
+#: Notebooks that take several minutes even with FULL = False: run by `make test-all` (slow).
+SLOW: dict[str, str] = {
+    "03_identification.ipynb": "LM fits through the ODE solve: several minutes",
+    "04_what_is_missing.ipynb": "discovery refits three candidates with bootstrap nulls",
 }
 
 pytestmark = pytest.mark.xdist_group("notebooks")
@@ -38,6 +39,8 @@ def _params():
     out = []
     for p in _paths():
         marks = [pytest.mark.skip(reason=SKIP[p.name])] if p.name in SKIP else []
+        if p.name in SLOW:
+            marks.append(pytest.mark.slow)
         out.append(pytest.param(p, id=p.stem, marks=marks))
     return out
 
