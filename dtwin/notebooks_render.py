@@ -34,6 +34,17 @@ def kernel_dir() -> Path:
     return Path(sys.prefix) / "share" / "jupyter"
 
 
+def _kernel_is_ours(spec: Path) -> bool:
+    """Whether the kernel spec at `spec` runs this interpreter (same file after symlinks)."""
+    import json
+
+    try:
+        argv0 = json.loads(spec.read_text(encoding="utf-8"))["argv"][0]
+    except (OSError, ValueError, KeyError, IndexError):
+        return False
+    return Path(argv0).resolve() == Path(sys.executable).resolve()
+
+
 def ensure_kernel() -> str:
     """Install the kernel spec ``dtwin`` (this interpreter) into ``sys.prefix`` if missing, and
     put that folder first on ``JUPYTER_PATH`` so no other ``dtwin`` kernel shadows it.
@@ -41,7 +52,7 @@ def ensure_kernel() -> str:
     **Returns:** the kernel name for nbclient.
     """
     spec = kernel_dir() / "kernels" / KERNEL_NAME / "kernel.json"
-    if not spec.exists() or str(Path(sys.executable)) not in spec.read_text():
+    if not _kernel_is_ours(spec):
         subprocess.run(
             [sys.executable, "-m", "ipykernel", "install", "--prefix", sys.prefix,
              "--name", KERNEL_NAME, "--display-name", f"Python ({KERNEL_NAME})"],
