@@ -187,6 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     force = args.force or (out / "manifest.json").exists()  # the demo's own folder: refresh it
     folder = OutputFolder(out, force=force, parameters={"full": args.full, "quick": args.quick})
+    folder.force = True  # the report is rewritten after every step (atomically)
     duration = 4.0 if args.full else (0.5 if args.quick else 2.0)
     kind = "torsional" if args.quick else None
     sections = ["# dtwin demo report\n",
