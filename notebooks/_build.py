@@ -610,12 +610,14 @@ NB03 = [
     SAMPLE = Path("..") / "data" / "samples" / "bench_sun_fault.dtwin.h5"
     if SAMPLE.exists():
         full = dtwin.read_record(SAMPLE)
+        source = SAMPLE.name
     else:
         print(f"{SAMPLE} not found (run data/make_samples.py): making a 2 s stand-in")
         full = make_record(0.6, 2.0, seed=2)
+        source = "stand-in for " + SAMPLE.name
     n = int(round(RECORD_S * full.sample_rate))
     record = dataclasses.replace(full, data=full.data[:, :n])
-    print(f"{SAMPLE.name}: {full.duration:g} s at {full.sample_rate:g} Hz, channel "
+    print(f"{source}: {full.duration:g} s at {full.sample_rate:g} Hz, channel "
           f"{full.channels[0]} ({full.units[0]}); fitting the first {record.duration:g} s")
     """),
     md("""
