@@ -28,7 +28,7 @@ the diffrax solve, exact in parameters that enter the parts linearly) give::
 
 The fit compares levels ``L = 20 log10(A + F)`` (``F`` the measured noise floor, added before
 the log as in :mod:`identify.gap`) with ``optimistix.least_squares`` (Levenberg–Marquardt,
-``jac="fwd"``) over the *fit bins*: the candidate's signature bins plus the bins where the
+``jac="fwd"``) with a free gain per fold, over the *fit bins*: the candidate's signature bins plus the bins where the
 current model has a line. Non-negative parameters are fitted as ``exp(u)``. Starts: the
 dominant eigenvector of the signature-weighted response ``sum_k w_k Re(J_k^H J_k)`` scaled to
 the excess power, its negative and a third of it (one batched ``vmap``).
@@ -127,7 +127,8 @@ def _with_noise(a, floor):
 
 
 def _residual_fold(params, args):
-    Z0, J, Y, floor, fit, nonneg, active = args
+    Z0, J, Y, floor, fit, nonneg, active, log_g0 = args
+    del log_g0
     u, log_g = params[:-1], params[-1]
     th = _theta(u, nonneg, active)
     a = _with_noise(_model_amp(Z0, J, th, log_g), floor)
@@ -167,7 +168,7 @@ def _solve(fn, y0, args):
 def fit_fold(Z0, J, Y, floor, fit, sig, nonneg, active, log_g0):
     """Fit one fold: returns ``(params, loss)`` with params = (u (P), log g)."""
     y0s = _starts(Z0, J, Y, floor, sig, nonneg, active, log_g0)
-    args = (Z0, J, Y, floor, fit, nonneg, active)
+    args = (Z0, J, Y, floor, fit, nonneg, active, log_g0)
     vals, losses = jax.vmap(lambda y0: _solve(_residual_fold, y0, args))(y0s)
     losses = jnp.where(jnp.isfinite(losses), losses, jnp.inf)
     i = jnp.argmin(losses)
@@ -251,8 +252,9 @@ def null_statistics(inp: FitInputs, rng: np.random.Generator, n_draws: int, Z0_f
 
 
 def _residual_joint(params, args):
-    Z0, J, Y, floor, fit, nonneg, active = args
+    Z0, J, Y, floor, fit, nonneg, active, log_g0 = args
     P = J.shape[-1]
+    del log_g0
     u, log_g = params[:P], params[P:]
     th = _theta(u, nonneg, active)
     a = jnp.exp(log_g)[:, None] * jnp.abs(Z0 + jnp.einsum("fkp,p->fk", J, th.astype(J.dtype)))
@@ -261,7 +263,7 @@ def _residual_joint(params, args):
 
 @eqx.filter_jit
 def _fit_joint(inp: FitInputs, start):
-    args = (inp.Z0, inp.J, inp.Y, inp.floor, inp.fit, inp.nonneg, inp.active)
+    args = (inp.Z0, inp.J, inp.Y, inp.floor, inp.fit, inp.nonneg, inp.active, inp.log_g0)
     val, loss = _solve(_residual_joint, start, args)
     jac = jax.jacfwd(_residual_joint)(val, args)
     r = _residual_joint(val, args)
@@ -281,10 +283,45 @@ def fit_joint(inp: FitInputs, fold_params: np.ndarray):
     return best
 
 
+@eqx.filter_jit
+def _profile_losses(inp: FitInputs, val, scales):
+    """Loss of the joint fit with the effect scaled by each of `scales` (gains kept)."""
+    args = (inp.Z0, inp.J, inp.Y, inp.floor, inp.fit, inp.nonneg, inp.active, inp.log_g0)
+    P = inp.J.shape[-1]
+    th = _theta(val[:P], inp.nonneg, inp.active)
+
+    def loss(c):
+        # scaled θ back to u (log for non-negative parameters)
+        u = jnp.where(inp.nonneg > 0, jnp.log(jnp.maximum(c * th, 1e-300)), c * th)
+        r = _residual_joint(jnp.concatenate([u, val[P:]]), args)
+        return jnp.sum(r**2)
+
+    return jax.vmap(loss)(scales)
+
+
+#: χ² quantile (1 degree of freedom) of the amplitude's profile interval at 99 %.
+CHI2_1_99 = 6.634896601021214
+
+
+def amplitude_profile(inp: FitInputs, val, s2: float, chi2: float = CHI2_1_99):
+    """Profile interval of the effect's overall amplitude: the scale factors c with
+    ``(loss(c θ̂) − loss(θ̂)) / s² <= chi2`` on a grid 0 … 3, and the evidence
+    ``(loss(0) − loss(θ̂)) / s²`` (the interval excludes zero when it exceeds `chi2`).
+
+    **Returns:** ``(c_low, c_high, evidence)``."""
+    grid = np.linspace(0.0, 3.0, 301)
+    losses = np.asarray(_profile_losses(inp, jnp.asarray(val), jnp.asarray(grid)))
+    l1 = float(np.min(losses))
+    d = (losses - l1) / max(s2, 1e-300)
+    inside = np.flatnonzero(d <= chi2)
+    evidence = float((losses[0] - l1) / max(s2, 1e-300))
+    return float(grid[inside[0]]), float(grid[inside[-1]]), evidence
+
+
 def theta_of(params: np.ndarray, nonneg: np.ndarray, active: np.ndarray) -> np.ndarray:
     """Fitting units θ from the fitted vector's u part (numpy)."""
     u = np.asarray(params[: len(nonneg)])
-    return np.where(active > 0, np.where(nonneg > 0, np.exp(u), u), 0.0)
+    return np.where(active > 0, np.where(nonneg > 0, np.exp(np.clip(u, -700, 700)), u), 0.0)
 
 
 def model_amplitudes(Z0, J, theta, log_g) -> np.ndarray:
@@ -521,13 +558,16 @@ class CandidateResult:
     sigma: np.ndarray | None = None
     main: float = float("nan")
     main_sigma: float = float("nan")
+    main_interval: tuple[float, float] = (float("nan"), float("nan"))
+    evidence: float = float("nan")
     log_gains: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         return dict(name=self.name, group=self.group, coverage=self.coverage,
                     statistic=self.statistic, p_value=self.p_value, gap_after=self.gap_after,
                     identified=self.identified, significant=self.significant,
-                    main=self.main, main_sigma=self.main_sigma)
+                    main=self.main, main_sigma=self.main_sigma,
+                    main_interval=list(self.main_interval), evidence=self.evidence)
 
 
 @dataclasses.dataclass
@@ -658,13 +698,14 @@ def coverage(effect, kin: Kinematics, lines: list[ResidualLine], tol: float, f_m
     return float(sum(r.power_excess for r in matched) / total), matched
 
 
-def candidate_inputs(Z0, Jc, Y, floor, sig, model_line, nonnegative, log_g0, near: int = 16):
+def candidate_inputs(Z0, Jc, Y, floor, sig, model_line, nonnegative, log_g0):
     """The padded :class:`FitInputs` of one candidate on the bins that matter (its signature
-    bins `sig` and the current model's line bins `model_line` within `near` bins of them,
+    bins `sig` and *all* the current model's line bins `model_line`, so the refitted gain is
+    set by every line and cannot trade the effect against the lines near its signature;
     masks of shape (F, K)).
 
     **Returns:** ``(inputs, selected bin indices, padded size)``."""
-    fit_m = sig | (model_line & _dilate(sig, near))
+    fit_m = sig | model_line
     sel = np.flatnonzero(fit_m.any(axis=0))
     K = int(np.ceil(max(len(sel), 1) / BIN_BLOCK) * BIN_BLOCK)
     F, _, p = Jc.shape
@@ -871,7 +912,7 @@ def discover(
             except np.linalg.LinAlgError:
                 cov_u = np.full((n_par, n_par), np.inf)
             u = val[:p]
-            dth = np.where(nonneg[:p] > 0, np.exp(u), 1.0)  # dθ/du
+            dth = np.where(nonneg[:p] > 0, np.exp(np.clip(u, -700, 700)), 1.0)  # dθ/du
             th_units = theta_of(val, nonneg, active)[:p]
             scales = model.scales[model.slice(i)]
             cr.theta = th_units * scales
@@ -882,10 +923,17 @@ def discover(
             cr.main_sigma = float(np.sqrt(max(gmain @ cov_th @ gmain, 0.0)))
             z = _Z99 if settings.confidence == 0.99 else float(
                 jax.scipy.stats.norm.ppf(0.5 + settings.confidence / 2))
-            cr.identified = bool(np.isfinite(cr.main_sigma) and cr.main > z * cr.main_sigma)
+            # identified: the profile interval of the overall amplitude excludes zero (more
+            # reliable than the delta method for a norm near zero, and scale-free)
+            c_lo, c_hi, evidence = amplitude_profile(inp, val, s2)
+            cr.main_interval = (c_lo * cr.main, c_hi * cr.main)
+            cr.evidence = evidence
+            cr.identified = bool(c_lo > 0.0 and evidence > CHI2_1_99 and cr.main > 0)
+            del z
             cr.log_gains = val[P_MAX:]
             say(f"    T {T:.1f} p {cr.p_value:.4f} (level {level:.4f}) gap {cr.gap_after:.2f} dB "
-                f"main {cr.main:.3g} ± {cr.main_sigma:.2g} identified {cr.identified}")
+                f"main {cr.main:.3g} [{cr.main_interval[0]:.3g}, {cr.main_interval[1]:.3g}] "
+                f"identified {cr.identified}")
             results.append(cr)
             rows.append(cr)
         last_cands = results
@@ -915,8 +963,9 @@ def discover(
                   for q, v, s in zip(model.parameters[i_best], best.theta, best.sigma, strict=True)]
         main = dict(name=e_best.main_name, unit=e_best.main_unit, value=best.main,
                     sigma=best.main_sigma,
-                    interval=[best.main - _Z99 * best.main_sigma,
-                              best.main + _Z99 * best.main_sigma],
+                    interval=list(best.main_interval),
+                    interval_kind="profile of the overall amplitude, 99 %",
+                    delta_method_sigma=best.main_sigma,
                     typical_range=list(e_best.typical_range), typical_note=e_best.typical_note)
         gap_after = dataclasses.replace(gap_now, total=gap_lin,
                                         bands=dict(gap_now.bands, all=gap_lin))

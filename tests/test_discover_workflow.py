@@ -74,7 +74,7 @@ def record(truth, values: dict, seed: int = 0, extra_tone=None):
 
 def run(spec, base_twin, x, candidates=None, settings=SETTINGS):
     return discover(x, spec, sample_rate=5000.0, base_twin=base_twin, candidates=candidates,
-                    settings=settings)
+                    settings=settings, log=print)
 
 
 # hidden effect, its true main amplitude, the group to be named, whether the member is
