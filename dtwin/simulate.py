@@ -373,7 +373,7 @@ def simulate(
     t_start = float(discard)
     # high-rate grid covering the output samples plus the filter's half-length on each side
     ts_np = t_start + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
-    t0 = float(ts_np[0]) if start == "steady" else 0.0
+    t0 = float(ts_np[0]) if start == "steady" else min(0.0, float(ts_np[0]))
     t1 = float(ts_np[-1])
     ts = jnp.asarray(ts_np)
     y0 = initial_state(twin, f_sun, start)

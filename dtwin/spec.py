@@ -201,8 +201,9 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
     },
     "motor": {
         "type": FieldSpec("str", "", "ideal", choices=("ideal", "pmsm", "induction"),
-                          doc="drive model; further keys are finite floats the motor model "
-                              "validates"),
+                          doc="drive model; further keys (speed_rpm, start, k_shaft, sub-tables "
+                              "[motor.pmsm], [motor.induction]) are validated by "
+                              "dtwin.motor_spec: see docs/motor.md"),
     },
     "model": {
         "kind": FieldSpec("str", "", "translational", choices=("translational", "torsional"),
@@ -472,6 +473,8 @@ def _validate(raw: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _check_motor(table: Any, problems: list) -> dict[str, Any]:
+    """`[motor]`: validated by the motor module (`dtwin.motor_spec.drive_from_spec`), which
+    knows every drive's parameters, defaults and plausible ranges; problems carry their paths."""
     if not isinstance(table, Mapping):
         problems.append(("motor", "must be a table"))
         return {"type": "ideal"}
@@ -480,11 +483,13 @@ def _check_motor(table: Any, problems: list) -> dict[str, Any]:
     for k, v in table.items():
         if k == "type":
             continue
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            problems.append((f"motor.{k}", f"motor parameters must be finite numbers (SI), "
-                             f"got {v!r}"))
-            continue
-        out[k] = float(v)
+        out[k] = dict(v) if isinstance(v, Mapping) else v
+    from .motor_spec import drive_from_spec
+
+    try:
+        drive_from_spec(dict(out))
+    except SpecError as e:
+        problems.extend(e.problems)
     return out
 
 

@@ -215,7 +215,8 @@ BAD = [
     ("imperfections.load_sharing", [1.0, 1.0], "imperfections.load_sharing", "one value per"),
     ("imperfections.sun_eccentricity", 0.05, "imperfections.sun_eccentricity",
      "0.05 mm = 5e-05 m"),
-    ("motor.pole_pairs", "four", "motor.pole_pairs", "finite numbers"),
+    ("motor.pmsm.pole_pairs", "four", "motor.pmsm.pole_pairs", "must be a number"),
+    ("motor.pmsm.L_d", 5.0, "motor.pmsm.L_d", "H (not mH)"),
     ("motor.type", "dc", "motor.type", "one of"),
     ("model.kind", "rigid", "model.kind", "translational"),
     ("bearings.sun", {"n_rolling_elements": 9, "ball_diameter": 0.05, "pitch_diameter": 0.04},
@@ -285,8 +286,8 @@ def test_defaults_are_filled():
     assert s["sensor"]["angle"] == pytest.approx(math.pi / 2)  # conventions: on top
     assert s["motor"] == {"type": "ideal"}
     assert s["faults"] == [] and s["bearings"] == {}
-    raw = _with("motor", {"type": "pmsm", "pole_pairs": 4, "R_s": 0.5})
-    assert load_spec(raw)["motor"] == {"type": "pmsm", "pole_pairs": 4.0, "R_s": 0.5}
+    raw = _with("motor", {"type": "pmsm", "pmsm": {"pole_pairs": 4, "R_s": 0.5}})
+    assert load_spec(raw)["motor"] == {"type": "pmsm", "pmsm": {"pole_pairs": 4, "R_s": 0.5}}
 
 
 def test_files(tmp_path):
