@@ -13,6 +13,7 @@ runs.
 """
 
 import math
+from typing import ClassVar
 
 import jax.numpy as jnp
 import numpy as np
@@ -155,13 +156,13 @@ class HousingRattle(AbstractPart):
 class RattleEffect(AbstractEffect):
     """Test-only effect: its part, one parameter, its signature (lines m fm ± 11 fc)."""
 
-    name = "rattle_11fc"
-    group = "test_rattle"
-    description = "a test effect defined outside identify/"
-    main_name = "rattle amplitude"
-    main_unit = "m"
-    typical_range = (1e-9, 1e-7)
-    typical_note = "test only"
+    name: ClassVar[str] = "rattle_11fc"
+    group: ClassVar[str] = "test_rattle"
+    description: ClassVar[str] = "a test effect defined outside identify/"
+    main_name: ClassVar[str] = "rattle amplitude"
+    main_unit: ClassVar[str] = "m"
+    typical_range: ClassVar[tuple[float, float]] = (1e-9, 1e-7)
+    typical_note: ClassVar[str] = "test only"
 
     def parameters(self, twin):
         return (EffectParameter("test_rattle_amplitude", "m", 1e-8, "rattle amplitude"),)
