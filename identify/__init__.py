@@ -28,3 +28,5 @@ from .api import plot_fit as plot_fit
 from .api import plot_severity_series as plot_severity_series
 from .api import severity_series as severity_series
 from .api import stack_problems as stack_problems
+from .discover import DiscoverySettings as DiscoverySettings
+from .discover import discover as discover
