@@ -156,6 +156,15 @@ def _window_weight(u: np.ndarray, name: str) -> np.ndarray:
     raise RecordError(f"unknown planet-separation window {name!r}; choose 'hann' or 'rect'")
 
 
+def _passage_window(grid, psi_i, sensor_angle, z_ring, width, window):
+    """Window weight of one planet's passage under the sensor at carrier angles `grid`, and the
+    number of passages it covers (shared by planet and sun separation)."""
+    phi = np.angle(np.exp(1j * (grid + psi_i - sensor_angle)))  # angle to sensor, (-pi, pi]
+    w = _window_weight(phi * z_ring / (2 * np.pi) / width, window)
+    rev = np.round((grid + psi_i - sensor_angle) / (2 * np.pi))
+    return w, int(np.unique(rev[w > 0]).size)
+
+
 def planet_separation(
     x,
     carrier_angle: np.ndarray,
@@ -207,16 +216,13 @@ def planet_separation(
     weights = np.zeros((n, n_bins))
     passes = np.zeros(n, dtype=np.int64)
     for i in range(n):
-        phi = np.angle(np.exp(1j * (grid + psi[i] - sensor_angle)))  # angle to sensor, (-pi, pi]
-        w = _window_weight(phi * zr / (2 * np.pi) / width, window)
+        w, passes[i] = _passage_window(grid, psi[i], sensor_angle, zr, width, window)
         q = zr * (grid + psi[i]) / (2 * np.pi)  # ring-mesh cycles of planet i
         idx = np.mod(np.round(q * spt).astype(np.int64), n_bins)
         num = np.bincount(idx, weights=w * xa, minlength=n_bins)
         den = np.bincount(idx, weights=w, minlength=n_bins)
         weights[i] = den
         averages[i] = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
-        rev = np.round((grid + psi[i] - sensor_angle) / (2 * np.pi))
-        passes[i] = np.unique(rev[w > 0]).size
     return PlanetAverages(np.arange(n_bins) / spt, averages, weights, passes, window, width)
 
 
@@ -281,13 +287,11 @@ def sun_separation(
     den = np.zeros(n_bins)
     passes = 0
     for i in range(n):
-        phi = np.angle(np.exp(1j * (grid + psi[i] - sensor_angle)))
-        w = _window_weight(phi * zr / (2 * np.pi) / width, window)
+        w, n_pass = _passage_window(grid, psi[i], sensor_angle, zr, width, window)
         phase = (zr * grid - zs * psi[i]) / (2 * np.pi)  # sun-mesh cycles of planet i
         idx = np.mod(np.round(phase * spt).astype(np.int64), n_bins)
         num += np.bincount(idx, weights=w * xa, minlength=n_bins)
         den += np.bincount(idx, weights=w, minlength=n_bins)
-        rev = np.round((grid + psi[i] - sensor_angle) / (2 * np.pi))
-        passes += np.unique(rev[w > 0]).size
+        passes += n_pass
     avg = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
     return SunAverage(np.arange(n_bins) / spt, avg, den, int(passes))
