@@ -16,7 +16,12 @@ over parameter vectors, starts or records of one shape works).
   not only 450–550 Hz. With ``grid="hz"`` the points are the DFT bins; with ``grid="orders"``
   they are a fixed grid of input-speed orders (``order_step``), the spectrum linearly
   interpolated there: records at different speeds then give vectors of the same length and
-  meaning (fleet batching).
+  meaning. With ``f_max`` also given (the **order domain**), nothing of the observation's
+  shapes or statics depends on the speed: the harmonics are those below 0.45 × the rate at
+  `f_max`, the band half-widths are exact orders, the default step is one DFT bin at `f_max`,
+  the solver's step limit is set for `f_max` and the twin starts in its steady state at the
+  record's own (traced) speed — records of one length and rate at any speed up to `f_max`
+  share one compiled fit and stack into one ``vmap`` (:func:`identify.fit.fit_batch`).
 - ``spectrogram`` (run-ups, coast-downs): Hann short-time amplitude spectra (``segment`` s,
   half overlap) over ``band`` (Hz); the twin follows the speed profile estimated from the record,
   so the same frame shows the same instant.
@@ -84,7 +89,10 @@ class Features:
     - `sidebands`: half-width of each band in units of the planet-pass spacing ``N f_carrier``.
     - `grid`: ``hz`` (DFT bins) or ``orders`` (fixed order grid, step `order_step`).
     - `order_step`: step of the order grid (orders of the input speed; None: one bin at the
-      record's speed).
+      record's speed, or at `f_max` when given).
+    - `f_max` (Hz): with ``grid="orders"``, the highest input speed the fit serves: shapes and
+      statics then follow only the record's length, rate and the order grid (module docstring:
+      the order domain). Spectrum features only, no envelope term.
     - `segment` (s), `band` (Hz, None: 0.5 f_mesh … 0.45 × rate): spectrogram settings.
     - `floor_bins`: running-median width of the noise floor (bins).
     - `envelope_weight`, `envelope_max_order`: the envelope-spectrum term (0 = off).
@@ -102,6 +110,7 @@ class Features:
     envelope_weight: float = 0.0
     envelope_max_order: float = 12.0
     gain: str = "profile"
+    f_max: float | None = None
 
     def __post_init__(self):
         if self.kind not in ("spectrum", "spectrogram"):
@@ -110,6 +119,17 @@ class Features:
             raise ValueError(f"Features.grid must be hz or orders, got {self.grid!r}")
         if self.gain not in ("profile", "fixed"):
             raise ValueError(f"Features.gain must be profile or fixed, got {self.gain!r}")
+        if self.f_max is not None:
+            if self.grid != "orders" or self.kind != "spectrum" or self.envelope_weight > 0:
+                raise ValueError("Features.f_max (the order domain) needs grid='orders', "
+                                 "kind='spectrum' and no envelope term")
+            if not self.f_max > 0:
+                raise ValueError(f"Features.f_max must be > 0 Hz, got {self.f_max!r}")
+
+    @property
+    def order_domain(self) -> bool:
+        """Whether the observation's shapes and statics are independent of the speed."""
+        return self.f_max is not None
 
 
 class Observation(eqx.Module):
@@ -119,7 +139,8 @@ class Observation(eqx.Module):
     0.1 Hz: sets the solver's step limit and initial state only, so records whose speeds differ
     slightly share one compiled fit), `ramp` (a run-up/coast-down), `kind`,
     `segment_len`, `gain_mode`, `env_weight`, `weight`, `discard` (s of model transient),
-    `oversample`.
+    `oversample`, `order_domain` (``Features.f_max`` given: `f_ref` is that `f_max`, and the
+    steady initial state is taken at the traced `speed` instead).
     Arrays: `speed` (Hz, (start, end) of the input speed over the record; equal for a steady
     record), `k`, `w` (points: bin index and interpolation weight), `meas` (log measured level),
     `floor` (linear floor), `strong` (1 where the measured point stands 20 dB above the floor),
@@ -150,6 +171,7 @@ class Observation(eqx.Module):
     env_k: jax.Array
     env_meas: jax.Array
     env_floor: jax.Array
+    order_domain: bool = eqx.field(static=True, default=False)
 
     @property
     def duration(self) -> float:
@@ -264,6 +286,14 @@ def observe(
     f_hi = max(f_sun, f_end or f_sun)
     # shapes follow the speed rounded to 0.1 Hz, so nearby speeds give equal shapes
     f_round = round(float(f_sun), 1)
+    if feats.order_domain:
+        if f_end is not None:
+            raise ValueError("Features.f_max (the order domain) is for steady records")
+        if f_sun > feats.f_max * (1 + 1e-9):
+            raise RecordError(f"input speed {f_sun:.4g} Hz is above Features.f_max = "
+                              f"{feats.f_max:g} Hz; raise f_max")
+        # every static below follows f_max, not the speed
+        f_round = float(feats.f_max)
     f_mesh = orders["mesh"] * f_round
     spacing = twin.lp.n_planets * orders["carrier"] * f_round
     if feats.kind == "spectrum":
@@ -278,6 +308,8 @@ def observe(
             raise RecordError("no mesh harmonic band fits below 0.45 × the sample rate")
         pts, grp = [], []
         half = feats.sidebands * spacing / f_sun  # orders
+        if feats.order_domain:
+            half = feats.sidebands * twin.lp.n_planets * orders["carrier"]  # exact orders
         step = feats.order_step or 1.0 / (record.duration * f_round)
         for h in range(1, hmax + 1):
             c = h * orders["mesh"]
@@ -328,10 +360,11 @@ def observe(
         env_meas = np.log(env[env_k] + efloor)
     else:
         env_k, env_meas, efloor = np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    f_ref = round(float(f_sun) - (0.0 if f_end is None else
+                                  (f_end - f_sun) / record.duration * discard), 1)
     return Observation(
         sample_rate=fs, n_samples=n, quantity=quantity_of_unit(record.units[record.index(channel)]),
-        f_ref=round(float(f_sun) - (0.0 if f_end is None else
-                                     (f_end - f_sun) / record.duration * discard), 1),
+        f_ref=float(feats.f_max) if feats.order_domain else f_ref,
         ramp=f_end is not None, kind=feats.kind,
         speed=jnp.asarray([float(f_sun), float(f_sun if f_end is None else f_end)]),
         segment_len=int(seg), gain_mode=feats.gain, env_weight=float(feats.envelope_weight),
@@ -339,7 +372,7 @@ def observe(
         k=jnp.asarray(k), w=jnp.asarray(w), meas=jnp.asarray(np.log(a_meas + floor)),
         floor=jnp.asarray(floor), strong=jnp.asarray(strong), group=jnp.asarray(group),
         freqs=jnp.asarray(pfreqs), env_k=jnp.asarray(env_k), env_meas=jnp.asarray(env_meas),
-        env_floor=jnp.asarray(efloor),
+        env_floor=jnp.asarray(efloor), order_domain=feats.order_domain,
     )
 
 
@@ -381,11 +414,12 @@ def _start_speed(obs: Observation) -> float:
     return obs.f_ref
 
 
-def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver):
+def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=None):
     """`dtwin.simulate.simulate` for use inside `jit`/`vmap`/`jacfwd`: the same pipeline
     (steady start, Tsit5 with the sensor computed inside the model, DAQ FIR + decimation) with
     the time grid built in numpy — `simulate` itself converts a jnp grid with `float()`, which
-    fails on tracers."""
+    fails on tracers. `f_sun` (static, Hz) sets the step limit; the steady initial state is
+    taken at `f_init` (Hz, may be traced) when given, else at `f_sun`."""
     from dtwin.simulate import _daq, _solve, daq_filter, initial_state
 
     fs_out = float(daq.sample_rate)
@@ -396,7 +430,7 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver):
     n_hi = n_out * daq.oversample
     ts_np = float(discard) + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
     t0, t1 = float(ts_np[0]), float(ts_np[-1])
-    y0 = initial_state(twin, f_sun, "steady")
+    y0 = initial_state(twin, f_sun if f_init is None else f_init, "steady")
     rs, _ = twin.kinematic_ratios
     f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
     dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
@@ -413,8 +447,10 @@ def model_signal(twin, obs: Observation, solver=None):
 
     solver = solver or SolverOptions()
     daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample, quantity=obs.quantity)
+    f_init = obs.speed[0] if obs.order_domain else None
     sig = _simulate_jittable(_with_speed(twin, obs), duration=obs.duration,
-                             f_sun=_start_speed(obs), daq=daq, discard=obs.discard, solver=solver)
+                             f_sun=_start_speed(obs), daq=daq, discard=obs.discard, solver=solver,
+                             f_init=f_init)
     n = obs.n_samples
     return sig[:n] if sig.shape[0] >= n else jnp.pad(sig, (0, n - sig.shape[0]))
 
