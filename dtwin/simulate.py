@@ -214,6 +214,19 @@ def initial_state(twin: Twin, f_sun: float | Array, start: str = "steady"):
     return z, zd, aux
 
 
+_initial_state_jit = eqx.filter_jit(initial_state)
+
+
+def _initial_state_compiled(twin: Twin, f_sun, start: str):
+    """`initial_state` compiled as one program: run op by op it dispatches (and, the first time,
+    compiles) hundreds of small operations, several seconds on a loaded CPU. Parts whose
+    initial state needs concrete values fall back to the op-by-op form."""
+    try:
+        return _initial_state_jit(twin, jnp.asarray(f_sun, dtype=jnp.float64), start)
+    except jax.errors.JAXTypeError:
+        return initial_state(twin, f_sun, start)
+
+
 # --------------------------------------------------------------------------------- solve
 def daq_filter(oversample: int) -> np.ndarray:
     """FIR anti-aliasing filter taps (Kaiser, cut-off 0.4 of the output rate, unit DC gain)."""
@@ -376,7 +389,7 @@ def simulate(
     t0 = float(ts_np[0]) if start == "steady" else min(0.0, float(ts_np[0]))
     t1 = float(ts_np[-1])
     ts = jnp.asarray(ts_np)
-    y0 = initial_state(twin, f_sun, start)
+    y0 = _initial_state_compiled(twin, f_sun, start)
     rs, _ = twin.kinematic_ratios
     f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
     dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
