@@ -94,9 +94,12 @@ class Problem(eqx.Module):
 
     @property
     def n_profiled_gains(self) -> int:
+        """Nuisance values profiled out per evaluation (degrees of freedom lost): one gain per
+        record with ``gain="profile"``, one white-noise level per spectrogram record."""
+        noise = sum(1 for o in self.observations if o.noise is not None)
         if "sensor_gain" in self.pset.free:
-            return 0
-        return sum(1 for o in self.observations if o.gain_mode == "profile")
+            return noise
+        return noise + sum(1 for o in self.observations if o.gain_mode == "profile")
 
 
 def _loss(theta, problem: Problem):
