@@ -100,33 +100,90 @@ def test_cli_unknown_free_name_exit_code(capsys):
     assert "k_sun_planet" in capsys.readouterr().err
 
 
-# ----------------------------------------------------------------------- full forms (slow)
-@pytest.mark.slow
-def test_runup_recovers_mesh_parameters_from_30pc_off(spec):
-    """Run-up 27→33 Hz in 1 s at 25.6 kHz, 10 dB SNR, sun fault 0.5; starts 30 % off and 5 seeded
-    random starts: stiffnesses within 5 %, damping within 20 %, severity within 0.05."""
+# ------------------------------------------------------- run-up, CI form (issue 7, claim 1)
+# The torsional modes of paper-sim (Twin.linear_stiffness / mass_matrix, ring support 6e6
+# N·m/rad): 3.55, 6.83 (×2), 8.25, 12.08 kHz; +10 % k_ring_planet moves them by +1.3, +2.9,
+# +3.3, +0.2 %, +10 % k_sun_planet by +0.0, +2.1, +0.2, +4.7 %. A run-up 35 → 42 Hz (nominal;
+# the bench runs 1 % slow) sweeps the 10th and 11th mesh harmonics across the 6.83 kHz pair and
+# the 12th across 8.25 kHz. Relative standard deviations at the truth (Jacobian, 1 s of this
+# sweep, 10 dB SNR): k_ring_planet 0.009, zeta_mesh 0.038, k_sun_planet 0.046, severity 0.011
+# (absolute) — √2 more for 0.5 s. So k_ring_planet, the damping and the severity are asserted at
+# the claim's tolerances; k_sun_planet (mostly the 12 kHz mode, above 0.45 × 25.6 kHz) at 15 %.
+RUNUP_NOMINAL = (35.0, 42.0)
+
+
+@pytest.fixture(scope="module")
+def runup_fit(spec):
     from identify.fit import fit
     from identify.residuals import drive_at
 
     truth_tw = build_twin(spec, kind="torsional", faults=(MissingTooth(0.5, location="sun"),))
-    T, f0, f1, discard = 1.0, 27.0, 33.0, 0.05
+    T, discard = 0.5, 0.05
+    f0, f1 = (0.99 * f for f in RUNUP_NOMINAL)  # 1 % below the nominal ramp
     rec = simulate(drive_at(truth_tw, f0, f1, T, discard), duration=T,
                    f_sun=f0 - (f1 - f0) / T * discard,
                    daq=DAQ(sample_rate=25600.0, snr_db=10.0), discard=discard, seed=5).to_record()
-    truth = {"k_sun_planet": float(truth_tw.lp.k_sun_planet),
-             "k_ring_planet": float(truth_tw.lp.k_ring_planet), "zeta_mesh": 0.07,
-             "sun_fault": 0.5}
+    truth = {"sun_fault": 0.5, "k_sun_planet": float(truth_tw.lp.k_sun_planet),
+             "k_ring_planet": float(truth_tw.lp.k_ring_planet), "zeta_mesh": 0.07}
+    signs = [(+1, -1, +1, -1), (-1, +1, -1, +1), (+1, +1, -1, -1)]
+    starts = [{n: truth[n] * (1 + 0.3 * sg) for n, sg in zip(truth, s, strict=True)}
+              for s in signs]
+    # three starts 30 % off, refined in ONE batched (vmap) optimistix call
+    res = fit(rec, spec, list(truth), initial=starts[0], starts=starts, refine=3,
+              runup=(0.9 * RUNUP_NOMINAL[0], 1.1 * RUNUP_NOMINAL[1]), max_steps=20)
+    return res, truth
+
+
+def _runup_ok(values, truth, k_sun_tol):
+    return (abs(values["k_ring_planet"] / truth["k_ring_planet"] - 1) < 0.05
+            and abs(values["k_sun_planet"] / truth["k_sun_planet"] - 1) < k_sun_tol
+            and abs(values["zeta_mesh"] / truth["zeta_mesh"] - 1) < 0.2
+            and abs(values["sun_fault"] - truth["sun_fault"]) < 0.05)
+
+
+def test_runup_sweep_recovers_mesh_parameters(runup_fit):
+    """0.5 s run-up at 25.6 kHz across the 6.83/8.25 kHz modes, 10 dB SNR, speed 1 % off,
+    three starts 30 % off in one batched call: each start within the tolerances."""
+    res, truth = runup_fit
+    print(res.table(), *res.refined, sep="\n")  # shown with -s: the measured values
+    op = res.operating_points[0]
+    assert abs(op["f_sun_start"] / (0.99 * RUNUP_NOMINAL[0]) - 1) < 2e-3, op
+    good = [_runup_ok(r["values"], truth, 0.15) for r in res.refined]
+    assert sum(good) >= 2, res.refined
+    assert _runup_ok(res.values, truth, 0.15), res.table()
+    assert not res.not_determined, res.not_determined
+
+
+# ----------------------------------------------------------------------- full forms (slow)
+@pytest.mark.slow
+def test_runup_recovers_mesh_parameters_from_30pc_off(spec):
+    """Full form: run-up 35 → 42 Hz nominal (the bench 1 % slow) in 4 s at 25.6 kHz, 10 dB SNR,
+    sun fault 0.5; 5 seeded random starts 30 % off, refined in one batched call: at least 4
+    within 5 % (both stiffnesses), 20 % (damping), 0.05 (severity).
+
+    Record length from the Jacobian at the truth: k_sun_planet's relative standard deviation
+    is 0.046 for 1 s of this sweep (its 12 kHz mode lies above 0.45 × 25.6 kHz; the 6.83 kHz
+    pair carries what there is), so "within 5 %" at ~95 % needs ≈ 4 s (a wider sweep, 30 → 45 Hz,
+    gives 0.044 but its speed profile was estimated 1.5 % off). NOT run to completion
+    on the shared 2-core machine (≈ 5 LM minutes per step for 5 batched starts)."""
+    from identify.fit import fit
+    from identify.residuals import drive_at
+
+    truth_tw = build_twin(spec, kind="torsional", faults=(MissingTooth(0.5, location="sun"),))
+    T, discard, nominal = 4.0, 0.05, RUNUP_NOMINAL
+    f0, f1 = (0.99 * f for f in nominal)
+    rec = simulate(drive_at(truth_tw, f0, f1, T, discard), duration=T,
+                   f_sun=f0 - (f1 - f0) / T * discard,
+                   daq=DAQ(sample_rate=25600.0, snr_db=10.0), discard=discard, seed=5).to_record()
+    truth = {"sun_fault": 0.5, "k_sun_planet": float(truth_tw.lp.k_sun_planet),
+             "k_ring_planet": float(truth_tw.lp.k_ring_planet), "zeta_mesh": 0.07}
     rng = np.random.default_rng(11)
-    good = 0
-    for _ in range(5):
-        init = {n: v * (1 + 0.3 * rng.choice([-1, 1])) for n, v in truth.items()}
-        init["sun_fault"] = float(np.clip(init["sun_fault"], 0.05, 0.95))
-        res = fit(rec, spec, list(truth), initial=init, runup=(25.0, 35.0), max_steps=60)
-        v = res.values
-        good += (abs(v["k_sun_planet"] / truth["k_sun_planet"] - 1) < 0.05
-                 and abs(v["k_ring_planet"] / truth["k_ring_planet"] - 1) < 0.05
-                 and abs(v["zeta_mesh"] / 0.07 - 1) < 0.2 and abs(v["sun_fault"] - 0.5) < 0.05)
-    assert good >= 4
+    starts = [{n: v * (1 + 0.3 * rng.choice([-1, 1])) for n, v in truth.items()}
+              for _ in range(5)]
+    res = fit(rec, spec, list(truth), initial=starts[0], starts=starts, refine=5,
+              runup=(0.9 * nominal[0], 1.1 * nominal[1]), max_steps=40)
+    good = sum(_runup_ok(r["values"], truth, 0.05) for r in res.refined)
+    assert good >= 4, res.refined
 
 
 @pytest.mark.slow
