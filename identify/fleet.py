@@ -7,16 +7,18 @@ of records becomes a table (:func:`write_table`) and per-machine trends
 
 **Work units.** Records are read once by the driver (machine, timestamp, SHA-256, length and
 rate), grouped by ``(sample rate, samples)`` and cut into tasks of ``batch_size`` records
-(:func:`plan`). A task (:func:`fit_task`) builds each record's problem
-(:func:`identify.fit.make_problem`), splits its records by problem *structure* (statics and
-shapes: length, rate, input speed rounded to 0.1 Hz, free names —
-:func:`identify.fit.stack_problems`' condition) and fits each sub-group with
-:func:`identify.fit.fit_batch` (one compiled, ``vmap``-ed optimistix call, one start θ = 0 per
-record) or, for a single record, :func:`identify.fit.fit` (multi-start when ``starts > 1``).
-``Features(grid="orders", order_step=...)`` (``FleetSettings.order_step``) samples the
-residuals at fixed orders of the input speed so records at different speeds mean the same thing
-point by point; they still batch only within 0.1 Hz, because the fit's compiled shapes follow
-the rounded speed (``Observation.f_ref``).
+(:func:`plan`). The residuals are taken in the **order domain** by default
+(``FleetSettings.grid="orders"``: :class:`identify.residuals.Features` with ``grid="orders"``
+and ``f_max``): spectra sampled on a fixed grid of orders of the input speed, harmonics and
+solver limits set by the fleet's highest speed ``f_max``, so a problem's shapes and statics
+depend only on the record's length and rate — records at different speeds share one compiled
+fit. A task (:func:`fit_task`) builds each record's problem
+(:func:`identify.fit.make_problem`), splits its records by problem *structure*
+(:func:`identify.fit.stack_problems`' condition: in the order domain, length and rate, so the
+split is a no-op after :func:`plan`'s grouping; with ``grid="hz"`` also the speed rounded to
+0.1 Hz) and fits each sub-group with :func:`identify.fit.fit_batch` (one compiled, ``vmap``-ed
+optimistix call, one start θ = 0 per record) or, for a single record, :func:`identify.fit.fit`
+(multi-start when ``starts > 1``).
 
 **Engines.** ``engine="ray"``: each task is a Ray task (``num_cpus=1``; local Ray started with
 ``num_cpus`` unless an existing cluster's ``address`` is given, or Ray already initialised),
@@ -119,8 +121,12 @@ class FleetSettings:
       (``torsional`` or ``translational``); `initial`: ``((name, value), ...)`` starting values
       (SI); `f_sun`: input speed (Hz) for every record (None: estimated from each record).
     - `solver`, `starts`, `refine`, `max_steps`, `tol`, `channel`: as :func:`identify.fit.fit`.
-    - `order_step`: residuals on a fixed order grid with this step (orders of the input speed;
-      None: DFT bins, as ``dtwin identify``).
+    - `grid`: ``orders`` (default: the order domain, module docstring) or ``hz`` (DFT bins, as
+      ``dtwin identify``; records batch together only within 0.1 Hz of speed).
+    - `order_step`: step of the order grid (orders of the input speed; None: one DFT bin at
+      `f_max`); `f_max` (Hz): the highest input speed of the fleet (None: 1.05 × `f_sun`, or
+      × the spec's ``operating.f_sun`` — the operating-point search spans ±5 % of it). Both
+      are part of the fit settings (a record faster than `f_max` is reported).
     - `batch_size`: records per task, fitted in one ``vmap``-ed call when they share a
       structure (1: one record per task); batching uses one start per record.
     - `max_retries`: retries of a task whose worker died or that raised a non-dtwin exception.
@@ -139,7 +145,9 @@ class FleetSettings:
     max_steps: int = 40
     tol: float = 1e-4
     channel: int | str = 0
+    grid: str = "orders"
     order_step: float | None = None
+    f_max: float | None = None
     batch_size: int = 1
     max_retries: int = 2
     discover: bool = False
@@ -157,6 +165,10 @@ class FleetSettings:
         if self.kind not in ("torsional", "translational"):
             raise ValueError(f"FleetSettings.kind must be torsional or translational, got "
                              f"{self.kind!r}")
+        if self.grid not in ("orders", "hz"):
+            raise ValueError(f"FleetSettings.grid must be orders or hz, got {self.grid!r}")
+        if self.grid == "hz" and (self.order_step is not None or self.f_max is not None):
+            raise ValueError("FleetSettings.order_step and f_max belong to grid='orders'")
         if self.batch_size < 1:
             raise ValueError(f"FleetSettings.batch_size must be >= 1, got {self.batch_size}")
         if self.max_retries < 0:
@@ -165,16 +177,34 @@ class FleetSettings:
             raise ValueError("batched fits (batch_size > 1) use one start per record: "
                              "set starts=1, refine=1 or batch_size=1")
 
+    def resolved(self, spec_data: Mapping[str, Any]) -> FleetSettings:
+        """These settings with `f_max` filled in (order domain): 1.05 × `f_sun`, or × the
+        spec's nominal input speed. **Raises:** `ValueError` when neither is known."""
+        if self.grid != "orders" or self.f_max is not None:
+            return self
+        f = self.f_sun
+        if f is None:
+            f = (dict(spec_data).get("operating") or {}).get("f_sun")
+        if f is None:
+            raise ValueError("the order domain needs the fleet's highest speed: pass f_max "
+                             "(--f-max), f_sun (--f-sun) or a spec with operating.f_sun")
+        return dataclasses.replace(self, f_max=round(1.05 * float(f), 6))
+
     def fit_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`identify.fit.fit` / ``fit_batch`` (without the starts)."""
+        """Keyword arguments of :func:`identify.fit.fit` / ``fit_batch`` (without the starts);
+        call on :meth:`resolved` settings."""
         from .residuals import Features
 
         kw: dict[str, Any] = dict(kind=self.kind, solver=self.solver, max_steps=self.max_steps,
                                   tol=self.tol, channel=self.channel, f_sun=self.f_sun)
         if self.initial:
             kw["initial"] = dict(self.initial)
-        if self.order_step is not None:
-            kw["features"] = Features(grid="orders", order_step=float(self.order_step))
+        if self.grid == "orders":
+            if self.f_max is None:
+                raise ValueError("FleetSettings.fit_kwargs: resolve f_max first (resolved())")
+            kw["features"] = Features(grid="orders", f_max=float(self.f_max),
+                                      order_step=None if self.order_step is None
+                                      else float(self.order_step))
         return kw
 
     def fingerprint(self, spec_data: Mapping[str, Any]) -> str:
@@ -184,7 +214,7 @@ class FleetSettings:
 
         fit = {k: getattr(self, k) for k in ("free", "kind", "initial", "f_sun", "solver",
                                              "starts", "refine", "max_steps", "tol", "channel",
-                                             "order_step")}
+                                             "grid", "order_step", "f_max")}
         spec = {k: v for k, v in dict(spec_data).items() if k != "source"}
         blob = json.dumps(to_jsonable({"fit": fit, "spec": spec}), sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
@@ -553,6 +583,7 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
     from .fit import fit, fit_batch, make_problem
 
     spec = load_spec(spec_data)
+    settings = settings.resolved(spec_data)
     kw = settings.fit_kwargs()
     free = list(settings.free)
     entries: dict[str, dict[str, Any]] = {}
@@ -906,6 +937,7 @@ def run_fleet(
     from dtwin.spec import spec_to_dict
 
     spec_data = spec_to_dict(spec)
+    settings = settings.resolved(spec_data)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = expand_records(records)

@@ -4,7 +4,8 @@
                    [--free sun_fault,...] [--model torsional|translational] [--f-sun HZ]
                    [--ray-address ADDRESS] [--engine auto|ray|local] [--num-cpus N]
                    [--batch-size N] [--max-retries N] [--discover] [--manifest fleet.csv]
-                   [--max-steps N] [--starts N] [--refine K] [--order-step S]
+                   [--max-steps N] [--tol T] [--starts N] [--refine K] [--grid orders|hz]
+                   [--order-step S] [--f-max HZ]
                    [--no-progress] [--json] [--force]
     dtwin fleet table RESULTS [--csv] [--json] [--force]
     dtwin fleet trends RESULTS [--threshold 'sun_fault>0.4' ...] [--horizon DAYS]
@@ -57,17 +58,24 @@ def fleet_identify(
     engine: str = typer.Option("auto", "--engine", help="auto (Ray if installed), ray, local."),
     num_cpus: int | None = typer.Option(None, "--num-cpus", help="CPUs of a local Ray."),
     batch_size: int = typer.Option(1, "--batch-size", help="Records per task, fitted in one "
-                                   "vmapped call when they share length, rate and speed."),
+                                   "vmapped call when they share length and rate (order "
+                                   "domain; with --grid hz also the speed to 0.1 Hz)."),
     max_retries: int = typer.Option(2, "--max-retries", help="Retries of a failed task."),
     discover: bool = typer.Option(False, "--discover", help="Also run discovery per record "
                                   "(its own tasks; costly)."),
     manifest: Path | None = typer.Option(None, "--manifest", help="Fleet manifest CSV: path, "
                                          "machine, timestamp."),
     max_steps: int = typer.Option(40, "--max-steps", help="Solver steps per fit."),
+    tol: float = typer.Option(1e-4, "--tol", help="LM rtol (atol = tol/100); 1e-3 converges "
+                              "in fewer steps on short records (docs/fleet.md)."),
     starts: int = typer.Option(1, "--starts", help="Grid starts (batch size 1 only)."),
     refine: int = typer.Option(1, "--refine", help="Starts refined (batch size 1 only)."),
-    order_step: float | None = typer.Option(None, "--order-step", help="Residuals on an order "
-                                            "grid with this step (orders of the input speed)."),
+    grid: str = typer.Option("orders", "--grid", help="orders (residuals in the order domain: "
+                             "records at any speed batch together) or hz (DFT bins)."),
+    order_step: float | None = typer.Option(None, "--order-step", help="Step of the order "
+                                            "grid (orders; default one DFT bin at --f-max)."),
+    f_max: float | None = typer.Option(None, "--f-max", help="Highest input speed of the "
+                                       "fleet (Hz; default 1.05 x --f-sun or the spec's)."),
     channel: str = typer.Option("0", "--channel", help="Channel name or index."),
     no_progress: bool = typer.Option(False, "--no-progress", help="No progress bar."),
     json_out: bool = typer.Option(False, "--json", help="Print the run summary as JSON."),
@@ -88,8 +96,9 @@ def fleet_identify(
     if ray_address is not None and engine == "local":
         raise SpecError([("--engine", "--ray-address needs the ray engine (or auto)")])
     settings = FleetSettings(free=tuple(names), kind=model, f_sun=f_sun, starts=starts,
-                             refine=refine, max_steps=max_steps, channel=channel_token(channel),
-                             order_step=order_step, batch_size=batch_size,
+                             refine=refine, max_steps=max_steps, tol=tol, channel=channel_token(channel),
+                             grid=grid, order_step=order_step, f_max=f_max,
+                             batch_size=batch_size,
                              max_retries=max_retries, discover=discover)
     run = run_fleet(records, gearbox, out, settings, manifest=manifest,
                     engine="ray" if ray_address and engine == "auto" else engine,
