@@ -6,12 +6,12 @@ are computed from the Jacobian of the residuals at the true parameters (the poin
 fit converges to), so the CI form needs one simulation and one Jacobian per record.
 
 Physics behind the claims (docs/identification.md): the torsional modes that the mesh
-stiffnesses control sit at 5.3, 6.8 (×2) and 12.0 kHz for this gearbox (eigenvalues of
+stiffnesses control sit at 3.55, 6.83 (×2), 8.25 and 12.08 kHz for this gearbox (eigenvalues of
 `Twin.linear_stiffness` / `mass_matrix`). A 5 kHz record sees mesh harmonics up to 2 kHz, far
 below them: the dynamic mesh force there is ``Δk × static deflection`` ∝ load, independent of
 the mean stiffness, so stiffness acts like a transfer-path gain (profiled out) and damping is
-invisible. A run-up at 25.6 kHz sweeps the 10th–13th mesh harmonics across the 5.3 and 6.8 kHz
-modes: their frequencies pin the stiffnesses, their heights the damping.
+invisible. A run-up 35 → 42 Hz at 25.6 kHz sweeps the 10th–12th mesh harmonics across the 6.83
+and 8.25 kHz modes: their frequencies pin the stiffnesses, their heights the damping.
 """
 
 import jax.numpy as jnp
@@ -23,7 +23,7 @@ from dtwin.faults import MissingTooth
 from dtwin.simulate import DAQ, simulate
 from dtwin.spec import preset
 from identify.fit import _jacobian, make_problem
-from identify.residuals import drive_at, model_signal, observation_residuals, observe, point_groups
+from identify.residuals import drive_at, point_groups
 from identify.uncertainty import analyse
 
 FREE = ["sun_fault", "k_sun_planet", "k_ring_planet", "zeta_mesh"]
@@ -71,13 +71,29 @@ def test_steady_5khz_flags_stiffness_and_damping(steady_5k, spec, truth_twin):
 
 
 @pytest.mark.slow
+def test_steady_5khz_severity_within_005(spec, truth_twin):
+    """Claim 2, severity part: one steady 5 kHz record, 10 dB SNR, start 30 % off. Its length
+    from the measured standard deviations (Jacobian at the truth, σ ∝ 1/√T): severity alone
+    0.055 at 0.5 s → 0.019 at 4 s (1.96 σ = 0.038 < 0.05); with the three mesh parameters free
+    as well 0.065 at 1 s → 6.5 s would be needed. The mesh parameters are flagged on such a
+    record (test above), so they stay at the spec's values and the severity is fitted alone."""
+    from identify.severity import estimate_severity
+
+    rec = simulate(truth_twin, duration=4.0, f_sun=30.0, daq=DAQ(sample_rate=5000.0,
+                   snr_db=SNR_DB), discard=0.05, seed=2).to_record()
+    est = estimate_severity(rec, spec, "sun", initial_severity=0.35, f_sun=30.0, max_steps=25)
+    assert abs(est.severity - 0.5) < 0.05, est
+    assert est.determined
+
+
+@pytest.mark.slow
 def test_runup_25khz_determines_stiffness_and_damping(spec, truth_twin):
     """CI-excluded (a 0.5 s, 25.6 kHz run-up costs minutes on the shared 2-core machine)."""
-    T, f0, f1, discard = 0.5, 27.0, 33.0, 0.05
+    T, f0, f1, discard = 0.5, 35.0, 42.0, 0.05
     tw = drive_at(truth_twin, f0, f1, T, discard)
     rec = simulate(tw, duration=T, f_sun=f0 - (f1 - f0) / T * discard,
                    daq=DAQ(sample_rate=25600.0, snr_db=SNR_DB), discard=discard, seed=1).to_record()
-    u = _analyse_at_truth(rec, spec, truth_twin, FREE, runup=(25.0, 35.0))
+    u = _analyse_at_truth(rec, spec, truth_twin, FREE, runup=(31.5, 46.2))
     assert u.not_determined == {}, u.not_determined
 
 
@@ -93,45 +109,49 @@ def test_product_pair_is_flagged(steady_5k, spec, truth_twin):
     assert abs(u.correlation[0, 1]) > 0.99
 
 
-def test_interval_coverage_linearised(spec, truth_twin):
-    """Coverage of the 95 % intervals over seeded noise realisations (CI form: the estimate of
-    each realisation is the Gauss–Newton step from the truth with the Jacobian there — exact
-    for a linear model, the regime the covariance formula assumes; the full form refits)."""
-    n_real = 40
-    clean = simulate(truth_twin, duration=1.0, f_sun=30.0, daq=DAQ(sample_rate=5000.0),
+def _coverage(spec, truth_twin, n_real, duration):
+    """Real refits: `n_real` seeded noise realisations of one clean record (10 dB SNR), fitted
+    in ONE batched `fit_batch` call (vmap over records) from the truth; per parameter the
+    number of 95 % intervals holding the truth and mean predicted sd / spread of estimates."""
+    from dtwin.io.record import Record
+    from identify.fit import fit_batch
+
+    clean = simulate(truth_twin, duration=duration, f_sun=30.0, daq=DAQ(sample_rate=5000.0),
                      discard=0.05).to_record()
     x0 = clean.data[0]
     sigma = np.sqrt(np.mean((x0 - x0.mean()) ** 2) / 10 ** (SNR_DB / 10))
-    free = ["sun_fault", "k_ring_planet"]
     rng = np.random.default_rng(7)
-    recs = []
-    for _ in range(n_real):
-        from dtwin.io.record import Record
-
-        recs.append(Record((x0 + sigma * rng.normal(size=x0.size))[None, :], clean.sample_rate,
-                           clean.channels, clean.units))
+    recs = [Record((x0 + sigma * rng.normal(size=x0.size))[None, :], clean.sample_rate,
+                   clean.channels, clean.units) for _ in range(n_real)]
+    free = ["sun_fault", "k_ring_planet"]
     tv = _truth_values(truth_twin)
-    prob, _ = make_problem(recs[0], spec, free, initial={n: tv[n] for n in free}, f_sun=30.0)
-    r0, J = _jacobian(jnp.zeros(2), prob)
-    J = np.asarray(J)
-    sig = model_signal(prob.pset.apply(prob.twin, prob.pset.values(jnp.zeros(2))),
-                       prob.observations[0], prob.solver_options())
-    est, std, inside = [], [], np.zeros(2, int)
-    for rec in recs:
-        obs = observe(rec, prob.twin, f_sun=30.0)
-        r = np.asarray(observation_residuals(sig, obs))
-        step = -np.linalg.lstsq(J, r, rcond=None)[0]
-        u = analyse(prob.pset, np.zeros(2), r, J, point_groups([obs]), n_profiled_gains=1)
-        v = np.asarray(prob.pset.values(step))
-        d = np.asarray(prob.pset.dvalues_dtheta(np.zeros(2)))
-        # interval around this realisation's estimate, with this realisation's s^2 and kappa
-        half = 1.96 * np.abs(d) * np.sqrt(np.diag(u.cov_theta))
-        truth = np.array([tv[n] for n in free])
-        inside += (np.abs(v - truth) <= half).astype(int)
-        est.append(v)
-        std.append(np.abs(d) * np.sqrt(np.diag(u.cov_theta)))
-    est, std = np.array(est), np.array(std)
-    spread = est.std(axis=0, ddof=1)
-    ratio = std.mean(axis=0) / spread
+    res = fit_batch(recs, spec, free, initial={n: tv[n] for n in free}, f_sun=30.0, max_steps=20)
+    est = np.array([[r.values[n] for n in free] for r in res])
+    std = np.array([np.sqrt(np.diag(r.uncertainty.cov)) for r in res])
+    inside = np.array([[r.interval(n)[0] <= tv[n] <= r.interval(n)[1] for n in free]
+                       for r in res]).sum(axis=0)
+    ratio = std.mean(axis=0) / est.std(axis=0, ddof=1)
+    return res, inside, ratio
+
+
+def test_interval_coverage_refits(spec, truth_twin):
+    """CI form: 12 realisations of 0.5 s (a 1 s batch of 12 costs ~2× more on the 2-core
+    machine); ≥ 10 of 12 intervals hold the truth (the claim's 34/40 = 85 %; P ≥ 0.98 for
+    exact 95 % intervals), predicted sd / spread within 0.7–1.4 of each other.
+
+    Measured: sun_fault 11/12 inside, ratio 1.18; k_ring_planet 12/12, ratio 1.06 (relative
+    spread 0.30: not determined at 5 kHz, so 5 of 12 LM runs were still creeping along its flat
+    valley after 20 steps — the interval is about the data, not the stopping rule); 1352 s
+    wall at load 10–16 (compilation of the batched refinement 2–3 min of it)."""
+    res, inside, ratio = _coverage(spec, truth_twin, 12, 0.5)
+    print("inside", inside, "ratio", ratio, "converged", sum(r.converged for r in res))
+    assert np.all(inside >= 10), (inside, ratio)
+    assert np.all((ratio > 0.7) & (ratio < 1.4)), (inside, ratio)
+
+
+@pytest.mark.slow
+def test_interval_coverage_refits_40(spec, truth_twin):
+    """Full form: 40 realisations of 1 s, refitted; ≥ 34 of 40 intervals hold the truth."""
+    res, inside, ratio = _coverage(spec, truth_twin, 40, 1.0)
     assert np.all(inside >= 34), (inside, ratio)
-    assert np.all((ratio > 0.7) & (ratio < 1.4)), ratio
+    assert np.all((ratio > 0.7) & (ratio < 1.4)), (inside, ratio)
