@@ -76,7 +76,7 @@ from .lines import (
 )
 
 __all__ = ["CandidateResult", "DiscoveryResult", "DiscoverySettings", "ExtendedModel", "Step",
-           "candidate_inputs", "coverage", "discover", "extended_model", "p_value", "heldout_statistic", "null_statistics", "white_noise_spectra"]
+           "candidate_inputs", "coverage", "discover", "signature_labels", "extended_model", "p_value", "heldout_statistic", "null_statistics", "white_noise_spectra"]
 
 #: Largest number of parameters of one effect (padded with inert parameters).
 P_MAX = 4
@@ -121,9 +121,45 @@ def _model_amp(Z0, J, theta, log_g):
 
 def _with_noise(a, floor):
     """Expected RMS amplitude of a line `a` plus noise of median amplitude `floor`:
-    ``sqrt(a^2 + F^2 / ln 2)`` (the fit compares levels *with* the noise, so noise-only bins
-    do not pull a fitted effect up)."""
+    ``sqrt(a^2 + F^2 / ln 2)`` (the per-fold fits and the held-out statistic compare levels
+    *with* the noise, so noise-only bins do not pull a fitted effect up; the joint fit that
+    gives the reported values uses :func:`expected_level`)."""
     return jnp.sqrt(a**2 + floor**2 / np.log(2.0))
+
+
+def _expected_level_table(n_rho: int = 600, n_phi: int = 256):
+    """``h(r) = E[20 log10(|r + n| + 1)]``, n complex Gaussian of median modulus 1 (variance
+    ``1 / ln 2``), on a grid uniform in ``asinh(r)`` up to r = 1e3 (polar quadrature; accurate
+    to ~1e-4 dB)."""
+    sig = np.sqrt(1.0 / (2.0 * np.log(2.0)))
+    s_grid = np.linspace(0.0, np.arcsinh(1e3), 1200)
+    r = np.sinh(s_grid)
+    rho = (np.arange(n_rho) + 0.5) * (9.0 * sig / n_rho)
+    w_rho = rho / sig**2 * np.exp(-(rho**2) / (2 * sig**2)) * (9.0 * sig / n_rho)
+    w_rho = w_rho / w_rho.sum()
+    phi = (np.arange(n_phi) + 0.5) * (2 * np.pi / n_phi)
+    n = rho[:, None] * np.exp(1j * phi)[None, :]
+    h = np.array([np.sum(w_rho[:, None] * 20 * np.log10(np.abs(ri + n) + 1.0)) / n_phi
+                  for ri in r])
+    return s_grid, h
+
+
+_EL_S, _EL_H = _expected_level_table()
+
+
+def expected_level(a, floor):
+    """Expected measured level ``E[20 log10(|a + n| + F)]`` (dB) of a line of amplitude `a`
+    in noise of median amplitude `floor` (Rician; :func:`_expected_level_table`). The fit and
+    the statistic compare the measured level ``20 log10(Y + F)`` with it: a line near the floor
+    reads lower in the log than its RMS amplitude (by ~0.9 dB at the floor, 0.4 dB at 3 F),
+    which would otherwise bias every fitted amplitude low. Used by the joint fit (reported
+    parameters, their intervals and the profile); the held-out statistic keeps the RMS level
+    of :func:`_with_noise`, whose bootstrap calibration the tests check."""
+    r = a / floor
+    s = jnp.arcsinh(r)
+    h_tab = jnp.interp(s, jnp.asarray(_EL_S), jnp.asarray(_EL_H))
+    h = jnp.where(r < 1e3, h_tab, _LN10_20 * jnp.log1p(jnp.minimum(r, 1e300)))
+    return _LN10_20 * jnp.log(floor) + h
 
 
 def _residual_fold(params, args):
@@ -258,7 +294,7 @@ def _residual_joint(params, args):
     u, log_g = params[:P], params[P:]
     th = _theta(u, nonneg, active)
     a = jnp.exp(log_g)[:, None] * jnp.abs(Z0 + jnp.einsum("fkp,p->fk", J, th.astype(J.dtype)))
-    return ((_levels(_with_noise(a, floor), floor) - _levels(Y, floor)) * fit).reshape(-1)
+    return ((expected_level(a, floor) - _levels(Y, floor)) * fit).reshape(-1)
 
 
 @eqx.filter_jit
@@ -588,12 +624,16 @@ class Step:
     gap_after: GapResult
     gap_confirmed: GapResult
     candidates: list[CandidateResult]
+    #: the effect's own label (its signature) of each matched line
+    matched_labels: list[str] = dataclasses.field(default_factory=list)
 
     def to_dict(self) -> dict:
         return dict(
             number=self.number, effect=self.effect, group=self.group, named=self.named,
             indistinguishable_from=self.indistinguishable_from,
-            matched_lines=[r.to_dict() for r in self.matched_lines],
+            matched_lines=[dict(r.to_dict(), signature=lab) for r, lab in
+                           zip(self.matched_lines, self.matched_labels or
+                               [""] * len(self.matched_lines), strict=True)],
             parameters=self.parameters, main=self.main, p_value=self.p_value, level=self.level,
             gap_before=self.gap_before.to_dict(), gap_after=self.gap_after.to_dict(),
             gap_confirmed=self.gap_confirmed.to_dict(),
@@ -737,6 +777,32 @@ def p_value(t: float, t_null: np.ndarray, rng: np.random.Generator | None = None
     return float((np.sum(t_null > t) + u * (np.sum(t_null == t) + 1)) / (len(t_null) + 1))
 
 
+def _adapted(effects, context) -> list:
+    """The effects specialised by their :meth:`~identify.effects.AbstractEffect.adapt` (those
+    returning ``None`` withdrawn)."""
+    out = []
+    for e in effects:
+        a = e.adapt(context)
+        if a is not None:
+            out.append(a)
+    return out
+
+
+def signature_labels(effect, kin: Kinematics, lines: list[ResidualLine], tol: float,
+                     f_max: float) -> list[str]:
+    """For each line, the label of the nearest signature line of `effect` within `tol` (Hz),
+    or "" (the effect's own kinematic description, e.g. bearing frequencies)."""
+    sig = effect.signature(kin, f_max)
+    if not sig:
+        return ["" for _ in lines]
+    fs = np.array([s.frequency for s in sig])
+    out = []
+    for r in lines:
+        i = int(np.argmin(np.abs(fs - r.frequency)))
+        out.append(sig[i].label if abs(fs[i] - r.frequency) <= tol else "")
+    return out
+
+
 # ------------------------------------------------------------------------------ discover
 def discover(
     record,
@@ -793,10 +859,36 @@ def discover(
     if base_twin is None:
         base_twin = build_twin(spec, kind=kind, f_sun=f_sun)
     daq = daq_from_spec(spec, sample_rate=fs, snr_db=None)
+    # candidates specialised to the machine (spec, base twin) first, then to the record (the
+    # base twin's residual lines); a second model only when the record changed the set
+    from .effects.base import EffectContext
+
+    ctx = EffectContext(spec, base_twin, kin, threshold_db=settings.threshold_db)
+    originals = candidates
+    candidates = _adapted(originals, ctx)
     model = extended_model(base_twin, candidates, kin, daq, n, f_sun, settings.solver(),
                            settings.response)
-    theta_units = np.zeros(model.size)
     m_sig = model.base_signal()
+    _, Zb = segment_spectra(m_sig, fs, settings.n_folds)
+    _, Yb = segment_spectra(x, fs, settings.n_folds)
+    lgb = [_log_gain(np.abs(Yb[f]), Zb[f], noise_floor(np.abs(Yb[f]), FLOOR_BINS),
+                     settings.threshold_db) for f in range(settings.n_folds)]
+    _, m_b = amplitude_spectrum(m_sig * float(np.exp(np.mean(lgb))), fs, "hann")
+    floor_b = noise_floor(np.asarray(a_full), FLOOR_BINS)
+    lines_b = residual_lines(freqs_full, np.asarray(a_full), np.asarray(m_b), kin,
+                             threshold_db=settings.threshold_db, excess_db=settings.excess_db,
+                             tolerance_bins=settings.tolerance_bins, f_max=f_max)
+    ctx = dataclasses.replace(ctx, freqs=freqs_full, measured=np.asarray(a_full),
+                              model=np.asarray(m_b), floor=floor_b, lines=tuple(lines_b))
+    with_data = _adapted(originals, ctx)
+    if with_data != candidates:
+        say("candidates specialised to the record: "
+            + ", ".join(repr(e) for e in with_data if e not in candidates))
+        candidates = with_data
+        model = extended_model(base_twin, candidates, kin, daq, n, f_sun, settings.solver(),
+                               settings.response)
+        m_sig = model.base_signal()
+    theta_units = np.zeros(model.size)
 
     # spectra
     freqs, Yc = segment_spectra(x, fs, settings.n_folds)
@@ -849,10 +941,12 @@ def discover(
             f"{sum(r.side == 'measured' for r in lines)} residual lines")
         # 3. rank by coverage
         ranked = []
+        cov_all: dict[str, float] = {}
         for i, e in enumerate(candidates):
             if e.name in added:
                 continue
             cov, matched = coverage(e, kin, lines, tol_full, f_max)
+            cov_all[e.name] = cov
             if cov >= settings.min_coverage:
                 ranked.append((cov, i, matched))
         ranked.sort(key=lambda t: -t[0])
@@ -877,7 +971,9 @@ def discover(
             _, Jc = segment_spectra(Jt.T, fs, settings.n_folds)  # (p, F, K)
             Jc = np.moveaxis(Jc, 0, -1)  # (F, K, p)
             sig_lines = [s.frequency for s in e.signature(kin, f_max)]
-            sig = np.broadcast_to(_bins_of(sig_lines, df, nb), Y.shape) & ~model_line
+            sig = np.broadcast_to(_bins_of(sig_lines, df, nb), Y.shape)
+            if not getattr(e, "modifies_model_lines", False):
+                sig = sig & ~model_line
             ps = model.parameters[i]
             p = Jc.shape[-1]
             inp, sel, K = candidate_inputs(Z0, Jc, Y, floor, sig, model_line,
@@ -945,9 +1041,12 @@ def discover(
         i_best = next(i for i, e in enumerate(candidates) if e.name == best.name)
         members = [e.name for e in candidates if e.group == best.group and e.name != best.name]
         tried = {c.name: c for c in results}
+        # a member not refit is told apart only when its signature covers (almost) none of
+        # the residual lines; one that covers them but was not refit may fit as well
         ties = [nm for nm in members
-                if nm not in tried or not np.isfinite(tried[nm].gap_after)
-                or tried[nm].gap_after - best.gap_after < settings.tie_db]
+                if (nm not in tried and cov_all.get(nm, 0.0) >= settings.min_coverage)
+                or (nm in tried and (not np.isfinite(tried[nm].gap_after)
+                                     or tried[nm].gap_after - best.gap_after < settings.tie_db))]
         named = best.name if not ties else best.group
         # confirm with the full (nonlinear) model at the joint fit
         theta_units = theta_units.copy()
@@ -970,7 +1069,8 @@ def discover(
         gap_after = dataclasses.replace(gap_now, total=gap_lin,
                                         bands=dict(gap_now.bands, all=gap_lin))
         steps.append(Step(step_no, best.name, best.group, named, ties, best.matched, params, main,
-                          best.p_value, level, gap_now, gap_after, gap_conf, results))
+                          best.p_value, level, gap_now, gap_after, gap_conf, results,
+                          signature_labels(e_best, kin, best.matched, tol_full, f_max)))
         added.add(best.name)
         say(f"  added {best.name} (named {named}); gap {gap_now.total:.2f} → {gap_lin:.2f} dB "
             f"(confirmed {gap_conf.total:.2f})")

@@ -43,7 +43,9 @@ def markdown_report(result, record_name: str) -> str:
                 f"- effect fitted: `{s.effect}` (group `{s.group}`"
                 + (f"; not told apart from {', '.join(s.indistinguishable_from)}"
                    if s.indistinguishable_from else "") + ")",
-                f"- why: residual lines {_fmt_lines(s.matched_lines)}",
+                f"- why: residual lines {_fmt_lines(s.matched_lines)}"
+                + (f"; on the effect's signature: {', '.join(sorted(set(filter(None, s.matched_labels)))[:8])}"
+                   if any(s.matched_labels) else ""),
                 f"- held-out gap {s.gap_before.total:.2f} → {s.gap_after.total:.2f} dB "
                 f"(full model confirmed: {s.gap_confirmed.total:.2f} dB); p = {s.p_value:.2g} "
                 f"≤ {s.level:.2g}",

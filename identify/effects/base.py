@@ -18,8 +18,17 @@ Parameters enter the parts *linearly* wherever the physics allows (an eccentrici
 components rather than magnitude and phase), so that the first-order response about the base
 model is exact in the parameters and the fit starts well (``identify/discover.py``).
 
+An effect may specialise itself to the machine and the record before the search
+(:meth:`AbstractEffect.adapt`, given an :class:`EffectContext`): a planet-bearing defect reads
+the bearing geometry from the spec, a housing resonance estimates its frequency from the
+lines, a time-varying transfer path stands down when the base twin already has one. Returning
+``None`` withdraws the candidate. The default keeps the effect as it is.
+
 New effects plug in without touching the search: subclass, then pass an instance to
-:func:`identify.discover.discover` (``candidates=``) or call :func:`register_effect`.
+:func:`identify.discover.discover` (``candidates=``) or call :func:`register_effect`. Only
+`parameters`, `parts`, `signature` and `main` are required; `description`, `main_name`,
+`main_unit`, `typical_range` and `typical_note` default to "not documented" placeholders (the
+library's own effects document them all).
 """
 
 from __future__ import annotations
@@ -27,6 +36,7 @@ from __future__ import annotations
 import abc
 import dataclasses
 from collections.abc import Sequence
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -36,7 +46,7 @@ from dtwin.registry import REGISTRY, ParameterInfo, register
 
 from ..lines import Kinematics, LineBounds
 
-__all__ = ["AbstractEffect", "EffectParameter", "SignatureLine", "carrier_grid",
+__all__ = ["AbstractEffect", "EffectContext", "EffectParameter", "SignatureLine", "carrier_grid",
            "register_effect", "registered_effects", "unregister_effect"]
 
 
@@ -76,6 +86,27 @@ class SignatureLine:
     label: str
 
 
+@dataclasses.dataclass(frozen=True)
+class EffectContext:
+    """What an effect may look at to specialise itself (:meth:`AbstractEffect.adapt`).
+
+    `spec` (the gearbox spec), `base_twin`, `kin` (kinematics at the estimated speed); the
+    whole-record Hann amplitude spectra `freqs` (Hz), `measured` and `model` (the base twin,
+    gain-matched), the measured noise `floor`; `lines`: the residual lines of the base twin
+    (:func:`identify.lines.residual_lines`); `threshold_db`: line detection threshold.
+    """
+
+    spec: object
+    base_twin: object
+    kin: Kinematics
+    freqs: object = None
+    measured: object = None
+    model: object = None
+    floor: object = None
+    lines: tuple = ()
+    threshold_db: float = 12.0
+
+
 class AbstractEffect(eqx.Module):
     """A candidate model augmentation (module docstring).
 
@@ -83,11 +114,21 @@ class AbstractEffect(eqx.Module):
     on a field (a fault's location, a ripple's harmonic), as properties.
     """
 
-    description: eqx.AbstractClassVar[str]
-    main_name: eqx.AbstractClassVar[str]
-    main_unit: eqx.AbstractClassVar[str]
-    typical_range: eqx.AbstractClassVar[tuple[float, float]]
-    typical_note: eqx.AbstractClassVar[str]
+    description: ClassVar[str] = "(not documented)"
+    main_name: ClassVar[str] = "amplitude"
+    main_unit: ClassVar[str] = ""
+    typical_range: ClassVar[tuple[float, float]] = (float("nan"), float("nan"))
+    typical_note: ClassVar[str] = "(typical range not documented)"
+    #: True for effects that change lines the model already has (a resonance in the path)
+    #: rather than adding new ones: the search then scores them on the model's own line bins
+    #: within the signature too (by default those bins are left out of the statistic).
+    modifies_model_lines: ClassVar[bool] = False
+
+    def adapt(self, context: EffectContext) -> AbstractEffect | None:
+        """This candidate specialised to the machine and record (module docstring); ``None``
+        withdraws it. Default: unchanged."""
+        del context
+        return self
 
     @abc.abstractmethod
     def parameters(self, twin) -> tuple[EffectParameter, ...]:

@@ -1,0 +1,137 @@
+"""The parts and candidates added for discovery (issue 8): planet-bearing defects, a housing
+resonance, the time-varying transfer path. Cheap checks against closed forms and published
+numbers; the workflow itself is exercised in tests/test_discover_workflow.py."""
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import identify.effects as E
+from dtwin.build import build_twin
+from dtwin.parts.bearing_defect import PlanetBearingDefect, bearing_frequencies
+from dtwin.parts.housing_resonance import HousingResonance, resonance_gain
+from dtwin.spec import load_spec, preset, spec_to_dict
+from dtwin.twin import Coords
+from identify.effects.base import EffectContext
+from identify.effects.transfer_path import locate_resonance
+from identify.lines import Kinematics
+
+GEOMETRY = dict(n_rolling_elements=13, ball_diameter=0.005, pitch_diameter=0.025)
+
+
+def test_bearing_frequencies_cwru_6205():
+    # SKF 6205-2RS (CWRU bearing data centre): 9 balls, d = 7.94 mm, D = 39.04 mm; defect
+    # frequencies in orders of the shaft: BPFO 3.5848, BPFI 5.4152, FTF 0.39828, BSF 2.357
+    f = bearing_frequencies(9, 0.00794, 0.03904)
+    assert f["bpfo"] == pytest.approx(3.5848, abs=2e-4)
+    assert f["bpfi"] == pytest.approx(5.4152, abs=2e-4)
+    assert f["ftf"] == pytest.approx(0.39828, abs=1e-4)
+    assert f["bsf"] == pytest.approx(2.357, abs=2e-3)
+    # identities: BPFO + BPFI = n f_r; cage seen from both races adds to f_r
+    assert f["bpfo"] + f["bpfi"] == pytest.approx(9.0)
+    assert f["ftf"] + f["cage"] == pytest.approx(1.0)
+
+
+def test_bearing_defect_zero_is_absent_and_linear():
+    tw = build_twin(preset("paper-sim"), kind="torsional")
+    q = Coords.zeros(tw.n_planets).set(theta_p=jnp.array([-0.3, 0.1, 0.2]), theta_c=jnp.asarray(0.05))
+    m0 = PlanetBearingDefect(jnp.asarray(0.0), defect_order=5.2, modulation_order=1.0).modulation(
+        tw, 0.0, q, q)
+    assert float(jnp.max(jnp.abs(m0.e_sp))) == 0.0
+    m1 = PlanetBearingDefect(jnp.asarray(1e-7), defect_order=5.2, modulation_order=1.0)
+    m2 = PlanetBearingDefect(jnp.asarray(2e-7), defect_order=5.2, modulation_order=1.0)
+    e1, e2 = m1.modulation(tw, 0.0, q, q), m2.modulation(tw, 0.0, q, q)
+    np.testing.assert_allclose(e2.e_sp, 2 * e1.e_sp, rtol=1e-12)
+    assert float(e1.e_sp[1]) == 0.0 and float(e1.e_sp[0]) != 0.0  # planet 0 only
+    np.testing.assert_array_equal(e1.e_sp, e1.e_rp)  # relieves both meshes
+
+
+def test_bearing_pulse_is_zero_mean():
+    # the pulse train minus its mean: the defect does not move the static deflection
+    spin = np.linspace(0, 2 * np.pi, 4001)[:-1]
+    k = 8
+    p = (0.5 * (1 + np.cos(spin))) ** k - math.comb(2 * k, k) / 4**k
+    assert abs(np.mean(p)) < 1e-12
+
+
+def test_resonance_gain_closed_form():
+    f = np.array([0.0, 1450.0, 1e6])
+    g = np.asarray(resonance_gain(f, 1450.0, 0.05, 1.0))
+    assert g[0] == pytest.approx(1.0)
+    assert g[1] == pytest.approx(1 / (2 * 0.05))
+    assert g[2] < 1e-5
+    assert np.asarray(resonance_gain(f, 1450.0, 0.05, 0.0)) == pytest.approx(1.0)
+
+
+def test_housing_resonance_zero_gain_adds_nothing():
+    tw = build_twin(preset("paper-sim"), kind="torsional")
+    part = HousingResonance(jnp.asarray(0.0))
+    assert part.aux_size == 2
+    # acceleration is gain × (x − s): zero at zero gain whatever the states
+    q = Coords.zeros(tw.n_planets)
+    mesh = tw.mesh_state(0.0, q, q, tw.modulation(0.0, q, q))
+    assert float(part.acceleration(tw, 0.0, q, q, q, mesh, jnp.array([3.0, 1.0]))) == 0.0
+
+
+def test_locate_resonance_recovers_frequency():
+    f = np.arange(200.0, 2400.0, 37.0)
+    ex = 20 * np.log10(np.asarray(resonance_gain(f, 1450.0, 0.05, 0.6))) + 2.0
+    f_res, zeta, g = locate_resonance(f, ex, 2500.0)
+    assert f_res == pytest.approx(1450.0, rel=0.01)
+    assert zeta == 0.05
+    assert g == pytest.approx(0.6, abs=0.06)
+    assert locate_resonance(f, np.zeros_like(f), 2500.0) is None  # nothing to explain
+
+
+def _spec(**sensor):
+    d = spec_to_dict(preset("paper-sim"))
+    d.pop("source", None)
+    d["sensor"].update(sensor)
+    return d
+
+
+def test_adapt_withdraws_and_specialises():
+    spec = load_spec(_spec())
+    tw = build_twin(spec, kind="torsional")
+    kin = Kinematics.from_spec(spec)
+    ctx = EffectContext(spec, tw, kin)
+    # no [bearings.planet]: bearing candidates withdrawn; a windowed base: no time-varying path
+    assert E.PlanetBearingEffect(race="outer").adapt(ctx) is None
+    assert E.TimeVaryingPathEffect().adapt(ctx) is None
+    assert E.HousingResonanceEffect().adapt(ctx) is None  # no data, no resonance
+    d = _spec(window_exponent=0.0)
+    d["bearings"] = {"planet": GEOMETRY}
+    spec2 = load_spec(d)
+    ctx2 = EffectContext(spec2, build_twin(spec2, kind="torsional"), kin)
+    b = E.PlanetBearingEffect(race="outer").adapt(ctx2)
+    assert b is not None and b.geometry == (13, 0.005, 0.025, 0.0)
+    d_ord, m_ord = b.orders()
+    assert d_ord == pytest.approx(13 / 2 * 0.8) and m_ord == 1.0
+    sig = b.signature(kin, 2500.0)
+    f_bpfo = d_ord * kin.f_planet_fault
+    assert any(abs(s.frequency - f_bpfo) < 1e-9 and s.label == "BPFO" for s in sig)
+    assert E.TimeVaryingPathEffect().adapt(ctx2) is not None
+    # every library effect documents its typical range
+    for e in E.registered_effects():
+        lo, hi = e.typical_range
+        assert 0 < lo < hi and e.typical_note and e.main_name, e
+
+
+def test_time_varying_path_signature_is_allowed_lines():
+    kin = Kinematics.from_spec(preset("paper-sim"))
+    sig = E.TimeVaryingPathEffect().signature(kin, 2500.0)
+    assert sig
+    for s in sig:
+        m = round(s.frequency / kin.f_mesh)
+        n = round((s.frequency - m * kin.f_mesh) / kin.f_carrier)
+        assert kin.allowed_by_sideband_rule(m, n) and n != 0
+
+
+def test_window_mean_closed_form():
+    from identify.effects.transfer_path import window_mean
+
+    phi = np.linspace(0, 2 * np.pi, 20001)[:-1]
+    for p in (0.0, 1.0, 4.0, 2.5):
+        assert window_mean(p) == pytest.approx(np.mean((0.5 * (1 + np.cos(phi))) ** p), rel=1e-9)
