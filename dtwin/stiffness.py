@@ -258,15 +258,10 @@ def mesh_stiffness_waveform(
     n = jnp.arange(1, n_harmonics + 1, dtype=jnp.float64)
     sigma = jnp.sinc(n / (n_harmonics + 1))
     coef = sigma * 2.0 * jnp.sin(jnp.pi * n * d[..., None]) / (jnp.pi * n)
-    # sum_n coef_n cos(n x) by Clenshaw's recurrence on cos(n x) = T_n(cos x): one cosine per
-    # phase instead of one per harmonic (the right-hand side of a simulation evaluates this at
-    # every stage), the same sum to rounding
     x = phase - 0.5 * d
-    c = jnp.cos(2.0 * jnp.pi * (x - jax.lax.stop_gradient(jnp.round(x))))  # reduced to one cycle
-    b1 = b2 = jnp.zeros(jnp.broadcast_shapes(c.shape, coef.shape[:-1]), dtype=jnp.float64)
-    for j in range(n_harmonics - 1, 0, -1):
-        b1, b2 = coef[..., j] + 2.0 * c * b1 - b2, b1
-    ripple = coef[..., 0] * c + 2.0 * c * c * b1 - c * b2 - b1
+    x = x - jax.lax.stop_gradient(jnp.round(x))  # reduced to one cycle (accurate cosines)
+    arg = 2.0 * jnp.pi * n * x[..., None]
+    ripple = jnp.sum(coef * jnp.cos(arg), axis=-1)
     return k_mean + (DOUBLE_CONTACT_FACTOR - 1.0) * c1 * ripple
 
 
