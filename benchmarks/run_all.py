@@ -23,6 +23,7 @@ HERE = Path(__file__).resolve().parent
 #: (key path, label, format) of the figures shown in the table when a record has them.
 HEADLINE = (
     (("compile_s",), "compile", "{:.1f} s"),
+    (("compile_cpu_s",), "compile (CPU)", "{:.1f} s"),
     (("run_s",), "run", "{:.2f} s"),
     (("sim_s_per_wall_s",), "sim s / wall s", "{:.2f}"),
     (("sim_s_per_cpu_s",), "sim s / CPU s", "{:.2f}"),
@@ -31,6 +32,8 @@ HEADLINE = (
     (("RK45", "ratio_vs_jax"), "× vs scipy RK45", "{:.0f}"),
     (("DOP853", "ratio_vs_jax"), "× vs scipy DOP853", "{:.0f}"),
     (("RK45", "ratio_vs_jax_cpu"), "× vs scipy RK45 (CPU time)", "{:.0f}"),
+    (("DOP853", "ratio_vs_jax_cpu"), "× vs scipy DOP853 (CPU time)", "{:.0f}"),
+    (("cpu_us_per_step",), "CPU µs / step", "{:.1f}"),
     (("rel_diff", "jax_vs_RK45"), "rms diff JAX−RK45", "{:.1e}"),
     (("f_max_hz",), "f_max (Hz)", "{:.0f}"),
     (("loop", "records_per_min"), "records/min, loop", "{:.2f}"),
