@@ -458,5 +458,8 @@ def integrate_spectral(x: Float[Array, " n"], fs: float, order: int, f_highpass:
     w = 2.0 * jnp.pi * f
     hp = (f / f_highpass) ** 4 / (1.0 + (f / f_highpass) ** 4)
     safe = jnp.where(f > 0, w, 1.0)
-    H = jnp.where(f > 0, hp / (1j * safe) ** order, 0.0)
+    # 1 / (j ω)^order = (-j)^order / ω^order, built from real parts (strict dtype promotion)
+    c = (-1j) ** order
+    g = jnp.where(f > 0, hp / safe**order, 0.0)
+    H = jax.lax.complex(g * c.real, g * c.imag)
     return jnp.fft.irfft(X * H, n)
