@@ -61,7 +61,8 @@ def plot_gap_bars(result) -> Figure:
     for xi, v in zip(x, values, strict=True):
         ax.text(xi - 0.18, v, f"{v:.1f}", ha="center", va="bottom", fontsize=8)
     ax.set_xticks(x, labels, rotation=15, fontsize=8)
-    ax.set_ylabel("gap (dB)")
+    ax.set_xlabel("model (base, then each effect added)")
+    ax.set_ylabel("held-out gap (dB)")
     ax.set_title("Held-out gap, step by step")
     ax.legend(fontsize=7)
     return fig

@@ -70,10 +70,11 @@ def plot_loss_history(history: Sequence[float], *, title: str = "Loss over solve
     h = np.asarray(history, dtype=float)
     fig = Figure(figsize=(6, 3.6))
     ax = fig.add_subplot(111)
-    ax.semilogy(np.arange(1, h.size + 1), h, "o-", ms=3)
-    ax.set_xlabel("evaluation")
-    ax.set_ylabel("loss ½‖r‖²")
+    ax.semilogy(np.arange(1, h.size + 1), h, "o-", ms=3, label="½‖r‖² (log-spectrum residuals)")
+    ax.set_xlabel("residual evaluation (count)")
+    ax.set_ylabel("loss ½‖r‖² (dimensionless)")
     ax.set_title(title)
+    ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3, which="both")
     return fig
 
@@ -98,10 +99,19 @@ def plot_trajectories(
         ax.errorbar(x, v, yerr=[v - lo, hi - v], fmt="o-", capsize=3, label="estimate")
         if truth and n in truth:
             ax.plot(x, truth[n], "k_", ms=14, label="truth")
-        ax.set_ylabel(n)
+        ax.set_ylabel(f"{n} ({_unit(n)})")
         ax.grid(alpha=0.3)
         if k == 0:
             ax.set_title(title)
             ax.legend(loc="best", fontsize=8)
         ax.set_xticks(x, list(labels) if k == len(names) - 1 else [""] * len(x))
+    ax.set_xlabel("record")
     return fig
+
+
+def _unit(name: str) -> str:
+    """The registry's unit of parameter `name` ("1" for dimensionless; "?" if unknown)."""
+    from ..registry import REGISTRY
+
+    info = REGISTRY.get(name)
+    return "?" if info is None else ("dimensionless" if info.unit == "1" else info.unit)
