@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 
 import jax
@@ -22,10 +21,7 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
-
-
-def _load() -> float:
-    return os.getloadavg()[0]
+from _timing import load_average  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -56,9 +52,9 @@ def main(argv=None) -> int:
     x = x + np.random.default_rng(0).standard_normal(n) * np.std(x) * 10 ** (-30 / 20)
     base = build_twin(spec, kind="torsional", n_harmonics=8)
 
-    load0, w0, c0 = _load(), time.perf_counter(), time.process_time()
+    load0, w0, c0 = load_average()[0], time.perf_counter(), time.process_time()
     res = discover(x, spec, sample_rate=5000.0, base_twin=base, settings=settings)
-    wall, cpu, load1 = time.perf_counter() - w0, time.process_time() - c0, _load()
+    wall, cpu, load1 = time.perf_counter() - w0, time.process_time() - c0, load_average()[0]
     rec = dict(kind="discover", duration_s=duration, run_s=wall, cpu_s=cpu,
                load_before=load0, load_after=load1, named=res.named,
                gap_db=[res.initial_gap.total] + [s.gap_after.total for s in res.steps],

@@ -30,22 +30,12 @@ import argparse
 import json
 import os
 import sys
-import time
 from pathlib import Path
+
+from _timing import load_average, timed  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 FREE = ("sun_fault", "k_sun_planet", "k_ring_planet")
-
-
-def _load():
-    with open("/proc/loadavg") as f:
-        return tuple(float(x) for x in f.read().split()[:3])
-
-
-def _timed(fn):
-    w, c = time.perf_counter(), time.process_time()
-    out = fn()
-    return out, time.perf_counter() - w, time.process_time() - c
 
 
 def main(argv=None) -> int:
@@ -74,7 +64,7 @@ def main(argv=None) -> int:
     from identify.fit import _jacobian, fit, make_problem
     from identify.residuals import observation_residuals, observe
 
-    load_start = _load()
+    load_start = load_average()
     f_sun, fs = 30.0, 5000.0
     spec = preset("paper-sim")
     truth_tw = build_twin(spec, kind="torsional", faults=(MissingTooth(0.5, location="sun"),))
@@ -89,10 +79,10 @@ def main(argv=None) -> int:
     # --- JAX fit, twice (compile + run, then run)
     fits = []
     for i, start in enumerate(starts):
-        res, wall, cpu = _timed(lambda s=start: fit(rec, spec, list(FREE), initial=s, f_sun=f_sun,
+        res, wall, cpu = timed(lambda s=start: fit(rec, spec, list(FREE), initial=s, f_sun=f_sun,
                                                      max_steps=args.max_steps))
         fits.append(dict(wall_s=wall, cpu_s=cpu, steps=res.iterations, converged=res.converged,
-                         values=res.values, load=_load(),
+                         values=res.values, load=load_average(),
                          rel_error={n: res.values[n] / truth[n] - 1 for n in FREE}))
         if i == 0:
             out["compile_and_fit_s"] = wall
@@ -108,9 +98,9 @@ def main(argv=None) -> int:
     jax.block_until_ready(res_fn(theta, prob))
     jax.block_until_ready(_jacobian(theta, prob))
     reps = 1 if args.duration >= 2 else 3
-    _, sim_wall, sim_cpu = _timed(lambda: [jax.block_until_ready(res_fn(theta, prob))
+    _, sim_wall, sim_cpu = timed(lambda: [jax.block_until_ready(res_fn(theta, prob))
                                            for _ in range(reps)])
-    _, jac_wall, jac_cpu = _timed(lambda: [jax.block_until_ready(_jacobian(theta, prob))
+    _, jac_wall, jac_cpu = timed(lambda: [jax.block_until_ready(_jacobian(theta, prob))
                                            for _ in range(reps)])
     out["simulation_s"] = sim_wall / reps
     out["jacobian_s"] = jac_wall / reps
@@ -145,7 +135,7 @@ def main(argv=None) -> int:
         acc = ref.sensor_along(ts, sol.y)
         return np.convolve(acc, taps, mode="valid")[:: obs.oversample][:n_out]
 
-    sig, sp_wall, sp_cpu = _timed(scipy_signal)
+    sig, sp_wall, sp_cpu = timed(scipy_signal)
     # the residuals of that span against the record's first span (shows the pipeline runs)
     from dtwin.io.record import Record
 
@@ -166,7 +156,7 @@ def main(argv=None) -> int:
     out["speedup_fit_wall"] = n_sims * sim_scipy / fits[1]["wall_s"]
     out["speedup_fit_cpu"] = n_sims * sp_cpu * scale / fits[1]["cpu_s"]
     out["speedup_jacobian_wall"] = (1 + p_) * sim_scipy / out["jacobian_s"]
-    out["load_end"] = _load()
+    out["load_end"] = load_average()
     out["device"] = str(jax.devices()[0])
 
     if args.json:

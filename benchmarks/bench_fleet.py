@@ -27,18 +27,8 @@ import argparse
 import json
 import os
 import sys
-import time
 
-
-def _load():
-    with open("/proc/loadavg") as f:
-        return tuple(float(x) for x in f.read().split()[:3])
-
-
-def _timed(fn):
-    w, c = time.perf_counter(), time.process_time()
-    out = fn()
-    return out, time.perf_counter() - w, time.process_time() - c
+from _timing import load_average, timed  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -55,7 +45,7 @@ def main(argv=None) -> int:
     if not args.cache:
         os.environ["DTWIN_JAX_CACHE"] = "off"
     n = 3 if args.quick else args.records
-    load_before = _load()
+    load_before = load_average()
 
     import jax
     import numpy as np
@@ -88,8 +78,8 @@ def main(argv=None) -> int:
 
     res = {}
     for name, fn in (("loop", loop), ("batch", batch)):
-        out1, w1, c1 = _timed(fn)
-        out2, w2, c2 = _timed(fn)
+        out1, w1, c1 = timed(fn)
+        out2, w2, c2 = timed(fn)
         res[name] = dict(first_wall_s=w1, first_cpu_s=c1, wall_s=w2, cpu_s=c2,
                          compile_s=max(w1 - w2, 0.0),
                          records_per_min=60.0 * n / w2, records_per_cpu_min=60.0 * n / c2,
@@ -104,7 +94,7 @@ def main(argv=None) -> int:
         "speeds_hz": speeds.tolist(), "snr_db": args.snr, "tol": args.tol,
         "max_steps": args.max_steps, "max_theta_diff": dtheta,
         "device": str(jax.devices()[0]), "cpu_count": os.cpu_count(),
-        "load_before": load_before, "load_after": _load(), "loop": res["loop"],
+        "load_before": load_before, "load_after": load_average(), "loop": res["loop"],
         "batch": res["batch"], "speedup_wall": res["batch"]["records_per_min"]
         / res["loop"]["records_per_min"],
         "speedup_cpu": res["batch"]["records_per_cpu_min"] / res["loop"]["records_per_cpu_min"],

@@ -32,13 +32,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _timing import load_average  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-
-
-def _load():
-    with open("/proc/loadavg") as f:
-        return tuple(float(x) for x in f.read().split()[:3])
 
 
 # ----------------------------------------------------------------------------- stability
@@ -153,7 +149,7 @@ def bench_kind(kind, args):
     out = {"kind": kind, "n_dof": twin.n_dof, "duration": args.duration}
 
     # --- diffrax
-    load0 = _load()
+    load0 = load_average()
     t0, c0 = time.perf_counter(), time.process_time()
     r1 = simulate(twin, duration=args.duration, f_sun=f_sun, daq=daq, solver=opts)
     jax.block_until_ready(r1.signal)
@@ -218,7 +214,7 @@ def bench_kind(kind, args):
     jax_rec = np.asarray(r2.signal)[:n_out]
     recs = {}
     for method in ("RK45", "DOP853"):
-        load1 = _load()
+        load1 = load_average()
         t0, c0 = time.perf_counter(), time.process_time()
         sol = scipy.integrate.solve_ivp(ref.rhs, (ts[0], ts[-1]), y0n, method=method,
                                         rtol=opts.rtol, atol=opts.atol, max_step=dtmax,
@@ -285,7 +281,7 @@ def bench_kind(kind, args):
     out["stable_steps_per_s"] = {m: 1.0 / largest_stable_step(lam, m)
                                  for m in ("Tsit5", "RK45", "DOP853")}
     out["dtmax_steps_per_s"] = 1.0 / dtmax
-    out["load_end"] = _load()
+    out["load_end"] = load_average()
     return out
 
 
