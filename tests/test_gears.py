@@ -139,8 +139,11 @@ def test_impossible_geometry_names_the_field(kw, field):
 
 
 def test_bench_warns_profile_shift_needed():
-    with pytest.warns(UserWarning, match="profile shift"):
-        GearSet(z_sun=21, z_planet=31, z_ring=84, n_planets=3, module=0.002, face_width=0.02)
+    with pytest.warns(UserWarning, match="profile shift") as record:
+        gs = GearSet(z_sun=21, z_planet=31, z_ring=84, n_planets=3, module=0.002, face_width=0.02)
+    assert any("profile shift" in str(w.message) for w in record)
+    # the set is built (warned, not refused), with the shift that 84 != 21 + 2*31 needs
+    assert abs(float(gs.x_sun)) + abs(float(gs.x_ring)) > 0.0
 
 
 def test_default_centre_distance_and_shift_rule():

@@ -111,6 +111,18 @@ def _read_bytes(ext: str, data: bytes, **kw):
         return rec
 
 
+def _assert_refused_or_well_formed(rec) -> None:
+    """A reader either refused the bytes with a documented error (`_read_bytes` returns None) or
+    returned a well-formed record: float64 (channels, samples), one name and unit per channel,
+    a positive finite sampling rate."""
+    if rec is None:
+        return
+    data = np.asarray(rec.data)
+    assert data.ndim == 2 and data.dtype == np.float64, (data.shape, data.dtype)
+    assert len(rec.channels) == data.shape[0] == len(rec.units)
+    assert np.isfinite(rec.sample_rate) and rec.sample_rate > 0
+
+
 @pytest.mark.parametrize("ext", EXTS)
 def test_valid_files_read(ext):
     rec = _read_bytes(ext, VALID[ext], sample_rate=None if ext != ".npy" else FS)
@@ -121,7 +133,7 @@ def test_valid_files_read(ext):
 @SETTINGS
 @given(data=st.binary(max_size=2048))
 def test_random_bytes_give_documented_errors(ext, data):
-    _read_bytes(ext, data)
+    _assert_refused_or_well_formed(_read_bytes(ext, data))
 
 
 @pytest.mark.parametrize("ext", EXTS)
@@ -129,7 +141,7 @@ def test_random_bytes_give_documented_errors(ext, data):
 @given(cut=st.floats(0.0, 1.0, exclude_max=True))
 def test_truncated_files_give_documented_errors(ext, cut):
     blob = VALID[ext]
-    _read_bytes(ext, blob[: int(cut * len(blob))])
+    _assert_refused_or_well_formed(_read_bytes(ext, blob[: int(cut * len(blob))]))
 
 
 @pytest.mark.parametrize("ext", EXTS)
@@ -140,14 +152,14 @@ def test_corrupted_files_give_documented_errors(ext, edits):
     blob = bytearray(VALID[ext])
     for where, value in edits:
         blob[int(where * len(blob))] = value
-    _read_bytes(ext, bytes(blob))
+    _assert_refused_or_well_formed(_read_bytes(ext, bytes(blob)))
 
 
 @SETTINGS
 @given(text=st.text(alphabet=st.sampled_from(list("0123456789.,;-+eE \t\nnaifNAIF#[]()xyt")),
                     max_size=400))
 def test_malformed_csv_text(text):
-    _read_bytes(".csv", text.encode())
+    _assert_refused_or_well_formed(_read_bytes(".csv", text.encode()))
 
 
 @SETTINGS
