@@ -252,10 +252,8 @@ def bench_kind(kind, args):
     }
     out["truth"] = "DOP853 rtol=atol=1e-10" if not args.quick else "DOP853 at the same tolerance"
 
-    # --- the same JAX run at other tolerances: cost and accuracy (signal and spectral lines)
-    out["other_tolerances"] = []
-    for tol in args.tolerances:
-        o = SolverOptions(rtol=tol, atol=tol)
+    # --- the same JAX run at other settings: cost and accuracy (signal and spectral lines)
+    def timed_run(o, **info):
         jax.block_until_ready(simulate(twin, duration=args.duration, f_sun=f_sun, daq=daq,
                                        solver=o).signal)
         t0, c0 = time.perf_counter(), time.process_time()
@@ -263,14 +261,25 @@ def bench_kind(kind, args):
         jax.block_until_ready(r3.signal)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         rec = np.asarray(r3.signal)[:n_out]
-        out["other_tolerances"].append(dict(
-            tol=tol, run_s=wall, run_cpu_s=cpu, sim_s_per_wall_s=span / wall,
+        return dict(
+            **info, run_s=wall, run_cpu_s=cpu, sim_s_per_wall_s=span / wall,
             sim_s_per_cpu_s=span / cpu, steps_per_sim_s=int(r3.num_steps) / span,
             cpu_us_per_step=1e6 * cpu / int(r3.num_steps),
             rel_diff_vs_truth=float(np.sqrt(np.mean((rec - truth) ** 2)) / rms),
             line_db_vs_default=_line_changes(np.asarray(r2.signal), np.asarray(r3.signal),
                                              daq.sample_rate, f_sun, ref),
-        ))
+        )
+
+    out["other_tolerances"] = [timed_run(SolverOptions(rtol=tol, atol=tol), tol=tol)
+                               for tol in args.tolerances]
+    # the step loop and controller before this round, at the default tolerance: diffrax's own
+    # Tsit5 (stage loop) with the integral-only controller, then the unrolled stages alone
+    out["variants"] = [
+        timed_run(SolverOptions(unrolled=False, pcoeff=0.0, icoeff=1.0),
+                  label="diffrax.Tsit5, I controller (0, 1)"),
+        timed_run(SolverOptions(unrolled=True, pcoeff=0.0, icoeff=1.0),
+                  label="UnrolledTsit5, I controller (0, 1)"),
+    ] if not args.quick else []
 
     # --- what limits the step
     f, lam = linear_modes(twin, ref)
@@ -320,6 +329,11 @@ def _table(results):
                          f" rms diff {o['rel_diff_vs_truth']:.1e}, lines ±"
                          f"{o['line_db_vs_default']['within_40dB']:.2f} dB (≤ 40 dB down) / ±"
                          f"{o['line_db_vs_default']['40_to_60dB']:.2f} dB (40–60 dB down) vs default"))
+        for o in r.get("variants", []):
+            rows.append((k, f"default tolerance, {o['label']}",
+                         f"{o['sim_s_per_wall_s']:.2f} sim s per wall s ({o['sim_s_per_cpu_s']:.2f} per CPU s),"
+                         f" {o['steps_per_sim_s']:.0f} steps/s, {o['cpu_us_per_step']:.1f} µs CPU/step,"
+                         f" rms diff {o['rel_diff_vs_truth']:.1e}"))
         rows.append((k, "load average (start of JAX run / end)",
                      f"{r['load_jax'][0]:.1f} / {r['load_end'][0]:.1f}"))
     w = max(len(a) + len(b) for a, b, _ in rows) + 3
@@ -333,7 +347,7 @@ def main(argv=None):
     p.add_argument("--scipy-span", type=float, default=0.1, help="simulated seconds (scipy)")
     p.add_argument("--kinds", nargs="+", default=["translational", "torsional"])
     p.add_argument("--cache", action="store_true", help="keep the persistent compilation cache")
-    p.add_argument("--tolerances", type=float, nargs="*", default=[1e-4],
+    p.add_argument("--tolerances", type=float, nargs="*", default=[1e-4, 5e-5],
                    help="further rtol = atol of JAX runs (cost, accuracy and spectral lines)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     args = p.parse_args(argv)
