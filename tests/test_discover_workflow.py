@@ -7,7 +7,8 @@ stiffness harmonics (not the truth's structure: no inverse crime), fitted withou
 (its gain is fitted per fold). Records are 2 s at 5 kHz (two 1 s folds, 1 Hz bins).
 
 CI form: one record per look-alike group, 5 null records, the unexplained tone and the
-plug-in effect; `slow`: two hidden effects, 20 null records, the paper-like preset.
+plug-in effect, the paper-like preset (200 bootstrap draws); `slow`: two hidden effects,
+20 null records, the paper-like preset (500 draws, 4 candidates refit).
 Set ``DTWIN_DISCOVER_CACHE=/some/dir`` to keep the base simulation and the responses between
 runs.
 """
@@ -287,26 +288,77 @@ def test_null_records_add_nothing_full(seed, spec, base_twin, truth):
     assert res.steps == []
 
 
-@pytest.mark.slow
-def test_paper_like_names_imperfection_group():
-    # reference.md §1-2: fm ± 7fc on a gearbox whose ideal twin forbids it (Zr mod N = 0)
-    spec = preset("paper-like")
-    kin = Kinematics.from_spec(spec)
+#: Noise of the paper-like records: 50 dB below the record's rms (justified in
+#: `paper_like_discovery`).
+PAPER_LIKE_SNR_DB = 50.0
+#: fm ± 7fc: the lines of the paper's healthy spectra (its peaks 1 and 2) that the sideband rule
+#: forbids on this gearbox (Zr = 81, N = 3).
+PAPER_SIDEBANDS = {"fm − 7fc", "fm + 7fc"}
+
+
+def paper_like_discovery(settings: DiscoverySettings, seed: int):
+    """The paper's healthy-spectrum observation as the workflow sees it (reference.md §1-2):
+    fm ± 7fc on a gearbox whose ideal twin forbids them (Zr mod N = 0).
+
+    Record: the `paper-like` preset as specified (its translational model, planet position
+    errors, transmission error and exponent-48 window), 2 s at 5 kHz, with two test settings:
+
+    - an accelerometer on top of the ring — the paper's bench sensor (its Figure 12 shows
+      fm ± 7fc too; notebook 04 uses the same) — instead of the preset's velocity (the paper's
+      noise-free simulation, Figure 7). Integrating to velocity lifts the planet-pass line at
+      3fc, which sets the record's rms (the transfer path's quasi-static term), by
+      20 log10(fm / 3fc) = 29 dB relative to the mesh band, and the low-frequency carrier lines,
+      where the torsional base and the translational record differ most, then dominate the
+      refit: measured on velocity records, at 60 dB SNR fm ± 7fc are not detected and at 70 dB
+      they are but no candidate passes the test (docs/discovery.md §6).
+    - white noise 50 dB below the record's rms. The rms is the planet-pass line's, 31 dB above
+      fm (35 dB for the whole record); at 40 dB fm ± 7fc stay under the 12 dB detection
+      threshold (about 7 dB over the floor); at 50 dB they stand 17.6-19.7 dB over it. A laboratory accelerometer chain's
+      broadband noise lies further below a running gearbox's rms than that.
+
+    Model: the same spec with the position errors removed (the window and the transmission
+    error stay: they keep the sideband rule), torsional.
+    """
     from dtwin.simulate import simulate
 
-    tw = build_twin(spec, kind="translational")
-    daq = daq_from_spec(spec, snr_db=40.0)
-    x = np.asarray(simulate(tw, duration=2.0, f_sun=kin.f_sun, daq=daq, seed=4).signal)
-    d = spec_to_dict(spec)
+    d = spec_to_dict(preset("paper-like"))
     d.pop("source", None)
+    d["sensor"]["quantity"] = "acceleration"
+    spec = load_spec(d)
+    kin = Kinematics.from_spec(spec)
+    tw = build_twin(spec, kind="translational")
+    daq = daq_from_spec(spec, snr_db=PAPER_LIKE_SNR_DB)
+    x = np.asarray(simulate(tw, duration=2.0, f_sun=kin.f_sun, daq=daq, seed=seed).signal)
     d["imperfections"]["planet_position_errors"] = None
     ideal = load_spec(d)
     base = build_twin(ideal, kind="torsional")
-    res = discover(x, ideal, sample_rate=5000.0, base_twin=base,
-                   settings=DiscoverySettings(n_boot=500, max_steps=1))
-    # the residual of the ideal twin holds fm ± 7fc, described as such
+    return discover(x, ideal, sample_rate=5000.0, base_twin=base, settings=settings, log=print)
+
+
+def check_paper_like(res):
+    # the residual of the ideal twin holds fm − 7fc and fm + 7fc, described as such
     texts = {r.text for r in res.residuals[0] if r.side == "measured"}
-    assert texts & {"fm − 7fc", "fm + 7fc"}
-    # and the imperfection group that explains it is named first
-    assert res.steps and res.steps[0].group == "carrier_sidebands"
-    assert math.isfinite(res.steps[0].gap_after.total)
+    assert texts >= PAPER_SIDEBANDS, sorted(texts)
+    # the imperfection group that explains them is named first, with those lines among its
+    # matched ones, and the held-out gap shrinks
+    assert res.steps, res.stop_reason
+    first = res.steps[0]
+    assert first.group == "carrier_sidebands"
+    assert {r.text for r in first.matched_lines} >= PAPER_SIDEBANDS
+    assert math.isfinite(first.gap_after.total)
+    assert first.gap_after.total < first.gap_before.total
+
+
+def test_paper_like_names_imperfection_group_ci():
+    """CI form of the paper-like claim: the same record type (another noise seed), 2 candidates
+    refit, 200 bootstrap draws (the fewest that keep the smallest p-value under alpha / 2).
+    On the preset as it was before (window exponent 12, no transmission error) it fails: the
+    workflow still names carrier_sidebands (from fm ± fc, 2fm ± fc) but fm ± 7fc are not in
+    the residual."""
+    check_paper_like(paper_like_discovery(DiscoverySettings(n_boot=200, max_steps=1,
+                                                            max_refit=2), seed=5))
+
+
+@pytest.mark.slow
+def test_paper_like_names_imperfection_group():
+    check_paper_like(paper_like_discovery(DiscoverySettings(n_boot=500, max_steps=1), seed=4))
