@@ -125,7 +125,7 @@ def step_paper_cases(folder: OutputFolder, duration: float, kind: str | None = N
 
     spec = preset("paper-like")
     lines = [f"## 4. The paper's three cases, simulated ({duration:g} s, paper-like preset: "
-             "planet position errors and a narrow transfer-path window)\n"]
+             "planet position errors, a 2 µm transmission error and a narrow transfer-path window)\n"]
     rows = []
     for name, faults in CASES.items():
         t0 = time.time()

@@ -77,8 +77,9 @@ NB01 = [
     frequency `fs` (seen through N = 3 planets as `fs/3`) and the planet fault frequency `fp`.
 
     This notebook rebuilds those figures with dtwin, on the `paper-like` preset: the paper's
-    gearbox plus the small imperfections a real one has (planet position errors and a sensor that
-    mainly sees the planet passing under it), without which the healthy spectrum could not show
+    gearbox plus the small imperfections a real one has (planet position errors, a 2 µm
+    transmission error and a sensor that mainly sees the planet passing under it), without which
+    the healthy spectrum could not show
     the paper's `fm ± 7 fc` (an ideal gearbox with `Zr mod N = 0` cancels them). It then looks at
     the gearbox's natural frequencies and Lin & Parker's mode types.
 
