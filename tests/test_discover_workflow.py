@@ -97,6 +97,8 @@ CASES = {
     "carrier": ("planet_position_errors", [4e-5, -3e-5], "carrier_sidebands"),
     "sun": ("sun_eccentricity", [3e-7, 1e-7], "sun_rotation"),
     "motor": ("torque_ripple_6fe", [0.2, 0.1], "motor"),
+    # pitting of one planet tooth (sun flank), severity inside the typical range 0.05-0.6
+    "planet": ("planet_local_fault", 0.3, "planet_fault"),
 }
 
 
@@ -135,6 +137,11 @@ def test_group_named_gap_shrinks(case, spec, base_twin, truth):
 # the groups that need a spec, a base or a truth of their own (one short record each)
 BEARING = dict(n_rolling_elements=13, ball_diameter=0.005, pitch_diameter=0.025)
 BEARING_GEOMETRY = (13, 0.005, 0.025, 0.0)
+#: hidden defect depth per race (typical range 2e-8 - 5e-6 m) and the record's noise seed
+BEARING_DEPTH = {"outer": 1e-7, "inner": 1e-7, "ball": 1e-7}
+BEARING_SEED = {"outer": 11, "inner": 14, "ball": 15}
+#: the bearing frequency that must label the matched lines (the effect's own signature)
+BEARING_SYMBOL = {"outer": "BPFO", "inner": "BPFI", "ball": "BSF"}
 
 
 def _spec_with(spec, bearings=None, **sensor):
@@ -153,14 +160,16 @@ def _noisy(x, seed):
 
 def _case_record(case, spec, kin):
     """(spec for the search, base twin, record, hidden effect name, true main, group)."""
-    if case == "bearing_outer":
+    if case.startswith("bearing_"):
+        race = case.removeprefix("bearing_")
         sp = _spec_with(spec, bearings={"planet": BEARING})
-        eff = E.PlanetBearingEffect(race="outer", geometry=BEARING_GEOMETRY)
-        value = 1e-7
+        eff = E.PlanetBearingEffect(race=race, geometry=BEARING_GEOMETRY)
+        value = BEARING_DEPTH[race]
         tm = truth_model(sp, kin, [eff])
         x = tm.signal(np.array([value / tm.scales[0]]))
-        return sp, build_twin(sp, kind="torsional", n_harmonics=8), _noisy(x, 11), \
-            "planet_bearing_outer", value, "planet_bearing_outer"
+        return sp, build_twin(sp, kind="torsional", n_harmonics=8), \
+            _noisy(x, BEARING_SEED[race]), f"planet_bearing_{race}", value, \
+            f"planet_bearing_{race}"
     if case == "housing_resonance":
         eff = E.HousingResonanceEffect(f_res=1450.0, zeta=0.05)
         value = 0.6
@@ -177,7 +186,8 @@ def _case_record(case, spec, kin):
     raise KeyError(case)
 
 
-@pytest.mark.parametrize("case", ["bearing_outer", "housing_resonance", "time_varying_path"])
+@pytest.mark.parametrize("case", ["bearing_outer", "bearing_inner", "bearing_ball",
+                                  "housing_resonance", "time_varying_path"])
 def test_more_groups_named_gap_shrinks(case, spec, kin):
     sp, base, x, name, true_main, group = _case_record(case, spec, kin)
     res = run(sp, base, x)
@@ -188,9 +198,10 @@ def test_more_groups_named_gap_shrinks(case, spec, kin):
     assert first.gap_after.total <= 0.5 * first.gap_before.total
     if first.named == name:
         assert first.main["value"] == pytest.approx(true_main, rel=0.2)
-    if case == "bearing_outer":
+    if case.startswith("bearing_"):
         # the bearing frequencies label the matched lines (the effect's own signature)
-        assert any("BPFO" in lab for lab in first.matched_labels)
+        sym = BEARING_SYMBOL[case.removeprefix("bearing_")]
+        assert any(sym in lab for lab in first.matched_labels), first.matched_labels
 
 
 @pytest.mark.parametrize("seed", range(5))

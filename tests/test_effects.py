@@ -112,6 +112,15 @@ def test_adapt_withdraws_and_specialises():
     sig = b.signature(kin, 2500.0)
     f_bpfo = d_ord * kin.f_planet_fault
     assert any(abs(s.frequency - f_bpfo) < 1e-9 and s.label == "BPFO" for s in sig)
+    # a rolling-element defect strikes at 2 BSF: its harmonics are labelled in BSF multiples
+    # ("4BSF" at twice the impact rate, not "22BSF", which reads as 22 BSF)
+    ball = E.PlanetBearingEffect(race="ball").adapt(ctx2)
+    f_bsf = bearing_frequencies(*ball.geometry)["bsf"] * kin.f_planet_fault
+    sig = {s.label: s.frequency for s in ball.signature(kin, 2500.0)}
+    assert sig["2BSF"] == pytest.approx(2 * f_bsf) and sig["4BSF"] == pytest.approx(4 * f_bsf)
+    assert not any("22BSF" in lab or "32BSF" in lab for lab in sig)
+    inner = E.PlanetBearingEffect(race="inner").adapt(ctx2)
+    assert any(s.label == "2BPFI" for s in inner.signature(kin, 2500.0))
     assert E.TimeVaryingPathEffect().adapt(ctx2) is not None
     # every library effect documents its typical range
     for e in E.registered_effects():

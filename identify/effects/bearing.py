@@ -11,7 +11,10 @@ from dtwin.parts.bearing_defect import BEARING_DEFECTS, PlanetBearingDefect, bea
 
 from .base import AbstractEffect, EffectParameter, SignatureLine, _fmt
 
-_SYMBOL = {"outer": "BPFO", "inner": "BPFI", "ball": "2BSF"}
+_SYMBOL = {"outer": "BPFO", "inner": "BPFI", "ball": "BSF"}
+#: multiples of the symbol per impact (a rolling-element defect strikes at 2 BSF: labels count
+#: BSF, so the j-th harmonic reads "2j BSF" — "4BSF", not "22BSF")
+_PER_IMPACT = {"outer": 1, "inner": 1, "ball": 2}
 
 
 class PlanetBearingEffect(AbstractEffect):
@@ -96,7 +99,8 @@ class PlanetBearingEffect(AbstractEffect):
                         f = mm * kin.f_mesh + j * fd + ll * fmod + n * kin.f_carrier
                         if 0 < f < f_max:
                             out.append(SignatureLine(f, _fmt(
-                                ((f"{mm}fm" if mm > 1 else "fm", mm and 1), (sym, j),
+                                ((f"{mm}fm" if mm > 1 else "fm", mm and 1),
+                                 (sym, _PER_IMPACT[self.race] * j),
                                  (msym, ll), ("fc", n)))))
         return out
 
