@@ -281,15 +281,31 @@ def test_plugin_effect_found(spec, kin, base_twin):
     assert res.steps[0].main["value"] == pytest.approx(4e7, rel=0.2)
 
 
+def _check_two_effects(res):
+    groups = [s.group for s in res.steps]
+    assert set(groups[:2]) == {"carrier_sidebands", "motor"}
+    for s in res.steps[:2]:
+        assert s.gap_after.total < s.gap_before.total
+    # the second step starts from the first step's model: its gap before is the first's after
+    assert res.steps[1].gap_before.total == pytest.approx(res.steps[0].gap_after.total, rel=0.05)
+
+
+def test_two_effects_two_steps_ci(spec, base_twin, truth):
+    # CI form: the same record, a budget of two steps, two candidates refit per step
+    x = record(truth, {"planet_position_errors": [4e-5, -3e-5], "torque_ripple_6fe": [0.2, 0.1]},
+               seed=2)
+    res = run(spec, base_twin, x, settings=DiscoverySettings(n_boot=200, max_steps=2,
+                                                              max_refit=2))
+    assert len(res.steps) == 2
+    _check_two_effects(res)
+
+
 @pytest.mark.slow
 def test_two_effects_two_steps(spec, base_twin, truth):
     x = record(truth, {"planet_position_errors": [4e-5, -3e-5], "torque_ripple_6fe": [0.2, 0.1]},
                seed=2)
     res = run(spec, base_twin, x, settings=DiscoverySettings(n_boot=500, max_steps=3))
-    groups = [s.group for s in res.steps]
-    assert set(groups[:2]) == {"carrier_sidebands", "motor"}
-    for s in res.steps[:2]:
-        assert s.gap_after.total < s.gap_before.total
+    _check_two_effects(res)
 
 
 @pytest.mark.slow
