@@ -2,15 +2,25 @@
 
 Issue 7, item 9. The record: the paper's gearbox (``build_twin(preset("paper-sim"))``, torsional
 twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (default 4) at
-5 kHz, 10 dB SNR, seed 3, input speed given (30 Hz). Three free parameters
-(``sun_fault``, ``k_sun_planet``, ``k_ring_planet``), starting values 20 % off.
+5 kHz, 10 dB SNR, seed 3, input speed given (30 Hz). Three free parameters, starting values
+20 % off, in one of two cases (`--case`):
+
+- ``determined`` (default): ``sun_fault, sensor_gain, k_sun_planet`` (the sensor gain free,
+  so not profiled: ``Features(gain="fixed")``), parameters this record determines by the
+  identifiability flags of `identify.uncertainty` at the truth (95 % half-widths 21 %, 29 %
+  and 49 % of the values; k_sun_planet is at the flag's 50 % margin; benchmarks/README.md
+  "Fit" lists the candidates checked).
+- ``stiffness``: ``sun_fault, k_sun_planet, k_ring_planet`` with the gain profiled — the two
+  mesh stiffnesses are NOT determined by a 5 kHz steady record (their modes sit at 6.8–12 kHz,
+  docs/identification.md): the cost of a fit whose parameters the data do not pin (LM wanders).
 
 - **JAX** (`identify.fit.fit`): Levenberg–Marquardt (optimistix), forward-mode Jacobians
   through diffrax, called twice with different starts: the first call includes compilation
   (persistent cache off unless `--cache`), the second is the cost of a fit once compiled
-  (wall, CPU, LM steps). Then one residual evaluation (= one simulation and the spectrum) and
-  one forward-mode Jacobian, each timed after compilation: the Jacobian's cost relative to one
-  simulation.
+  (wall, CPU, LM steps, intervals). Then one residual evaluation (= one simulation and the
+  spectrum) and one forward-mode Jacobian (``identify.fit._jacobian``: residuals and Jacobian
+  from one primal-and-tangents solve), each timed after compilation: the Jacobian's cost
+  relative to one simulation.
 - **SciPy** (what a user without JAX writes): the same residual vector computed from
   `benchmarks/reference_numpy.py` (the twin's equations in NumPy) integrated by
   ``scipy.integrate.solve_ivp`` (RK45, same rtol/atol/largest step), the same DAQ filter and
@@ -21,7 +31,11 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
   number of simulations: (steps + 1) × (1 + p), the LM steps taken from the JAX fit (stated as
   an assumption: SciPy's LM on the same problem takes a similar number of steps).
 
-Usage: ``python benchmarks/bench_fit.py [--duration 4] [--scipy-span 0.35] [--json] [--quick]``
+`--rtol` sets the simulation tolerance of the fit (``rtol = atol``, `identify.fit.make_problem`;
+library default 1e-5), for JAX and SciPy alike.
+
+Usage: ``python benchmarks/bench_fit.py [--case determined|stiffness] [--duration 4]
+[--rtol 1e-5] [--scipy-span 0.35] [--cache] [--json] [--quick]``
 """
 
 from __future__ import annotations
@@ -30,17 +44,25 @@ import argparse
 import json
 import os
 import sys
+import time
 from pathlib import Path
 
 from _timing import load_average, timed  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-FREE = ("sun_fault", "k_sun_planet", "k_ring_planet")
+FREE = {"determined": ("sun_fault", "sensor_gain", "k_sun_planet"),
+        "stiffness": ("sun_fault", "k_sun_planet", "k_ring_planet")}
+
+
+def say(msg: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--case", choices=sorted(FREE), default="determined")
     p.add_argument("--duration", type=float, default=4.0)
+    p.add_argument("--rtol", type=float, default=1e-5, help="simulation rtol = atol of the fit")
     p.add_argument("--scipy-span", type=float, default=0.35)
     p.add_argument("--max-steps", type=int, default=30)
     p.add_argument("--cache", action="store_true", help="keep the persistent compile cache")
@@ -51,6 +73,7 @@ def main(argv=None) -> int:
         os.environ["DTWIN_JAX_CACHE"] = "off"
     if args.quick:
         args.duration, args.scipy_span = 0.5, 0.03
+    free = FREE[args.case]
 
     import jax
     import jax.numpy as jnp
@@ -62,48 +85,64 @@ def main(argv=None) -> int:
     from dtwin.simulate import DAQ, daq_filter, initial_state, simulate
     from dtwin.spec import preset
     from identify.fit import _jacobian, fit, make_problem
-    from identify.residuals import observation_residuals, observe
+    from identify.params import current_value
+    from identify.residuals import Features, observation_residuals, observe
 
     load_start = load_average()
     f_sun, fs = 30.0, 5000.0
     spec = preset("paper-sim")
     truth_tw = build_twin(spec, kind="torsional", faults=(MissingTooth(0.5, location="sun"),))
-    truth = {"sun_fault": 0.5, "k_sun_planet": float(truth_tw.lp.k_sun_planet),
-             "k_ring_planet": float(truth_tw.lp.k_ring_planet)}
+    truth = {n: current_value(truth_tw, n) for n in free}
     rec = simulate(truth_tw, duration=args.duration, f_sun=f_sun,
                    daq=DAQ(sample_rate=fs, snr_db=10.0), discard=0.05, seed=3).to_record()
-    starts = [{n: truth[n] * f for n, f in zip(FREE, (0.8, 1.2, 0.8), strict=True)},
-              {n: truth[n] * f for n, f in zip(FREE, (1.2, 0.8, 1.2), strict=True)}]
-    out = {"kind": "fit", "duration": args.duration, "free": list(FREE), "load_start": load_start}
+    # a free sensor gain replaces the profiled one (identify.residuals, "Gain")
+    feats = Features(gain="fixed" if "sensor_gain" in free else "profile")
+    kw = dict(f_sun=f_sun, features=feats, rtol=args.rtol, atol=args.rtol)
+    starts = [{n: truth[n] * f for n, f in zip(free, (0.8, 1.2, 0.8), strict=True)},
+              {n: truth[n] * f for n, f in zip(free, (1.2, 0.8, 1.2), strict=True)}]
+    out = {"kind": "fit", "case": args.case, "duration": args.duration, "free": list(free),
+           "rtol": args.rtol, "truth": truth, "load_start": load_start}
 
     # --- JAX fit, twice (compile + run, then run)
     fits = []
     for i, start in enumerate(starts):
-        res, wall, cpu = timed(lambda s=start: fit(rec, spec, list(FREE), initial=s, f_sun=f_sun,
-                                                     max_steps=args.max_steps))
+        say(f"JAX fit {i + 1} of 2 ({'with compilation' if i == 0 else 'compiled'}) from {start}")
+        res, wall, cpu = timed(lambda s=start: fit(rec, spec, list(free), initial=s,
+                                                     max_steps=args.max_steps, **kw))
+        iv = {n: res.interval(n) for n in free}
         fits.append(dict(wall_s=wall, cpu_s=cpu, steps=res.iterations, converged=res.converged,
-                         values=res.values, load=load_average(),
-                         rel_error={n: res.values[n] / truth[n] - 1 for n in FREE}))
+                         values=res.values, load=load_average(), intervals_95=iv,
+                         truth_inside={n: bool(iv[n][0] <= truth[n] <= iv[n][1]) for n in free},
+                         not_determined=res.not_determined,
+                         evaluations=len(res.loss_history),
+                         rel_error={n: res.values[n] / truth[n] - 1 for n in free}))
+        say(f"  {wall:.1f} s wall, {cpu:.1f} s CPU, {res.iterations} steps, "
+            f"converged {res.converged}")
         if i == 0:
             out["compile_and_fit_s"] = wall
+            out["compile_and_fit_cpu_s"] = cpu
     out["jax_fit"] = fits[1]
+    out["jax_fit_first"] = fits[0]
     out["compile_s"] = fits[0]["wall_s"] - fits[1]["wall_s"]
 
     # --- one simulation (residual evaluation) vs one forward-mode Jacobian, compiled
-    prob, _ = make_problem(rec, spec, list(FREE), initial=truth, f_sun=f_sun)
-    theta = jnp.zeros(len(FREE))
+    say("one residual evaluation vs one forward Jacobian")
+    prob, _ = make_problem(rec, spec, list(free), initial=truth, **kw)
+    theta = jnp.zeros(len(free))
     import equinox as eqx
 
     res_fn = eqx.filter_jit(lambda t, pr: pr.residuals(t))
     jax.block_until_ready(res_fn(theta, prob))
     jax.block_until_ready(_jacobian(theta, prob))
-    reps = 1 if args.duration >= 2 else 3
+    reps = 2 if args.duration >= 2 else 4
     _, sim_wall, sim_cpu = timed(lambda: [jax.block_until_ready(res_fn(theta, prob))
                                            for _ in range(reps)])
     _, jac_wall, jac_cpu = timed(lambda: [jax.block_until_ready(_jacobian(theta, prob))
                                            for _ in range(reps)])
     out["simulation_s"] = sim_wall / reps
+    out["simulation_cpu_s"] = sim_cpu / reps
     out["jacobian_s"] = jac_wall / reps
+    out["jacobian_cpu_s"] = jac_cpu / reps
     out["jacobian_over_simulation"] = jac_wall / sim_wall
     out["jacobian_over_simulation_cpu"] = jac_cpu / sim_cpu
 
@@ -135,19 +174,21 @@ def main(argv=None) -> int:
         acc = ref.sensor_along(ts, sol.y)
         return np.convolve(acc, taps, mode="valid")[:: obs.oversample][:n_out]
 
+    say(f"SciPy: solve_ivp over {args.scipy_span:g} s")
     sig, sp_wall, sp_cpu = timed(scipy_signal)
     # the residuals of that span against the record's first span (shows the pipeline runs)
     from dtwin.io.record import Record
 
     short = Record(rec.data[:, :n_out], rec.sample_rate, rec.channels, rec.units)
     try:
-        r_short = observation_residuals(jnp.asarray(sig), observe(short, prob.twin, f_sun=f_sun))
+        r_short = observation_residuals(jnp.asarray(sig), observe(short, prob.twin, f_sun=f_sun,
+                                                                  features=feats))
         out["scipy_residuals_finite"] = bool(np.all(np.isfinite(np.asarray(r_short))))
     except Exception as e:  # a span too short for the sideband check: timing still valid
         out["scipy_residuals_finite"] = f"not computed ({e})"
     scale = args.duration / args.scipy_span
     sim_scipy = sp_wall * scale
-    p_ = len(FREE)
+    p_ = len(free)
     n_sims = (fits[1]["steps"] + 1) * (1 + p_)
     out["scipy"] = dict(span_s=args.scipy_span, span_wall_s=sp_wall, span_cpu_s=sp_cpu,
                         simulation_extrapolated_s=sim_scipy,
@@ -163,19 +204,29 @@ def main(argv=None) -> int:
         print(json.dumps([out], default=float))
         return 0
     f = out["jax_fit"]
-    print(f"record {args.duration:g} s at 5 kHz, free {', '.join(FREE)}; load {load_start} → "
-          f"{out['load_end']}")
+    print(f"case {args.case}: record {args.duration:g} s at 5 kHz, free {', '.join(free)}, "
+          f"rtol = atol = {args.rtol:g}; load {load_start} → {out['load_end']}")
     print(f"JAX fit: {f['wall_s']:.1f} s wall ({f['cpu_s']:.1f} s CPU), {f['steps']} LM steps, "
-          f"converged {f['converged']}; first call (with compilation) {out['compile_and_fit_s']:.1f} s")
-    print("  relative errors: " + ", ".join(f"{n} {v:+.3f}" for n, v in f["rel_error"].items()))
-    print(f"one simulation {out['simulation_s']:.2f} s, forward Jacobian {out['jacobian_s']:.2f} s "
+          f"{f['evaluations']} evaluations, converged {f['converged']}; first call (with "
+          f"compilation) {out['compile_and_fit_s']:.1f} s wall "
+          f"({out['compile_and_fit_cpu_s']:.1f} s CPU)")
+    for n in free:
+        lo, hi = f["intervals_95"][n]
+        print(f"  {n}: {f['values'][n]:.5g} (truth {truth[n]:.5g}, {f['rel_error'][n]:+.3f}), "
+              f"95 % [{lo:.5g}, {hi:.5g}] {'holds' if f['truth_inside'][n] else 'MISSES'} the "
+              f"truth" + (" NOT DETERMINED" if n in f["not_determined"] else ""))
+    g = out["jax_fit_first"]
+    print("  first call: " + ", ".join(f"{n} {v:.5g}" for n, v in g["values"].items())
+          + f", {g['steps']} steps, converged {g['converged']}")
+    print(f"one simulation {out['simulation_s']:.2f} s ({out['simulation_cpu_s']:.2f} s CPU), "
+          f"forward Jacobian {out['jacobian_s']:.2f} s ({out['jacobian_cpu_s']:.2f} s CPU) "
           f"= {out['jacobian_over_simulation']:.2f}× (CPU {out['jacobian_over_simulation_cpu']:.2f}×)")
     s = out["scipy"]
-    print(f"SciPy: {s['span_s']:g} s simulated in {s['span_wall_s']:.1f} s → "
-          f"{s['simulation_extrapolated_s']:.0f} s per {args.duration:g} s simulation, FD Jacobian "
-          f"{s['fd_jacobian_extrapolated_s']:.0f} s, fit ({s['simulations_per_fit']} simulations) "
-          f"{s['fit_extrapolated_s']:.0f} s → JAX {out['speedup_fit_wall']:.0f}× faster "
-          f"(CPU {out['speedup_fit_cpu']:.0f}×)")
+    print(f"SciPy: {s['span_s']:g} s simulated in {s['span_wall_s']:.1f} s ({s['span_cpu_s']:.1f} s "
+          f"CPU) → {s['simulation_extrapolated_s']:.0f} s per {args.duration:g} s simulation, FD "
+          f"Jacobian {s['fd_jacobian_extrapolated_s']:.0f} s, fit ({s['simulations_per_fit']} "
+          f"simulations) {s['fit_extrapolated_s']:.0f} s → JAX {out['speedup_fit_wall']:.0f}× "
+          f"faster (CPU {out['speedup_fit_cpu']:.0f}×)")
     return 0
 
 

@@ -10,10 +10,12 @@
    θ = 0, the initial values) is evaluated in **one** batched ``jax.vmap`` call; the `refine`
    best go on;
 2. **refinement**: ``optimistix.least_squares`` (Levenberg–Marquardt by default, Gauss–Newton or
-   Dogleg) from those starts, again in one batched ``vmap`` call; Jacobians in forward mode
-   through diffrax (``SolverOptions(adjoint="forward")``, ``options=dict(jac="fwd")``) — about
-   2× one simulation for a few parameters (reference.md §6) — or reverse mode (``jac="rev"``:
-   checkpointed adjoint, for many parameters);
+   Dogleg) from those starts, again in one batched ``vmap`` call (one start: not vmapped);
+   Jacobians in forward mode
+   through diffrax (``SolverOptions(adjoint="forward")``, ``options=dict(jac="fwd")``; residuals
+   and Jacobian from one primal-and-tangents solve per LM step, :func:`_residuals_fwd`) — 3.9×
+   one simulation for 3 parameters on a 4 s record (benchmarks/README.md "Fit") — or reverse mode
+   (``jac="rev"``: checkpointed adjoint, for many parameters);
 3. the best converged start is the answer; :mod:`identify.uncertainty` adds intervals,
    correlations and identifiability flags from ``jax.jacfwd`` of the residuals there.
 
@@ -117,19 +119,61 @@ def _batched_residuals(thetas, problem: Problem):
     return jax.vmap(lambda t: problem.residuals(t))(thetas)
 
 
+def _value_and_jacfwd(theta, problem: Problem):
+    """``(r, ∂r/∂θ)`` from one forward-mode pass: the tangents (one per parameter, batched by
+    ``jax.jacfwd``) ride along the primal simulation, and the primal comes back as `aux` rather
+    than being simulated a second time."""
+
+    def both(t):
+        r = problem.residuals(t)
+        return r, r
+
+    J, r = jax.jacfwd(both, has_aux=True)(theta)
+    return r, J
+
+
 @eqx.filter_jit
 def _jacobian(theta, problem: Problem):
-    r = problem.residuals(theta)
-    return r, jax.jacfwd(problem.residuals)(theta)
+    return _value_and_jacfwd(theta, problem)
+
+
+@eqx.filter_custom_jvp
+def _residuals_fwd(theta, *, problem: Problem):
+    """`Problem.residuals` whose JVP materialises the Jacobian in the forward pass.
+
+    Why: optimistix's least squares (``jac="fwd"``) calls ``jax.linearize`` at every trial point
+    and materialises that linear function in each linear solve. Linearising a ``while_loop``
+    (diffrax's solve) keeps no residuals: the linear function re-runs the whole loop, primal
+    included, every time it is applied (JAX's partial evaluation of ``while``), so each LM step
+    cost one simulation (the linearisation) plus a primal-and-tangents solve (the
+    materialisation). With this rule the forward pass computes ``r`` and ``J`` in one
+    primal-and-tangents solve and the linear function is ``J @ t``: one solve per LM step.
+    The values are those of ``jax.jacfwd`` (the same computation)."""
+    return problem.residuals(theta)
+
+
+@_residuals_fwd.def_jvp
+def _residuals_fwd_jvp(primals, tangents, *, problem: Problem):
+    (theta,), (t_theta,) = primals, tangents
+    if t_theta is None:
+        return _residuals_fwd(theta, problem=problem), None
+    r, J = _value_and_jacfwd(theta, problem)
+    return r, J @ t_theta
 
 
 def _make_solver(name: str, rtol: float, atol: float):
+    """The optimistix solver. Its Cauchy test (stop when both the step in θ and the change of
+    the residuals are below ``atol + rtol |·|``) uses the RMS norm, not optimistix's default max
+    norm: the residuals carry the ODE solver's own noise (two solves of one θ differ by up to
+    1e-5 at rtol 1e-5, 2e-4 between rtol 1e-4 and 1e-5, on a 4 s record), so a max over ~2000
+    points against an atol of 1e-6 was met only by chance: fits ran to `max_steps`."""
+    kw = dict(rtol=rtol, atol=atol, norm=optx.rms_norm)
     if name == "lm":
-        return optx.LevenbergMarquardt(rtol=rtol, atol=atol)
+        return optx.LevenbergMarquardt(**kw)
     if name == "gauss-newton":
-        return optx.GaussNewton(rtol=rtol, atol=atol)
+        return optx.GaussNewton(**kw)
     if name == "dogleg":
-        return optx.Dogleg(rtol=rtol, atol=atol)
+        return optx.Dogleg(**kw)
     raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
 
 
@@ -149,7 +193,7 @@ def _refine(thetas, problem: Problem, solver_name: str, rtol: float, atol: float
 
     def one(theta0, idx):
         def fn(theta, args):
-            r = args.residuals(theta)
+            r = _residuals_fwd(theta, problem=args) if jac == "fwd" else args.residuals(theta)
             jax.debug.callback(_record_loss, idx, 0.5 * jnp.sum(r * r))
             return r
 
@@ -160,6 +204,10 @@ def _refine(thetas, problem: Problem, solver_name: str, rtol: float, atol: float
         return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"], \
             0.5 * jnp.sum(r * r)
 
+    if thetas.shape[0] == 1:
+        # one start: not vmapped. Under vmap (even of one) the ODE solve's while-loop predicate
+        # is batched, and JAX then runs every step of it as selects over the whole carry.
+        return jax.tree.map(lambda x: x[None], one(thetas[0], jnp.zeros((), jnp.int32)))
     return jax.vmap(one)(thetas, jnp.arange(thetas.shape[0]))
 
 
@@ -411,7 +459,8 @@ def fit(
       or a list of dicts of physical starting values; `refine`: how many of the best starts are
       refined (batched); `spread`: grid half-width in θ (0.3 ≈ ±30 % for log parameters).
     - `jac`: ``fwd`` (forward mode through diffrax) or ``rev``.
-    - `max_steps`, `tol`: solver steps and its rtol (atol = tol / 100) on θ and the residuals.
+    - `max_steps`, `tol`: solver steps, and its rtol = atol on θ and on the residuals (RMS
+      norm, :func:`_make_solver`).
     - `uncertainty`: compute covariance, intervals and flags.
     - `progress`: print the stages and losses (stderr).
     - `throw`: raise `FitError` when not converged or at a bound.
@@ -452,7 +501,7 @@ def fit(
     chosen = thetas[np.asarray(order[: max(1, refine)])]
     say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
     _HISTORY.clear()
-    th, ok, steps, fl = _refine(chosen, problem, solver, tol, tol * 1e-2, jac, max_steps)
+    th, ok, steps, fl = _refine(chosen, problem, solver, tol, tol, jac, max_steps)
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     refined = [{"theta": th[i].tolist(), "converged": bool(ok[i]), "steps": int(steps[i]),
                 "loss": float(fl[i]), "values": pset.as_dict(th[i])} for i in range(th.shape[0])]
@@ -529,7 +578,9 @@ def _refine_records(thetas, stacked: Problem, solver_name: str, rtol: float, ato
 
     def one(theta0, arr):
         prob = eqx.combine(arr, static)
-        sol = optx.least_squares(lambda t, a: a.residuals(t), solver, theta0, args=prob,
+        res_fn = ((lambda t, a: _residuals_fwd(t, problem=a)) if jac == "fwd"
+                  else (lambda t, a: a.residuals(t)))
+        sol = optx.least_squares(res_fn, solver, theta0, args=prob,
                                  options=dict(jac="fwd" if jac == "fwd" else "bwd"),
                                  max_steps=max_steps, throw=False)
         r = prob.residuals(sol.value)
@@ -562,7 +613,7 @@ def fit_batch(
     stacked = stack_problems(problems)
     p = problems[0].pset.size
     thetas = jnp.zeros((len(problems), p))
-    th, ok, steps, fl = _refine_records(thetas, stacked, solver, tol, tol * 1e-2, jac, max_steps)
+    th, ok, steps, fl = _refine_records(thetas, stacked, solver, tol, tol, jac, max_steps)
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     wall = time.perf_counter() - t0
     out = []
