@@ -58,7 +58,7 @@ class SolverOptions:
     - `adjoint`: ``"forward"`` (for `jax.jacfwd`/`jvp`), ``"reverse"`` (checkpointed, for
       `jax.grad`).
     - `unrolled`: True (default) → `dtwin.integrator.UnrolledTsit5`, the same method as
-      `diffrax.Tsit5` with the stages written out (~25 % less time per step on a CPU); False →
+      `diffrax.Tsit5` with the stages written out (~5–20 % less time per step on a CPU); False →
       `diffrax.Tsit5` itself (same steps and solution to rounding).
     """
 
