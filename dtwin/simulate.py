@@ -275,7 +275,8 @@ def _observe(twin: Twin, ops, quantity, t, y):
 
 @eqx.filter_jit
 def _solve(twin: Twin, y0, t0, t1, ts, quantity: str, rtol, atol, dtmax, max_steps: int,
-           adjoint: str, progress: bool, pcoeff=0.3, icoeff=0.3, unrolled: bool = True):
+           adjoint: str, progress: bool, pcoeff, icoeff, unrolled: bool):
+    # every setting comes from `SolverOptions` (its defaults are the only ones)
     ops = twin.operators()
     sz, sv = state_scales(twin)
     n = twin.n_dof

@@ -161,6 +161,14 @@ def _residuals_fwd_jvp(primals, tangents, *, problem: Problem):
     return r, J @ t_theta
 
 
+def _residual_fn(jac: str):
+    """The residual function handed to optimistix: `_residuals_fwd` for forward-mode Jacobians,
+    plain `Problem.residuals` for reverse mode."""
+    if jac == "fwd":
+        return lambda t, prob: _residuals_fwd(t, problem=prob)
+    return lambda t, prob: prob.residuals(t)
+
+
 def _make_solver(name: str, rtol: float, atol: float):
     """The optimistix solver. Its Cauchy test (stop when both the step in θ and the change of
     the residuals are below ``atol + rtol |·|``) uses the RMS norm, not optimistix's default max
@@ -191,9 +199,11 @@ def _refine(thetas, problem: Problem, solver_name: str, rtol: float, atol: float
             max_steps: int):
     solver = _make_solver(solver_name, rtol, atol)
 
+    residuals = _residual_fn(jac)
+
     def one(theta0, idx):
         def fn(theta, args):
-            r = _residuals_fwd(theta, problem=args) if jac == "fwd" else args.residuals(theta)
+            r = residuals(theta, args)
             jax.debug.callback(_record_loss, idx, 0.5 * jnp.sum(r * r))
             return r
 
@@ -578,9 +588,7 @@ def _refine_records(thetas, stacked: Problem, solver_name: str, rtol: float, ato
 
     def one(theta0, arr):
         prob = eqx.combine(arr, static)
-        res_fn = ((lambda t, a: _residuals_fwd(t, problem=a)) if jac == "fwd"
-                  else (lambda t, a: a.residuals(t)))
-        sol = optx.least_squares(res_fn, solver, theta0, args=prob,
+        sol = optx.least_squares(_residual_fn(jac), solver, theta0, args=prob,
                                  options=dict(jac="fwd" if jac == "fwd" else "bwd"),
                                  max_steps=max_steps, throw=False)
         r = prob.residuals(sol.value)
