@@ -65,6 +65,8 @@ def main(argv=None) -> int:
     p.add_argument("--rtol", type=float, default=1e-5, help="simulation rtol = atol of the fit")
     p.add_argument("--scipy-span", type=float, default=0.35)
     p.add_argument("--max-steps", type=int, default=30)
+    p.add_argument("--tol", type=float, default=None,
+                   help="the fit's Cauchy tolerance (identify.fit.fit's `tol`; default: fit's)")
     p.add_argument("--cache", action="store_true", help="keep the persistent compile cache")
     p.add_argument("--quick", action="store_true", help="0.5 s record, 0.03 s SciPy span")
     p.add_argument("--json", action="store_true")
@@ -101,20 +103,22 @@ def main(argv=None) -> int:
     starts = [{n: truth[n] * f for n, f in zip(free, (0.8, 1.2, 0.8), strict=True)},
               {n: truth[n] * f for n, f in zip(free, (1.2, 0.8, 1.2), strict=True)}]
     out = {"kind": "fit", "case": args.case, "duration": args.duration, "free": list(free),
-           "rtol": args.rtol, "truth": truth, "load_start": load_start}
+           "rtol": args.rtol, "tol": args.tol, "truth": truth, "load_start": load_start}
 
     # --- JAX fit, twice (compile + run, then run)
     fits = []
     for i, start in enumerate(starts):
         say(f"JAX fit {i + 1} of 2 ({'with compilation' if i == 0 else 'compiled'}) from {start}")
+        tol = {} if args.tol is None else {"tol": args.tol}
         res, wall, cpu = timed(lambda s=start: fit(rec, spec, list(free), initial=s,
-                                                     max_steps=args.max_steps, **kw))
+                                                     max_steps=args.max_steps, **tol, **kw))
         iv = {n: res.interval(n) for n in free}
         fits.append(dict(wall_s=wall, cpu_s=cpu, steps=res.iterations, converged=res.converged,
                          values=res.values, load=load_average(), intervals_95=iv,
                          truth_inside={n: bool(iv[n][0] <= truth[n] <= iv[n][1]) for n in free},
                          not_determined=res.not_determined,
-                         evaluations=len(res.loss_history),
+                         evaluations=len(res.loss_history), loss=res.loss,
+                         loss_history=res.loss_history,
                          rel_error={n: res.values[n] / truth[n] - 1 for n in free}))
         say(f"  {wall:.1f} s wall, {cpu:.1f} s CPU, {res.iterations} steps, "
             f"converged {res.converged}")

@@ -7,17 +7,20 @@
 
 1. **multi-start**: a coarse grid of starts in the nondimensional θ (every combination of
    ``{-spread, 0, +spread}`` per parameter, sub-sampled with `seed` to `n_starts`, always with
-   θ = 0, the initial values) is evaluated in **one** batched ``jax.vmap`` call; the `refine`
-   best go on;
+   θ = 0, the initial values) is evaluated in **one** batched call (``jax.vmap`` on a GPU,
+   ``jax.lax.map`` on a CPU: :func:`batch_mode`); the `refine` best go on;
 2. **refinement**: ``optimistix.least_squares`` (Levenberg–Marquardt by default, Gauss–Newton or
-   Dogleg) from those starts, again in one batched ``vmap`` call (one start: not vmapped);
+   Dogleg) from those starts, again in one batched call (one start: not batched);
    Jacobians in forward mode
    through diffrax (``SolverOptions(adjoint="forward")``, ``options=dict(jac="fwd")``; residuals
-   and Jacobian from one primal-and-tangents solve per LM step, :func:`_residuals_fwd`) — 3.9×
-   one simulation for 3 parameters on a 4 s record (benchmarks/README.md "Fit") — or reverse mode
-   (``jac="rev"``: checkpointed adjoint, for many parameters);
+   and Jacobian from one primal-and-tangents solve per LM step, :func:`_residuals_fwd`; only
+   the parameters that change the twin ride through the ODE, :func:`_value_and_jacfwd`) —
+   ~3× one simulation for 3 parameters on a 4 s record (benchmarks/README.md "Fit") — or
+   reverse mode (``jac="rev"``: checkpointed adjoint, for many parameters); it stops on a
+   Cauchy test or when the optimum is within `sigma_tol` standard errors (:func:`_make_solver`);
 3. the best converged start is the answer; :mod:`identify.uncertainty` adds intervals,
-   correlations and identifiability flags from ``jax.jacfwd`` of the residuals there.
+   correlations and identifiability flags from the residuals and Jacobian of the solver's last
+   accepted step there (no further simulation).
 
 Several records are fitted jointly by concatenating their residual vectors (steady records at
 several speeds, run-ups). Failures are reported in :class:`FitResult` (``converged``,
@@ -56,6 +59,9 @@ from .uncertainty import Uncertainty, analyse
 __all__ = ["FitResult", "Problem", "SOLVERS", "fit", "fit_batch", "make_problem", "stack_problems"]
 
 SOLVERS = ("lm", "gauss-newton", "dogleg")
+#: Default statistical stopping rule: stop when the optimum is within this many standard
+#: errors of the accepted point (:func:`gauss_newton_step_in_sigma`).
+SIGMA_TOL = 0.05
 #: Residual value substituted for a failed (NaN) simulation: a huge loss the solver rejects.
 _FAILED = 30.0
 
@@ -87,7 +93,12 @@ class Problem(eqx.Module):
 
     def residuals(self, theta):
         """The residual vector (all records, then priors) at the unconstrained `theta`."""
-        sigs, values = self.signals(theta)
+        return self.residuals_from(self.signals(theta)[0], theta)
+
+    def residuals_from(self, sigs, theta):
+        """The residual vector from simulated signals `sigs` (one per record) at `theta`:
+        everything after the ODE solve (sensor gain, spectra, priors)."""
+        values = self.pset.values(theta)
         gain = self.pset.gain(values)
         rs = [observation_residuals(s, o, gain) for s, o in zip(sigs, self.observations, strict=True)]
         rs.append(self.pset.prior_residuals(values))
@@ -109,26 +120,81 @@ def _loss(theta, problem: Problem):
     return 0.5 * jnp.sum(r * r)
 
 
-@eqx.filter_jit
-def _batched_loss(thetas, problem: Problem):
-    return jax.vmap(_loss, in_axes=(0, None))(thetas, problem)
+BATCH_MODES = ("auto", "vmap", "map")
+
+
+def batch_mode(batch: str = "auto") -> str:
+    """How a batch of fits or evaluations runs inside its one compiled call: ``"vmap"`` (the
+    batch members advance together, the right choice on a GPU) or ``"map"`` (``jax.lax.map``:
+    one after the other, un-batched). ``"auto"``: ``"vmap"`` on a GPU/TPU, ``"map"`` on a CPU,
+    where a vmapped ODE solve costs more than the same solves in sequence: the batch runs the
+    solver loop until its slowest member ends, every step as selects over the whole carry
+    (measured on a 2 s record at 5 kHz: 2 vmapped residual evaluations 2.2–2.8× one, 2 mapped
+    1.94×; benchmarks/README.md "Fit")."""
+    if batch not in BATCH_MODES:
+        raise ValueError(f"batch must be one of {BATCH_MODES}, got {batch!r}")
+    if batch == "auto":
+        return "map" if jax.default_backend() == "cpu" else "vmap"
+    return batch
+
+
+def _over_batch(f, mode: str, *xs):
+    """`f` over the leading axis of the arrays `xs`: ``jax.vmap`` or ``jax.lax.map``."""
+    if mode == "vmap":
+        return jax.vmap(f)(*xs)
+    return jax.lax.map(lambda a: f(*a), xs)
 
 
 @eqx.filter_jit
-def _batched_residuals(thetas, problem: Problem):
-    return jax.vmap(lambda t: problem.residuals(t))(thetas)
+def _batched_loss(thetas, problem: Problem, batch: str = "vmap"):
+    return _over_batch(lambda t: _loss(t, problem), batch, thetas)
+
+
+@eqx.filter_jit
+def _batched_residuals(thetas, problem: Problem, batch: str = "vmap"):
+    return _over_batch(lambda t: problem.residuals(t), batch, thetas)
 
 
 def _value_and_jacfwd(theta, problem: Problem):
     """``(r, ∂r/∂θ)`` from one forward-mode pass: the tangents (one per parameter, batched by
     ``jax.jacfwd``) ride along the primal simulation, and the primal comes back as `aux` rather
-    than being simulated a second time."""
+    than being simulated a second time.
 
-    def both(t):
-        r = problem.residuals(t)
+    Only the parameters that change the twin (`ParameterSet.twin_indices`) ride through the ODE
+    solve, whose cost grows with the number of tangents (each ~0.6–1 simulation on a CPU,
+    benchmarks/README.md "Fit"); the others (``sensor_gain``) act after it. The chain rule
+    joins the two: with ``S(θ_twin)`` the simulated signals and ``dS`` their Jacobian,
+    ``r(θ) = post(S(θ_twin), θ)`` has ``∂r/∂θ`` = the Jacobian of
+    ``post(S + dS (θ_twin − θ_twin⁰), θ)`` at θ⁰ — exact, not an approximation."""
+    p = theta.shape[-1]
+    idx = problem.pset.twin_indices
+    if len(idx) == p:
+        def both(t):
+            r = problem.residuals(t)
+            return r, r
+
+        J, r = jax.jacfwd(both, has_aux=True)(theta)
+        return r, J
+    sel = np.asarray(idx, dtype=int)
+    if len(idx):
+        def sim(sub):
+            sigs = problem.signals(theta.at[sel].set(sub))[0]
+            return sigs, sigs
+
+        dS, sigs = jax.jacfwd(sim, has_aux=True)(theta[sel])
+    else:
+        sigs, dS = problem.signals(theta)[0], None
+
+    def post(t):
+        if dS is None:
+            s = sigs
+        else:
+            d = t[sel] - theta[sel]
+            s = [x + ds @ d for x, ds in zip(sigs, dS, strict=True)]
+        r = problem.residuals_from(s, t)
         return r, r
 
-    J, r = jax.jacfwd(both, has_aux=True)(theta)
+    J, r = jax.jacfwd(post, has_aux=True)(theta)
     return r, J
 
 
@@ -169,20 +235,154 @@ def _residual_fn(jac: str):
     return lambda t, prob: prob.residuals(t)
 
 
-def _make_solver(name: str, rtol: float, atol: float):
-    """The optimistix solver. Its Cauchy test (stop when both the step in θ and the change of
-    the residuals are below ``atol + rtol |·|``) uses the RMS norm, not optimistix's default max
-    norm: the residuals carry the ODE solver's own noise (two solves of one θ differ by up to
-    1e-5 at rtol 1e-5, 2e-4 between rtol 1e-4 and 1e-5, on a 4 s record), so a max over ~2000
-    points against an atol of 1e-6 was met only by chance: fits ran to `max_steps`."""
-    kw = dict(rtol=rtol, atol=atol, norm=optx.rms_norm)
+def gauss_newton_step_in_sigma(r, J) -> jax.Array:
+    """Length of the Gauss–Newton step from a point, in standard errors: ``‖J δ‖ / s`` with
+    ``δ = argmin ‖r + J δ‖`` and ``s² = ‖r‖² / (m − p)`` the residual variance.
+
+    ``‖J δ‖²`` is the loss decrease (×2) the local linear model still promises, and
+    ``s² δᵀ(JᵀJ)δ / s²`` is the step measured by the covariance ``s² (JᵀJ)⁻¹`` of the estimate:
+    a value of 0.05 means the optimum lies 0.05 standard errors away. Directions the data do
+    not determine (near-null singular directions of J) promise nothing and count for nothing,
+    however long the step along them."""
+    return _gauss_newton_step(r, J)[0]
+
+
+def _gauss_newton_step(r, J):
+    """``(‖J δ‖ / s, δ)``: see :func:`gauss_newton_step_in_sigma`.
+
+    Solved by modified Gram–Schmidt (with re-orthogonalisation) on the column-scaled J, written
+    out over the `p` columns: plain XLA operations, no LAPACK call. Inside the solver's loop
+    a LAPACK call would run beside optimistix's own (lineax QR of the damped step); under
+    ``vmap`` both are batched LAPACK kernels that each wait on jaxlib's intra-op thread pool,
+    and on a 2-core CPU the two deadlocked (observed: `jax::ParallelBatchMap` in
+    ``lapack_dgeqrf_ffi`` waiting forever). A column that is (numerically) a combination of
+    the earlier ones gets no step."""
+    m, p = J.shape
+    s2 = jnp.sum(r * r) / max(m - p, 1)
+    scale = jnp.sqrt(jnp.sum(J * J, axis=0))
+    scale = jnp.where(scale > 0, scale, 1.0)
+    A = J / scale
+    qs, R = [], [[jnp.zeros(()) for _ in range(p)] for _ in range(p)]
+    for j in range(p):
+        v = A[:, j]
+        for _ in range(2):  # twice is enough (Kahan–Parlett)
+            for i, q in enumerate(qs):
+                c = q @ v
+                v = v - c * q
+                R[i][j] = R[i][j] + c
+        nrm = jnp.sqrt(v @ v)
+        ok = nrm > 1e-8
+        qs.append(jnp.where(ok, v / jnp.where(ok, nrm, 1.0), 0.0))
+        R[j][j] = jnp.where(ok, nrm, 0.0)
+    b = [-(q @ r) for q in qs]
+    proj2 = sum(x * x for x in b)
+    ds = [jnp.zeros(())] * p
+    for j in reversed(range(p)):
+        acc = b[j] - sum((R[j][k] * ds[k] for k in range(j + 1, p)), jnp.zeros(()))
+        ds[j] = jnp.where(R[j][j] > 0, acc / jnp.where(R[j][j] > 0, R[j][j], 1.0), 0.0)
+    delta = jnp.stack(ds) / scale
+    return jnp.sqrt(proj2 / jnp.maximum(s2, 1e-300)), delta
+
+
+#: The statistical stop also needs the Gauss–Newton step short in θ (max |δθ|; θ is log- or
+#: logit-scaled, so 0.1 ≈ 10 % of a value): far from the optimum, where the loss is flat (a
+#: fault line under the noise floor), the linear model promises little although a long step
+#: would gain much.
+_STEP_GUARD = 0.1
+
+
+def _stop_within_noise(step, sigma_tol: float):
+    """Wrap a Gauss–Newton-type solver's `step`: after each step also stop when, at the last
+    accepted point, :func:`gauss_newton_step_in_sigma` is below `sigma_tol` and the step is
+    short in θ (`_STEP_GUARD`)."""
+
+    def wrapped(self, fn, y, args, options, state, tags):
+        y, state, aux = step(self, fn, y, args, options, state, tags)
+        if sigma_tol > 0:
+            f_info = state.f_info
+            in_sigma, delta = _gauss_newton_step(f_info.residual, f_info.jac.as_matrix())
+            near = (in_sigma < sigma_tol) & (jnp.max(jnp.abs(delta)) < _STEP_GUARD)
+            # before the first accepted step f_info holds zeros (s² = 0): never stop there
+            near = near & (state.num_accepted_steps > 0)
+            state = eqx.tree_at(lambda s: s.terminate, state, state.terminate | near)
+        return y, state, aux
+
+    return wrapped
+
+
+class _LevenbergMarquardt(optx.LevenbergMarquardt):
+    sigma_tol: float = eqx.field(static=True, default=0.0)
+
+    def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0):
+        super().__init__(rtol=rtol, atol=atol, norm=norm)
+        self.sigma_tol = sigma_tol
+
+    def step(self, fn, y, args, options, state, tags):
+        return _stop_within_noise(optx.LevenbergMarquardt.step, self.sigma_tol)(
+            self, fn, y, args, options, state, tags)
+
+
+class _GaussNewton(optx.GaussNewton):
+    sigma_tol: float = eqx.field(static=True, default=0.0)
+
+    def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0):
+        super().__init__(rtol=rtol, atol=atol, norm=norm)
+        self.sigma_tol = sigma_tol
+
+    def step(self, fn, y, args, options, state, tags):
+        return _stop_within_noise(optx.GaussNewton.step, self.sigma_tol)(
+            self, fn, y, args, options, state, tags)
+
+
+class _Dogleg(optx.Dogleg):
+    sigma_tol: float = eqx.field(static=True, default=0.0)
+
+    def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0):
+        super().__init__(rtol=rtol, atol=atol, norm=norm)
+        self.sigma_tol = sigma_tol
+
+    def step(self, fn, y, args, options, state, tags):
+        return _stop_within_noise(optx.Dogleg.step, self.sigma_tol)(
+            self, fn, y, args, options, state, tags)
+
+
+def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0):
+    """The optimistix solver, with two stopping rules (either one stops it):
+
+    - the Cauchy test (both the step in θ and the change of the residuals below
+      ``atol + rtol |·|``), with the RMS norm, not optimistix's default max norm: the residuals
+      carry the ODE solver's own noise (two solves of one θ differ by up to 1e-5 at rtol 1e-5,
+      2e-4 between rtol 1e-4 and 1e-5, on a 4 s record), so a max over ~2000 points against
+      an atol of 1e-6 was met only by chance: fits ran to `max_steps`;
+    - the statistical test (`sigma_tol` > 0): the Gauss–Newton step from the last accepted
+      point is below `sigma_tol` standard errors (:func:`gauss_newton_step_in_sigma`): going
+      on cannot move the estimate by a meaningful fraction of its uncertainty. Without it, a
+      fit near its optimum spends steps chasing the ODE solver's noise in the residuals (4 s
+      record, 3 parameters: the loss settled to 1e-5 after 4–5 steps, the Cauchy test stopped
+      it after 13–19; benchmarks/README.md "Fit")."""
+    kw = dict(rtol=rtol, atol=atol, norm=optx.rms_norm, sigma_tol=sigma_tol)
     if name == "lm":
-        return optx.LevenbergMarquardt(**kw)
+        return _LevenbergMarquardt(**kw)
     if name == "gauss-newton":
-        return optx.GaussNewton(**kw)
+        return _GaussNewton(**kw)
     if name == "dogleg":
-        return optx.Dogleg(**kw)
+        return _Dogleg(**kw)
     raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
+
+
+def _outcome(sol):
+    """``(θ, converged, steps, loss, r, J)`` of an optimistix Gauss–Newton-type solution.
+
+    The residuals and Jacobian come from the solver's state: they belong to the last accepted
+    point, which is the returned value (optimistix keeps ``f_info`` of the accepted ``y``), so
+    neither the final loss nor the uncertainty's Jacobian costs another simulation. With
+    forward-mode Jacobians the state holds ``t ↦ J t`` (:func:`_residuals_fwd`); materialising
+    it applies that product to the identity, no solve."""
+    f_info = sol.state.f_info
+    r = f_info.residual
+    J = f_info.jac.as_matrix()
+    return (sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"],
+            0.5 * jnp.sum(r * r), r, J)
 
 
 #: Losses of the residual evaluations during refinement, per start (filled by a debug callback;
@@ -196,8 +396,8 @@ def _record_loss(idx, loss) -> None:
 
 @eqx.filter_jit
 def _refine(thetas, problem: Problem, solver_name: str, rtol: float, atol: float, jac: str,
-            max_steps: int):
-    solver = _make_solver(solver_name, rtol, atol)
+            max_steps: int, sigma_tol: float = 0.0, batch: str = "vmap"):
+    solver = _make_solver(solver_name, rtol, atol, sigma_tol)
 
     residuals = _residual_fn(jac)
 
@@ -210,15 +410,13 @@ def _refine(thetas, problem: Problem, solver_name: str, rtol: float, atol: float
         sol = optx.least_squares(fn, solver, theta0, args=problem,
                                  options=dict(jac="fwd" if jac == "fwd" else "bwd"),
                                  max_steps=max_steps, throw=False)
-        r = problem.residuals(sol.value)
-        return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"], \
-            0.5 * jnp.sum(r * r)
+        return _outcome(sol)
 
     if thetas.shape[0] == 1:
         # one start: not vmapped. Under vmap (even of one) the ODE solve's while-loop predicate
         # is batched, and JAX then runs every step of it as selects over the whole carry.
         return jax.tree.map(lambda x: x[None], one(thetas[0], jnp.zeros((), jnp.int32)))
-    return jax.vmap(one)(thetas, jnp.arange(thetas.shape[0]))
+    return _over_batch(one, batch, thetas, jnp.arange(thetas.shape[0]))
 
 
 # ------------------------------------------------------------------------------------ result
@@ -232,7 +430,8 @@ class FitResult:
       solver from the chosen start: the loss over iterations, rejected trial steps included), `start_losses` (the batched multi-start evaluation), `starts` (θ),
       `refined` (per refined start: θ, converged, steps, loss);
     - `converged`, `at_bound` (names), `message`, `iterations` (solver steps), `wall_time` (s),
-      `operating_points` (Hz per record), `problem` (for figures and re-evaluation).
+      `operating_points` (Hz per record), `problem` (for figures and re-evaluation),
+      `residuals` (the residual vector at the optimum).
     """
 
     names: tuple[str, ...]
@@ -252,6 +451,7 @@ class FitResult:
     wall_time: float
     operating_points: list[dict[str, float]]
     problem: Problem | None = dataclasses.field(default=None, repr=False)
+    residuals: np.ndarray | None = dataclasses.field(default=None, repr=False)
 
     @property
     def not_determined(self) -> dict[str, str]:
@@ -450,6 +650,8 @@ def fit(
     jac: str = "fwd",
     max_steps: int = 40,
     tol: float = 1e-4,
+    sigma_tol: float = SIGMA_TOL,
+    batch: str = "auto",
     uncertainty: bool = True,
     progress: bool = False,
     throw: bool = False,
@@ -471,6 +673,10 @@ def fit(
     - `jac`: ``fwd`` (forward mode through diffrax) or ``rev``.
     - `max_steps`, `tol`: solver steps, and its rtol = atol on θ and on the residuals (RMS
       norm, :func:`_make_solver`).
+    - `sigma_tol`: also stop when the Gauss–Newton step from the accepted point is below this
+      many standard errors (:func:`gauss_newton_step_in_sigma`; 0 turns the test off).
+    - `batch`: how the start grid and several refined starts run in their one compiled call,
+      ``"auto"``, ``"vmap"`` or ``"map"`` (:func:`batch_mode`).
     - `uncertainty`: compute covariance, intervals and flags.
     - `progress`: print the stages and losses (stderr).
     - `throw`: raise `FitError` when not converged or at a bound.
@@ -482,6 +688,7 @@ def fit(
     """
     if solver not in SOLVERS:
         raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    mode = batch_mode(batch)
     t0 = time.perf_counter()
     if problem is None:
         problem, ops = make_problem(records, spec_or_twin, free, jac=jac, **problem_kwargs)
@@ -503,7 +710,7 @@ def fit(
     thetas = jnp.asarray(thetas)
     if thetas.shape[0] > 1:
         say(f"evaluating {thetas.shape[0]} starts in one batch …")
-        losses = np.asarray(_batched_loss(thetas, problem))
+        losses = np.asarray(_batched_loss(thetas, problem, mode))
     else:
         losses = np.asarray([np.nan])
     order = np.argsort(np.where(np.isfinite(losses), losses, np.inf)) if thetas.shape[0] > 1 \
@@ -511,7 +718,8 @@ def fit(
     chosen = thetas[np.asarray(order[: max(1, refine)])]
     say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
     _HISTORY.clear()
-    th, ok, steps, fl = _refine(chosen, problem, solver, tol, tol, jac, max_steps)
+    th, ok, steps, fl, rs, Js = _refine(chosen, problem, solver, tol, tol, jac, max_steps,
+                                        sigma_tol, mode)
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     refined = [{"theta": th[i].tolist(), "converged": bool(ok[i]), "steps": int(steps[i]),
                 "loss": float(fl[i]), "values": pset.as_dict(th[i])} for i in range(th.shape[0])]
@@ -522,11 +730,12 @@ def fit(
         f"{int(steps[best])} steps")
     unc = None
     if uncertainty:
-        r, J = _jacobian(jnp.asarray(theta), problem)
+        # the residuals and Jacobian at the optimum from the solver's last accepted step
+        r, J = rs[best], Js[best]
         unc = analyse(pset, theta, np.asarray(r), np.asarray(J),
                       point_groups(problem.observations),
                       n_profiled_gains=problem.n_profiled_gains,
-                      profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem))
+                      profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem, mode))
     at_bound = pset.at_bound(theta)
     converged = bool(ok[best])
     msgs = []
@@ -544,6 +753,7 @@ def fit(
         start_losses=losses, starts=np.asarray(thetas), refined=refined, converged=converged,
         at_bound=at_bound, message=message, iterations=int(steps[best]),
         wall_time=time.perf_counter() - t0, operating_points=ops, problem=problem,
+        residuals=np.asarray(rs[best]),
     )
     say(res.table())
     if throw and (not converged or at_bound):
@@ -582,8 +792,8 @@ def stack_problems(problems: Sequence[Problem]) -> Problem:
 
 @eqx.filter_jit
 def _refine_records(thetas, stacked: Problem, solver_name: str, rtol: float, atol: float,
-                    jac: str, max_steps: int):
-    solver = _make_solver(solver_name, rtol, atol)
+                    jac: str, max_steps: int, sigma_tol: float = 0.0, batch: str = "vmap"):
+    solver = _make_solver(solver_name, rtol, atol, sigma_tol)
     arrays, static = eqx.partition(stacked, eqx.is_array)
 
     def one(theta0, arr):
@@ -591,11 +801,9 @@ def _refine_records(thetas, stacked: Problem, solver_name: str, rtol: float, ato
         sol = optx.least_squares(_residual_fn(jac), solver, theta0, args=prob,
                                  options=dict(jac="fwd" if jac == "fwd" else "bwd"),
                                  max_steps=max_steps, throw=False)
-        r = prob.residuals(sol.value)
-        return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"], \
-            0.5 * jnp.sum(r * r)
+        return _outcome(sol)
 
-    return jax.vmap(one)(thetas, arrays)
+    return _over_batch(one, batch, thetas, arrays)
 
 
 def fit_batch(
@@ -607,21 +815,24 @@ def fit_batch(
     jac: str = "fwd",
     max_steps: int = 40,
     tol: float = 1e-4,
+    sigma_tol: float = SIGMA_TOL,
+    batch: str = "auto",
     uncertainty: bool = True,
     **problem_kwargs: Any,
 ) -> list[FitResult]:
-    """Fit many records of one gearbox type in one compiled, ``vmap``-ed call (one start each,
-    θ = 0). Records must share length, rate and speed to 0.1 Hz (:func:`stack_problems`);
-    per-record keyword lists (``f_sun``…) are not taken here: pass scalars. Uncertainties are
-    computed per record with one compiled Jacobian. **Returns:** one :class:`FitResult` per
-    record, as :func:`fit` would."""
+    """Fit many records of one gearbox type in one compiled call (one start each, θ = 0):
+    ``vmap`` over the records on a GPU, ``jax.lax.map`` on a CPU (`batch`, :func:`batch_mode`). Records must share length, rate and speed to 0.1 Hz (:func:`stack_problems`);
+    per-record keyword lists (``f_sun``…) are not taken here: pass scalars. Uncertainties come
+    from the residuals and Jacobian of each record's last accepted LM step. **Returns:** one
+    :class:`FitResult` per record, as :func:`fit` would."""
     t0 = time.perf_counter()
     made = [make_problem(r, spec_or_twin, free, jac=jac, **problem_kwargs) for r in records]
     problems = [m[0] for m in made]
     stacked = stack_problems(problems)
     p = problems[0].pset.size
     thetas = jnp.zeros((len(problems), p))
-    th, ok, steps, fl = _refine_records(thetas, stacked, solver, tol, tol, jac, max_steps)
+    th, ok, steps, fl, rs, Js = _refine_records(thetas, stacked, solver, tol, tol, jac,
+                                                max_steps, sigma_tol, batch_mode(batch))
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     wall = time.perf_counter() - t0
     out = []
@@ -629,8 +840,7 @@ def fit_batch(
         pset = prob.pset
         unc = None
         if uncertainty:
-            r, J = _jacobian(jnp.asarray(th[i]), prob)
-            unc = analyse(pset, th[i], np.asarray(r), np.asarray(J),
+            unc = analyse(pset, th[i], np.asarray(rs[i]), np.asarray(Js[i]),
                           point_groups(prob.observations),
                           n_profiled_gains=prob.n_profiled_gains)
         at_bound = pset.at_bound(th[i])
@@ -641,5 +851,6 @@ def fit_batch(
             starts=np.zeros((1, p)), refined=[], converged=bool(ok[i]), at_bound=at_bound,
             message="converged" if ok[i] else f"not converged after {int(steps[i])} steps",
             iterations=int(steps[i]), wall_time=wall, operating_points=made[i][1], problem=prob,
+            residuals=np.asarray(rs[i]),
         ))
     return out

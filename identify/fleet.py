@@ -509,16 +509,18 @@ def failure_entry(job: Mapping[str, Any], error: BaseException | str, *, stage: 
 def fit_gap_db(res) -> float:
     """In-sample gap (dB) of a fit over its own points (module docstring).
 
-    The residuals at the optimum come from the fit's compiled residual-and-Jacobian function
-    (no new compilation): ``r = log(model level) − log(A_meas + F)`` per point, so the model
-    level is ``exp(meas + r)``."""
-    import jax.numpy as jnp
-
-    from .fit import _jacobian
-
+    The residuals at the optimum are the fit's own (`FitResult.residuals`, from its last
+    accepted step): ``r = log(model level) − log(A_meas + F)`` per point, so the model level is
+    ``exp(meas + r)``."""
     problem = res.problem
-    r, _ = _jacobian(jnp.asarray(res.theta), problem)
-    r = np.asarray(r)
+    if res.residuals is not None:
+        r = np.asarray(res.residuals)
+    else:
+        import jax.numpy as jnp
+
+        from .fit import _jacobian
+
+        r = np.asarray(_jacobian(jnp.asarray(res.theta), problem)[0])
     d2, off = [], 0
     for obs in problem.observations:
         m = int(obs.meas.shape[0])

@@ -349,6 +349,13 @@ class ParameterSet(eqx.Module):
             twin = _set(twin, n, values[i])
         return twin
 
+    @property
+    def twin_indices(self) -> tuple[int, ...]:
+        """Positions in `free` of the parameters that change the twin (all but
+        ``sensor_gain``, which scales the simulated signal after the solve): only these need
+        tangents through the ODE (`identify.fit._value_and_jacfwd`)."""
+        return tuple(i for i, n in enumerate(self.free) if n != "sensor_gain")
+
     def gain(self, values) -> jax.Array:
         """The sensor gain among `values` (1 when ``sensor_gain`` is not free)."""
         if "sensor_gain" in self.free:

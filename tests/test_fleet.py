@@ -12,7 +12,7 @@ converges in a few LM steps.
 - Ray (local cluster of 2 workers; Ray is in the ``test`` extra): a worker killed mid-run
   (injected ``os._exit``) is retried, the results equal the sequential ones, and no Ray process
   outlives the test;
-- batched vs single fits: the three records, at three speeds, in ONE vmapped fit_batch call
+- batched vs single fits: the three records, at three speeds, in ONE batched fit_batch call
   (order domain: shapes independent of the speed), converged, equal to the single fits to the
   solver tolerance;
 - table (Parquet, or CSV without pyarrow), never overwritten without --force;
@@ -242,7 +242,7 @@ def test_order_domain_shapes_do_not_depend_on_speed(fleet_records, spec):
 
 
 def test_batched_fit_agrees_with_single_fits(sequential, spec, tmp_path, monkeypatch):
-    """The three records (29.5, 30.0, 30.6 Hz) in one task: ONE vmapped fit_batch call (order
+    """The three records (29.5, 30.0, 30.6 Hz) in one task: ONE batched fit_batch call (order
     domain: one structure for every speed); every fit converged, and the values equal the
     single fits of the sequential run (identify.fit.fit, same start θ = 0, same solver) to the
     solver tolerance."""
@@ -263,7 +263,7 @@ def test_batched_fit_agrees_with_single_fits(sequential, spec, tmp_path, monkeyp
     settings = _settings(batch_size=3)
     run = run_fleet([sequential["pattern"]], spec, tmp_path / "batch", settings, engine="local",
                     progress=False, table=False)
-    assert run.fitted == 3 and calls == [3]  # one vmapped call for the three speeds
+    assert run.fitted == 3 and calls == [3]  # one batched call for the three speeds
     seq, bat = _values(sequential["out"]), _values(tmp_path / "batch")
     assert set(bat) == set(seq)
     speeds = [r["f_sun"] for r in bat.values()]

@@ -111,7 +111,7 @@ def test_product_pair_is_flagged(steady_5k, spec, truth_twin):
 
 def _coverage(spec, truth_twin, n_real, duration):
     """Real refits: `n_real` seeded noise realisations of one clean record (10 dB SNR), fitted
-    in ONE batched `fit_batch` call (vmap over records) from the truth; per parameter the
+    in ONE batched `fit_batch` call (vmap over records on a GPU, lax.map on a CPU) from the truth; per parameter the
     number of 95 % intervals holding the truth and mean predicted sd / spread of estimates."""
     from dtwin.io.record import Record
     from identify.fit import fit_batch
