@@ -35,7 +35,7 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
 library default 1e-5), for JAX and SciPy alike.
 
 Usage: ``python benchmarks/bench_fit.py [--case determined|stiffness] [--duration 4]
-[--rtol 1e-5] [--scipy-span 0.35] [--cache] [--json] [--quick]``
+[--rtol 1e-5] [--tol TOL] [--scipy-span 0.35] [--cache] [--json] [--quick]``
 """
 
 from __future__ import annotations
