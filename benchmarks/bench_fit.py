@@ -107,9 +107,9 @@ def main(argv=None) -> int:
 
     # --- JAX fit, twice (compile + run, then run)
     fits = []
+    tol = {} if args.tol is None else {"tol": args.tol}
     for i, start in enumerate(starts):
         say(f"JAX fit {i + 1} of 2 ({'with compilation' if i == 0 else 'compiled'}) from {start}")
-        tol = {} if args.tol is None else {"tol": args.tol}
         res, wall, cpu = timed(lambda s=start: fit(rec, spec, list(free), initial=s,
                                                      max_steps=args.max_steps, **tol, **kw))
         iv = {n: res.interval(n) for n in free}

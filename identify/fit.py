@@ -161,7 +161,7 @@ def _value_and_jacfwd(theta, problem: Problem):
     than being simulated a second time.
 
     Only the parameters that change the twin (`ParameterSet.twin_indices`) ride through the ODE
-    solve, whose cost grows with the number of tangents (each ~0.6–1 simulation on a CPU,
+    solve, whose cost grows with the number of tangents (about one simulation each on a CPU,
     benchmarks/README.md "Fit"); the others (``sensor_gain``) act after it. The chain rule
     joins the two: with ``S(θ_twin)`` the simulated signals and ``dS`` their Jacobian,
     ``r(θ) = post(S(θ_twin), θ)`` has ``∂r/∂θ`` = the Jacobian of
@@ -239,9 +239,10 @@ def gauss_newton_step_in_sigma(r, J) -> jax.Array:
     """Length of the Gauss–Newton step from a point, in standard errors: ``‖J δ‖ / s`` with
     ``δ = argmin ‖r + J δ‖`` and ``s² = ‖r‖² / (m − p)`` the residual variance.
 
-    ``‖J δ‖²`` is the loss decrease (×2) the local linear model still promises, and
-    ``s² δᵀ(JᵀJ)δ / s²`` is the step measured by the covariance ``s² (JᵀJ)⁻¹`` of the estimate:
-    a value of 0.05 means the optimum lies 0.05 standard errors away. Directions the data do
+    ``‖J δ‖²`` is twice the loss decrease the local linear model still promises, and
+    ``‖J δ‖² / s² = δᵀ (s² (JᵀJ)⁻¹)⁻¹ δ`` is the squared length of the step in the metric of
+    the estimate's covariance ``s² (JᵀJ)⁻¹``: a value of 0.05 means the optimum lies 0.05
+    standard errors away. Directions the data do
     not determine (near-null singular directions of J) promise nothing and count for nothing,
     however long the step along them."""
     return _gauss_newton_step(r, J)[0]
@@ -291,59 +292,37 @@ def _gauss_newton_step(r, J):
 _STEP_GUARD = 0.1
 
 
-def _stop_within_noise(step, sigma_tol: float):
-    """Wrap a Gauss–Newton-type solver's `step`: after each step also stop when, at the last
-    accepted point, :func:`gauss_newton_step_in_sigma` is below `sigma_tol` and the step is
-    short in θ (`_STEP_GUARD`)."""
+def _noise_stopping(base):
+    """`base` (an optimistix Gauss–Newton-type solver class) with the statistical stopping rule
+    added: after each step it also stops when, at the last accepted point,
+    :func:`gauss_newton_step_in_sigma` is below `sigma_tol` and the step is short in θ
+    (`_STEP_GUARD`); ``sigma_tol = 0`` leaves `base`'s behaviour unchanged."""
 
-    def wrapped(self, fn, y, args, options, state, tags):
-        y, state, aux = step(self, fn, y, args, options, state, tags)
-        if sigma_tol > 0:
-            f_info = state.f_info
-            in_sigma, delta = _gauss_newton_step(f_info.residual, f_info.jac.as_matrix())
-            near = (in_sigma < sigma_tol) & (jnp.max(jnp.abs(delta)) < _STEP_GUARD)
-            # before the first accepted step f_info holds zeros (s² = 0): never stop there
-            near = near & (state.num_accepted_steps > 0)
-            state = eqx.tree_at(lambda s: s.terminate, state, state.terminate | near)
-        return y, state, aux
+    class NoiseStopping(base):
+        sigma_tol: float = eqx.field(static=True, default=0.0)
 
-    return wrapped
+        def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0):
+            super().__init__(rtol=rtol, atol=atol, norm=norm)
+            self.sigma_tol = sigma_tol
 
+        def step(self, fn, y, args, options, state, tags):
+            y, state, aux = super().step(fn, y, args, options, state, tags)
+            if self.sigma_tol > 0:
+                f_info = state.f_info
+                in_sigma, delta = _gauss_newton_step(f_info.residual, f_info.jac.as_matrix())
+                near = (in_sigma < self.sigma_tol) & (jnp.max(jnp.abs(delta)) < _STEP_GUARD)
+                # before the first accepted step f_info holds zeros (s² = 0): never stop there
+                near = near & (state.num_accepted_steps > 0)
+                state = eqx.tree_at(lambda s: s.terminate, state, state.terminate | near)
+            return y, state, aux
 
-class _LevenbergMarquardt(optx.LevenbergMarquardt):
-    sigma_tol: float = eqx.field(static=True, default=0.0)
-
-    def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0):
-        super().__init__(rtol=rtol, atol=atol, norm=norm)
-        self.sigma_tol = sigma_tol
-
-    def step(self, fn, y, args, options, state, tags):
-        return _stop_within_noise(optx.LevenbergMarquardt.step, self.sigma_tol)(
-            self, fn, y, args, options, state, tags)
+    NoiseStopping.__name__ = NoiseStopping.__qualname__ = base.__name__
+    return NoiseStopping
 
 
-class _GaussNewton(optx.GaussNewton):
-    sigma_tol: float = eqx.field(static=True, default=0.0)
-
-    def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0):
-        super().__init__(rtol=rtol, atol=atol, norm=norm)
-        self.sigma_tol = sigma_tol
-
-    def step(self, fn, y, args, options, state, tags):
-        return _stop_within_noise(optx.GaussNewton.step, self.sigma_tol)(
-            self, fn, y, args, options, state, tags)
-
-
-class _Dogleg(optx.Dogleg):
-    sigma_tol: float = eqx.field(static=True, default=0.0)
-
-    def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0):
-        super().__init__(rtol=rtol, atol=atol, norm=norm)
-        self.sigma_tol = sigma_tol
-
-    def step(self, fn, y, args, options, state, tags):
-        return _stop_within_noise(optx.Dogleg.step, self.sigma_tol)(
-            self, fn, y, args, options, state, tags)
+_SOLVER_CLASSES = {"lm": _noise_stopping(optx.LevenbergMarquardt),
+                   "gauss-newton": _noise_stopping(optx.GaussNewton),
+                   "dogleg": _noise_stopping(optx.Dogleg)}
 
 
 def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0):
@@ -360,14 +339,9 @@ def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0):
       fit near its optimum spends steps chasing the ODE solver's noise in the residuals (4 s
       record, 3 parameters: the loss settled to 1e-5 after 4–5 steps, the Cauchy test stopped
       it after 13–19; benchmarks/README.md "Fit")."""
-    kw = dict(rtol=rtol, atol=atol, norm=optx.rms_norm, sigma_tol=sigma_tol)
-    if name == "lm":
-        return _LevenbergMarquardt(**kw)
-    if name == "gauss-newton":
-        return _GaussNewton(**kw)
-    if name == "dogleg":
-        return _Dogleg(**kw)
-    raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
+    if name not in _SOLVER_CLASSES:
+        raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
+    return _SOLVER_CLASSES[name](rtol=rtol, atol=atol, norm=optx.rms_norm, sigma_tol=sigma_tol)
 
 
 def _outcome(sol):
