@@ -53,11 +53,21 @@ def ensure_kernel() -> str:
     """
     spec = kernel_dir() / "kernels" / KERNEL_NAME / "kernel.json"
     if not _kernel_is_ours(spec):
-        subprocess.run(
-            [sys.executable, "-m", "ipykernel", "install", "--prefix", sys.prefix,
-             "--name", KERNEL_NAME, "--display-name", f"Python ({KERNEL_NAME})"],
-            check=True, capture_output=True,
-        )
+        cmd = [sys.executable, "-m", "ipykernel", "install", "--prefix", sys.prefix,
+               "--name", KERNEL_NAME, "--display-name", f"Python ({KERNEL_NAME})"]
+        # a fresh `.venv` under load has failed this once, transiently (CI-like run, 2 cores
+        # busy): retry, and accept a spec that another process wrote meanwhile
+        for attempt in range(3):
+            res = subprocess.run(cmd, capture_output=True, text=True)
+            if res.returncode == 0 or _kernel_is_ours(spec):
+                break
+            time.sleep(1.0 + 2.0 * attempt)
+        else:
+            raise RuntimeError(
+                f"could not install the Jupyter kernel {KERNEL_NAME!r} ({' '.join(cmd)}, exit "
+                f"{res.returncode}): {(res.stderr or res.stdout)[-2000:]}; install ipykernel "
+                "into this environment (`make venv`) and retry"
+            )
     paths = [p for p in os.environ.get("JUPYTER_PATH", "").split(os.pathsep) if p]
     first = str(kernel_dir())
     if not paths or paths[0] != first:
