@@ -166,15 +166,7 @@ def _value_and_jacfwd(theta, problem: Problem):
     joins the two: with ``S(θ_twin)`` the simulated signals and ``dS`` their Jacobian,
     ``r(θ) = post(S(θ_twin), θ)`` has ``∂r/∂θ`` = the Jacobian of
     ``post(S + dS (θ_twin − θ_twin⁰), θ)`` at θ⁰ — exact, not an approximation."""
-    p = theta.shape[-1]
     idx = problem.pset.twin_indices
-    if len(idx) == p:
-        def both(t):
-            r = problem.residuals(t)
-            return r, r
-
-        J, r = jax.jacfwd(both, has_aux=True)(theta)
-        return r, J
     sel = np.asarray(idx, dtype=int)
     if len(idx):
         def sim(sub):

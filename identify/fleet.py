@@ -513,14 +513,7 @@ def fit_gap_db(res) -> float:
     accepted step): ``r = log(model level) − log(A_meas + F)`` per point, so the model level is
     ``exp(meas + r)``."""
     problem = res.problem
-    if res.residuals is not None:
-        r = np.asarray(res.residuals)
-    else:
-        import jax.numpy as jnp
-
-        from .fit import _jacobian
-
-        r = np.asarray(_jacobian(jnp.asarray(res.theta), problem)[0])
+    r = np.asarray(res.residuals)
     d2, off = [], 0
     for obs in problem.observations:
         m = int(obs.meas.shape[0])
