@@ -43,8 +43,8 @@ Any other part raises `NotImplementedError` rather than being silently ignored.
 
 **State.** `rhs(t, y)` works on the flat *scaled* state of `dtwin.simulate._solve`,
 ``y = [z / sz, z' / sv, aux]`` (scales of `dtwin.simulate.state_scales`, recomputed here:
-translations 1e-6 m, rotation deviations 1e-6 m / rb_planet, carrier angle 1 rad; rates
-``2 pi 1000`` times those, carrier rate 10 rad/s), for `scipy.integrate.solve_ivp`.
+translations 1e-6 m, a gear's rotation deviation 1e-6 m / its base radius, carrier angle 1 rad;
+rates ``2 pi RATE_SCALE_HZ`` times those, carrier rate 10 rad/s), for `scipy.integrate.solve_ivp`.
 `rhs_unscaled(t, z, zd, aux)` returns ``(z', z'', aux')`` in the unscaled ``(z, z', aux)`` of
 `dtwin.twin.Twin.vector_field`.
 """
@@ -56,6 +56,7 @@ import math
 import numpy as np
 from scipy.special import expit
 
+RATE_SCALE_HZ = 10_000.0  # dtwin.simulate.SolverOptions.rate_scale_hz default
 WINDOW_EDGE = 0.05  # mesh cycles, edge width of a fault's contact window (dtwin.faults)
 DOUBLE_CONTACT_FACTOR = 1.75  # ISO 6336-1: double contact stiffness over single-pair c'
 
@@ -303,10 +304,12 @@ class ReferenceModel:
     def _scales(self):
         nd = self.n_dof
         sz = np.full(nd, 1e-6)
-        for j in [self.i_ts, self.i_tr] + list(self.i_tp):
+        sz[self.i_ts] = 1e-6 / self.rb_sun
+        sz[self.i_tr] = 1e-6 / self.rb_ring
+        for j in self.i_tp:
             sz[j] = 1e-6 / self.rb_planet
         sz[self.i_tc] = 1.0
-        sv = sz * 2.0 * np.pi * 1000.0
+        sv = sz * 2.0 * np.pi * RATE_SCALE_HZ
         sv[self.i_tc] = 10.0
         self.sz, self.sv = sz, sv
 

@@ -46,9 +46,17 @@ QUANTITIES = ("acceleration", "velocity", "displacement", "ring_velocity")
 class SolverOptions:
     """Solver settings.
 
-    - `rtol`, `atol`: tolerances on the scaled state (translations in µm, rotation deviations
-      ~1e-6/r_b rad, see `state_scales`), so `atol = 1e-5` means ~1e-11 m;
-      the default gives ~1e-4 relative error of the sensor signal.
+    - `rtol`, `atol`: tolerances on the scaled state (`state_scales`: translations and rotations
+      in µm, a rotation as the arc on its gear's base circle; rates in µm × 2π `rate_scale_hz`),
+      so `atol = 1e-5` means ~1e-11 m. With the defaults the sensor signal of the paper's
+      gearbox is accurate to ~5e-5 of its rms and the numerical error's spectral lines lie
+      ≥ ~65 dB below the strongest line (benchmarks/README.md, fourth round).
+    - `rate_scale_hz`: the frequency (Hz) that converts a displacement scale into a rate scale,
+      `sv = 2π rate_scale_hz sz`. A mode at this frequency weighs its displacement and velocity
+      errors alike in the error norm; slower motion is controlled by its displacement, faster
+      by its velocity. The default 10 kHz is the order of the highest mesh modes of gearboxes
+      of the paper's size (8–17 kHz); a lower value tightens control of the fastest modes (and
+      costs steps: 1 kHz takes ~40 % more on the paper's gearbox).
     - `pcoeff`, `icoeff`: the step-size controller's proportional and integral coefficients
       (`diffrax.PIDController`); the default PI controller (0.3, 0.3) rejects ~8 % of the
       attempted steps where the integral-only controller (0, 1) rejects ~27 % on the twin, whose
@@ -64,12 +72,19 @@ class SolverOptions:
 
     rtol: float = 1e-5
     atol: float = 1e-5
+    rate_scale_hz: float = 10_000.0
     pcoeff: float = 0.3
     icoeff: float = 0.3
     dtmax: float | None = None
     max_steps: int | None = None
     adjoint: str = "forward"
     unrolled: bool = True
+
+    def __post_init__(self):
+        for name in ("rtol", "atol", "rate_scale_hz"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"SolverOptions.{name} must be a positive number, got {v!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -147,19 +162,20 @@ class SimResult(eqx.Module):
 
 
 # --------------------------------------------------------------------------------- state
-def state_scales(twin: Twin) -> tuple[Array, Array]:
-    """Scales of the integration coordinates z and their rates (translations 1e-6 m, rotation
-    deviations 1e-6 rad·(1 m / base radius) ~ 5e-5 rad, carrier angle 1 rad)."""
-    n = twin.n_dof
-    rot = np.zeros(n)
-    for name in ("theta_s", "theta_r"):
-        rot[twin._index(name)] = 1.0
+def state_scales(twin: Twin, rate_scale_hz: float = 10_000.0) -> tuple[Array, Array]:
+    """Scales of the integration coordinates z and their rates, so that the error control sees
+    lengths along the lines of action: translations 1e-6 m; a gear's rotation deviation
+    1e-6 m / (its base radius) rad (1 µm of arc on its base circle, the unit in which it enters
+    the mesh deflections); the carrier angle 1 rad. Rates: `2π rate_scale_hz` times these
+    (`SolverOptions.rate_scale_hz`), the carrier speed 10 rad/s."""
+    rb_s, rb_p, rb_r = jax.lax.stop_gradient((twin.lp.rb_sun, twin.lp.rb_planet, twin.lp.rb_ring))
+    sz = jnp.full(twin.n_dof, 1e-6)
+    sz = sz.at[twin._index("theta_s")].set(1e-6 / rb_s)
+    sz = sz.at[twin._index("theta_r")].set(1e-6 / rb_r)
     for i in range(twin.n_planets):
-        rot[twin._index("theta_p", i)] = 1.0
-    rot = jnp.asarray(rot)
-    sz = jnp.where(rot > 0, 1e-6 / jax.lax.stop_gradient(twin.lp.rb_planet), 1e-6)
+        sz = sz.at[twin._index("theta_p", i)].set(1e-6 / rb_p)
     sz = sz.at[twin._index("theta_c")].set(1.0)
-    sv = sz * 2.0 * jnp.pi * 1000.0
+    sv = sz * 2.0 * jnp.pi * rate_scale_hz
     sv = sv.at[twin._index("theta_c")].set(10.0)
     return sz, sv
 
@@ -275,10 +291,10 @@ def _observe(twin: Twin, ops, quantity, t, y):
 
 @eqx.filter_jit
 def _solve(twin: Twin, y0, t0, t1, ts, quantity: str, rtol, atol, dtmax, max_steps: int,
-           adjoint: str, progress: bool, pcoeff, icoeff, unrolled: bool):
+           adjoint: str, progress: bool, pcoeff, icoeff, unrolled: bool, rate_scale_hz: float):
     # every setting comes from `SolverOptions` (its defaults are the only ones)
     ops = twin.operators()
-    sz, sv = state_scales(twin)
+    sz, sv = state_scales(twin, rate_scale_hz)
     n = twin.n_dof
     z0, zd0, aux0 = y0
     ys0 = jnp.concatenate([z0 / sz, zd0 / sv, aux0])
@@ -419,7 +435,7 @@ def simulate(
     max_steps = solver.max_steps or int(400_000 * (t1 - t0) + 10_000)
     ys, result, nsteps = _solve(
         twin, y0, t0, t1, ts, daq.quantity, solver.rtol, solver.atol, dtmax, max_steps,
-        solver.adjoint, progress, solver.pcoeff, solver.icoeff, solver.unrolled,
+        solver.adjoint, progress, solver.pcoeff, solver.icoeff, solver.unrolled, solver.rate_scale_hz,
     )
     if check:
         _raise_for(result, t1)

@@ -323,7 +323,8 @@ def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0):
     - the Cauchy test (both the step in θ and the change of the residuals below
       ``atol + rtol |·|``), with the RMS norm, not optimistix's default max norm: the residuals
       carry the ODE solver's own noise (two solves of one θ differ by up to 1e-5 at rtol 1e-5,
-      2e-4 between rtol 1e-4 and 1e-5, on a 4 s record), so a max over ~2000 points against
+      2e-4 between rtol 1e-4 and 1e-5, on a 4 s record, measured before
+      `SolverOptions.rate_scale_hz`; the present defaults' error is ~4× larger), so a max over ~2000 points against
       an atol of 1e-6 was met only by chance: fits ran to `max_steps`;
     - the statistical test (`sigma_tol` > 0): the Gauss–Newton step from the last accepted
       point is below `sigma_tol` standard errors (:func:`gauss_newton_step_in_sigma`): going

@@ -460,7 +460,7 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     max_steps = solver.max_steps or int(400_000 * (t1 - t0) + 10_000)
     ys, _, nsteps = _solve(twin, y0, t0, t1, jnp.asarray(ts_np), daq.quantity, solver.rtol,
                            solver.atol, dtmax, max_steps, solver.adjoint, False,
-                           solver.pcoeff, solver.icoeff, solver.unrolled)
+                           solver.pcoeff, solver.icoeff, solver.unrolled, solver.rate_scale_hz)
     return _daq(ys, taps, daq, fs_out, nsteps, 0, float(discard)).signal
 
 

@@ -39,11 +39,14 @@ def _run(tw, unrolled, **kw):
 
 def test_same_steps_and_record_as_diffrax_tsit5(twin):
     # integral-only control: the step sequence depends on this step's error only, so rounding
-    # differences (the stages are summed in another order) cannot change it
+    # differences (the stages are summed in another order) cannot change it. The dynamics then
+    # carry those rounding differences along: over this 0.2 s record they grow to ~5e-8 of the
+    # signal's maximum (1e-9 at rtol 1e-8 and 1 kHz rate scale, 5e-9 at 1e-5 and 1 kHz); one
+    # tableau coefficient off by 1e-4 of itself changes the steps and the record by ~1e-2
     a, b = _run(twin, True, pcoeff=0.0, icoeff=1.0), _run(twin, False, pcoeff=0.0, icoeff=1.0)
     assert int(a.num_steps) == int(b.num_steps) > 1000
     x, y = np.asarray(a.signal), np.asarray(b.signal)
-    assert np.max(np.abs(x - y)) <= 1e-9 * np.max(np.abs(y))
+    assert np.max(np.abs(x - y)) <= 2e-7 * np.max(np.abs(y))
     # the default PI controller carries the previous error forward: rounding can move a step
     # (a few in 10^4), and the records then agree to the tolerance, not to rounding
     a, b = _run(twin, True), _run(twin, False)
@@ -70,7 +73,9 @@ def test_forward_derivative_equals_diffrax_tsit5(twin):
     assert abs(float(da) - float(db)) <= 1e-7 * abs(float(db))
 
 
-@pytest.mark.parametrize("control,tol", [(I_CONTROL, 1e-9), ({}, 1e-4)])
+# I control: equal to rounding as carried by the dynamics (~6e-9 of the maximum measured over
+# these 0.05 s; see the first test)
+@pytest.mark.parametrize("control,tol", [(I_CONTROL, 1e-7), ({}, 1e-4)])
 def test_vmap_members_equal_their_own_solves(twin, control, tol):
     ks = jnp.asarray([0.9, 1.1]) * float(twin.lp.k_sun_planet)
 
@@ -109,3 +114,27 @@ def test_fifth_order_and_dense_output_on_a_damped_oscillator():
         errs.append(np.max(np.abs(ours - exact)))
     order = np.log2(errs[0] / errs[1])
     assert 4.5 <= order <= 6.0
+
+
+def test_default_tolerance_accuracy(twin):
+    """The defaults' sensor error against a tight solution (rtol = atol = 1e-9), the figure that
+    `SolverOptions` documents: rms within 1e-4 of the signal's rms (measured 4.5e-5 over 1 s),
+    and the error's largest spectral line >= 80 dB below the signal's strongest (measured
+    ~-98 dB): far below the sidebands and forbidden lines the dynamics tests read."""
+    a = simulate(twin, duration=0.5, f_sun=30.0)
+    b = simulate(twin, duration=0.5, f_sun=30.0,
+                 solver=SolverOptions(rtol=1e-9, atol=1e-9, max_steps=2_000_000))
+    x, y = np.asarray(a.signal), np.asarray(b.signal)
+    assert np.sqrt(np.mean((x - y) ** 2)) <= 1e-4 * np.sqrt(np.mean(y**2))
+    w = np.hanning(len(y))
+    err_line = np.abs(np.fft.rfft((x - y) * w)).max()
+    assert 20 * np.log10(err_line / np.abs(np.fft.rfft(y * w)).max()) <= -80.0
+    # a coarser rate scale (velocities weighed less) takes fewer steps, a finer one more
+    c = simulate(twin, duration=0.5, f_sun=30.0, solver=SolverOptions(rate_scale_hz=1000.0))
+    assert int(c.num_steps) > 1.2 * int(a.num_steps)
+
+
+def test_solver_options_reject_bad_values():
+    for kw in (dict(rtol=0.0), dict(atol=-1.0), dict(rate_scale_hz=0.0), dict(rate_scale_hz=float("nan"))):
+        with pytest.raises(ValueError, match="must be a positive number"):
+            SolverOptions(**kw)
