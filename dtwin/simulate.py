@@ -40,6 +40,8 @@ from .parts.transfer_path import AbstractTransferPath, ring_velocity_fixed
 from .twin import Twin
 
 QUANTITIES = ("acceleration", "velocity", "displacement", "ring_velocity")
+#: Default of `SolverOptions.rate_scale_hz` (Hz): rates are scaled by 2π times this.
+RATE_SCALE_HZ = 10_000.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,8 +51,9 @@ class SolverOptions:
     - `rtol`, `atol`: tolerances on the scaled state (`state_scales`: translations and rotations
       in µm, a rotation as the arc on its gear's base circle; rates in µm × 2π `rate_scale_hz`),
       so `atol = 1e-5` means ~1e-11 m. With the defaults the sensor signal of the paper's
-      gearbox is accurate to ~5e-5 of its rms and the numerical error's spectral lines lie
-      ≥ ~65 dB below the strongest line (benchmarks/README.md, fourth round).
+      gearbox is accurate to ~5e-5 of its rms, the numerical error's largest spectral line is
+      ~98 dB below the signal's strongest, and in an ideal gearbox the lines the sideband rule
+      forbids stay ≥ ~65 dB below f_mesh (benchmarks/README.md, fourth round).
     - `rate_scale_hz`: the frequency (Hz) that converts a displacement scale into a rate scale,
       `sv = 2π rate_scale_hz sz`. A mode at this frequency weighs its displacement and velocity
       errors alike in the error norm; slower motion is controlled by its displacement, faster
@@ -72,7 +75,7 @@ class SolverOptions:
 
     rtol: float = 1e-5
     atol: float = 1e-5
-    rate_scale_hz: float = 10_000.0
+    rate_scale_hz: float = RATE_SCALE_HZ
     pcoeff: float = 0.3
     icoeff: float = 0.3
     dtmax: float | None = None
@@ -162,7 +165,7 @@ class SimResult(eqx.Module):
 
 
 # --------------------------------------------------------------------------------- state
-def state_scales(twin: Twin, rate_scale_hz: float = 10_000.0) -> tuple[Array, Array]:
+def state_scales(twin: Twin, rate_scale_hz: float = RATE_SCALE_HZ) -> tuple[Array, Array]:
     """Scales of the integration coordinates z and their rates, so that the error control sees
     lengths along the lines of action: translations 1e-6 m; a gear's rotation deviation
     1e-6 m / (its base radius) rad (1 µm of arc on its base circle, the unit in which it enters
