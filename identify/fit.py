@@ -15,7 +15,7 @@
    through diffrax (``SolverOptions(adjoint="forward")``, ``options=dict(jac="fwd")``; residuals
    and Jacobian from one primal-and-tangents solve per LM step, :func:`_residuals_fwd`; only
    the parameters that change the twin ride through the ODE, :func:`_value_and_jacfwd`) —
-   3.0–3.4× one simulation for 3 parameters on a 4 s record (benchmarks/README.md "Fit") — or
+   2.5–3.2× one simulation for 3 parameters on a 4 s record (benchmarks/README.md "Fit") — or
    reverse mode (``jac="rev"``: checkpointed adjoint, for many parameters); it stops on a
    Cauchy test or when the optimum is within `sigma_tol` standard errors (:func:`_make_solver`);
 3. the best converged start is the answer; :mod:`identify.uncertainty` adds intervals,
@@ -352,6 +352,15 @@ def _outcome(sol):
             0.5 * jnp.sum(r * r), r, J)
 
 
+def _least_squares(fn, solver, theta0, problem, jac: str, max_steps: int):
+    """One `optimistix.least_squares` refinement from `theta0` (Jacobian in forward mode for
+    ``jac="fwd"``, else reverse), returning :func:`_outcome` of its solution."""
+    sol = optx.least_squares(fn, solver, theta0, args=problem,
+                             options=dict(jac="fwd" if jac == "fwd" else "bwd"),
+                             max_steps=max_steps, throw=False)
+    return _outcome(sol)
+
+
 #: Losses of the residual evaluations during refinement, per start (filled by a debug callback;
 #: cleared by `fit`). The callback is traced once, so it writes into this module-level store.
 _HISTORY: dict[int, list[float]] = {}
@@ -374,10 +383,7 @@ def _refine(thetas, problem: Problem, solver_name: str, rtol: float, atol: float
             jax.debug.callback(_record_loss, idx, 0.5 * jnp.sum(r * r))
             return r
 
-        sol = optx.least_squares(fn, solver, theta0, args=problem,
-                                 options=dict(jac="fwd" if jac == "fwd" else "bwd"),
-                                 max_steps=max_steps, throw=False)
-        return _outcome(sol)
+        return _least_squares(fn, solver, theta0, problem, jac, max_steps)
 
     if thetas.shape[0] == 1:
         # one start: not vmapped. Under vmap (even of one) the ODE solve's while-loop predicate
@@ -765,10 +771,7 @@ def _refine_records(thetas, stacked: Problem, solver_name: str, rtol: float, ato
 
     def one(theta0, arr):
         prob = eqx.combine(arr, static)
-        sol = optx.least_squares(_residual_fn(jac), solver, theta0, args=prob,
-                                 options=dict(jac="fwd" if jac == "fwd" else "bwd"),
-                                 max_steps=max_steps, throw=False)
-        return _outcome(sol)
+        return _least_squares(_residual_fn(jac), solver, theta0, prob, jac, max_steps)
 
     return _over_batch(one, batch, thetas, arrays)
 
