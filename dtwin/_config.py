@@ -3,7 +3,9 @@
 Imported first by :mod:`dtwin`. float64 is required (reference.md §6: in float32 the adaptive
 solver stalls on kHz mesh forcing). The compilation cache lives inside the project's virtual
 environment (``$VIRTUAL_ENV/jax-cache`` or ``sys.prefix/jax-cache``) unless ``DTWIN_JAX_CACHE``
-names another folder; set ``DTWIN_JAX_CACHE=off`` to disable it.
+names another folder; set ``DTWIN_JAX_CACHE=off`` (or ``0``, ``none``) to disable it and
+``DTWIN_JAX_CACHE=on`` (or ``1``, ``true``) for the default folder
+(outside a virtual environment: ``~/.cache/dtwin/jax-cache``).
 """
 
 from __future__ import annotations
@@ -18,10 +20,14 @@ jax.config.update("jax_enable_x64", True)
 
 def _cache_dir() -> str | None:
     env = os.environ.get("DTWIN_JAX_CACHE")
-    if env is not None:
-        return None if env.lower() in ("", "off", "0", "none") else env
+    if env is not None and env.lower() in ("", "off", "0", "none", "false", "no"):
+        return None
+    if env is not None and env.lower() not in ("on", "1", "true", "yes"):
+        return env
     if sys.prefix != sys.base_prefix:  # inside a venv
         return os.path.join(sys.prefix, "jax-cache")
+    if env is not None:  # asked for outside a venv: the user's cache folder
+        return os.path.join(os.path.expanduser("~"), ".cache", "dtwin", "jax-cache")
     return None
 
 
