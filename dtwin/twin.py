@@ -31,6 +31,7 @@ deflection map, so every part's forces are consistent with virtual work.
 from __future__ import annotations
 
 import dataclasses
+import functools as ft
 from typing import Any
 
 import equinox as eqx
@@ -43,6 +44,35 @@ from .lumped import LumpedParameters
 from .parts.base import AbstractPart, Modulation
 
 KINDS = ("translational", "torsional")
+
+
+def _softplus_sigmoid(u):
+    """``(softplus(u), sigmoid(u))`` from one exponential and one log1p (stable for any u)."""
+    e = jnp.exp(-jnp.abs(u))
+    sp = jnp.maximum(u, 0.0) + jnp.log1p(e)
+    sg = jnp.where(u >= 0.0, 1.0, e) / (1.0 + e)
+    return sp, sg
+
+
+@ft.partial(jax.custom_jvp, nondiff_argnums=(4,))
+def contact_force(d, dd, k, c, s: float):
+    r"""Mesh contact force (N) with one-sided contact smoothed over `s` (m):
+    ``k s softplus(d / s) + c d' sigmoid(d / s)`` for deflection `d` (m), its rate `dd` (m/s),
+    stiffness `k` (N/m) and damping `c` (N·s/m). Its derivative rule reuses the primal's
+    exponential (``softplus' = sigmoid``, ``sigmoid' = sigmoid (1 - sigmoid)``), where JAX's
+    own rules would evaluate three more exponentials per mesh for every tangent."""
+    sp, sg = _softplus_sigmoid(d / s)
+    return k * s * sp + c * dd * sg
+
+
+@contact_force.defjvp
+def _contact_force_jvp(s, primals, tangents):
+    d, dd, k, c = primals
+    d_d, d_dd, d_k, d_c = tangents
+    sp, sg = _softplus_sigmoid(d / s)
+    out = k * s * sp + c * dd * sg
+    slope_d = k * sg + c * dd * sg * (1.0 - sg) / s
+    return out, slope_d * d_d + (c * sg) * d_dd + (s * sp) * d_k + (dd * sg) * d_c
 
 
 class Coords(eqx.Module):
@@ -328,7 +358,7 @@ class Twin(eqx.Module):
         c_sp, c_rp = mesh_damping(lp)
         c = jnp.concatenate([jnp.full((n,), c_sp), jnp.full((n,), c_rp)])
         s = self.contact_smoothing
-        force = k * s * jax.nn.softplus(d / s) + c * dd * jax.nn.sigmoid(d / s)
+        force = contact_force(d, dd, k, c, s)
         return MeshState(
             ph[:n], ph[n:], k[:n], k[n:], c[:n], c[n:], d[:n], d[n:], dd[:n], dd[n:],
             force[:n], force[n:],

@@ -319,3 +319,35 @@ def test_velocity_and_displacement_sensors_integrate_acceleration():
     w = 2 * math.pi * fm
     assert lines["velocity"] == pytest.approx(lines["acceleration"] / w, rel=0.01)
     assert lines["displacement"] == pytest.approx(lines["acceleration"] / w**2, rel=0.01)
+
+
+def test_contact_force_and_its_derivative_rule():
+    """`dtwin.twin.contact_force` (one exponential, hand-written JVP) against the textbook
+    ``k s softplus(d/s) + c d' sigmoid(d/s)`` and JAX's own derivative of it, from deep
+    separation to deep contact (|d/s| up to 800, where a naive exp overflows)."""
+    from dtwin.twin import contact_force
+
+    s = 2e-8
+    d = jnp.asarray(np.concatenate([np.linspace(-16e-6, 16e-6, 41), [0.0, 1e-9, -1e-9]]))
+    dd = jnp.linspace(-1e-3, 1e-3, d.shape[0])
+    k = jnp.full(d.shape, 3.1e8)
+    c = jnp.full(d.shape, 2.5e3)
+
+    def textbook(d, dd, k, c):
+        return k * s * jax.nn.softplus(d / s) + c * dd * jax.nn.sigmoid(d / s)
+
+    args = (d, dd, k, c)
+    np.testing.assert_allclose(contact_force(*args, s), textbook(*args), rtol=1e-13, atol=1e-18)
+    for i in range(4):
+        def ours(a, i=i):
+            return contact_force(*args[:i], a, *args[i + 1 :], s)
+
+        def theirs(a, i=i):
+            return textbook(*args[:i], a, *args[i + 1 :])
+
+        got, want = jax.jacfwd(ours)(args[i]), jax.jacfwd(theirs)(args[i])
+        assert bool(jnp.all(jnp.isfinite(got)))
+        np.testing.assert_allclose(jnp.diag(got), jnp.diag(want), rtol=1e-12, atol=1e-16)
+    g = jax.grad(lambda x: jnp.sum(contact_force(x, dd, k, c, s)))(d)
+    g_want = jax.grad(lambda x: jnp.sum(textbook(x, dd, k, c)))(d)
+    np.testing.assert_allclose(g, g_want, rtol=1e-12, atol=1e-16)

@@ -74,8 +74,11 @@ def test_forward_derivative_equals_diffrax_tsit5(twin):
 
 
 # I control: equal to rounding as carried by the dynamics (~6e-9 of the maximum measured over
-# these 0.05 s; see the first test)
-@pytest.mark.parametrize("control,tol", [(I_CONTROL, 1e-7), ({}, 1e-4)])
+# these 0.05 s; see the first test). PI control (default): rounding moves the accepted steps,
+# so members differ from their own solves at the solver's tolerance, in proportion to it
+# (measured 0.8-1.2e-4 of the maximum at rtol 1e-5, 0.8-1.2e-5 at 1e-6); members that mixed
+# each other's data would differ by ~1e-1 (the last assertion).
+@pytest.mark.parametrize("control,tol", [(I_CONTROL, 1e-7), ({}, 3e-4)])
 def test_vmap_members_equal_their_own_solves(twin, control, tol):
     ks = jnp.asarray([0.9, 1.1]) * float(twin.lp.k_sun_planet)
 
