@@ -19,8 +19,8 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
   (persistent cache off unless `--cache`), the second is the cost of a fit once compiled
   (wall, CPU, LM steps, intervals). Then one residual evaluation (= one simulation and the
   spectrum) and one forward-mode Jacobian (``identify.fit._jacobian``: residuals and Jacobian
-  from one primal-and-tangents solve), each timed after compilation: the Jacobian's cost
-  relative to one simulation.
+  from one primal-and-tangents solve), each timed after compilation, five times interleaved:
+  the Jacobian's cost relative to one simulation as the median of the five pairs' ratios.
 - **SciPy** (what a user without JAX writes): the same residual vector computed from
   `benchmarks/reference_numpy.py` (the twin's equations in NumPy) integrated by
   ``scipy.integrate.solve_ivp`` (RK45, same rtol/atol/largest step), the same DAQ filter and
@@ -138,17 +138,26 @@ def main(argv=None) -> int:
     res_fn = eqx.filter_jit(lambda t, pr: pr.residuals(t))
     jax.block_until_ready(res_fn(theta, prob))
     jax.block_until_ready(_jacobian(theta, prob))
-    reps = 2 if args.duration >= 2 else 4
-    _, sim_wall, sim_cpu = timed(lambda: [jax.block_until_ready(res_fn(theta, prob))
-                                           for _ in range(reps)])
-    _, jac_wall, jac_cpu = timed(lambda: [jax.block_until_ready(_jacobian(theta, prob))
-                                           for _ in range(reps)])
-    out["simulation_s"] = sim_wall / reps
-    out["simulation_cpu_s"] = sim_cpu / reps
-    out["jacobian_s"] = jac_wall / reps
-    out["jacobian_cpu_s"] = jac_cpu / reps
-    out["jacobian_over_simulation"] = jac_wall / sim_wall
-    out["jacobian_over_simulation_cpu"] = jac_cpu / sim_cpu
+    # interleaved repeats (simulation, Jacobian, simulation, …) so that drift in the machine's
+    # load hits both alike; each figure is the median of its repeats, the ratio theirs
+    reps = 5 if args.duration >= 2 else 9
+    sims, jacs = [], []
+    for _ in range(reps):
+        sims.append(timed(lambda: jax.block_until_ready(res_fn(theta, prob)))[1:])
+        jacs.append(timed(lambda: jax.block_until_ready(_jacobian(theta, prob)))[1:])
+    sim_wall, sim_cpu = (float(np.median(v)) for v in zip(*sims, strict=True))
+    jac_wall, jac_cpu = (float(np.median(v)) for v in zip(*jacs, strict=True))
+    out["simulation_s"] = sim_wall
+    out["simulation_cpu_s"] = sim_cpu
+    out["jacobian_s"] = jac_wall
+    out["jacobian_cpu_s"] = jac_cpu
+    out["simulation_repeats_s"] = [w for w, _ in sims]
+    out["jacobian_repeats_s"] = [w for w, _ in jacs]
+    # the ratio as the median over the pairs (each Jacobian over the simulation just before
+    # it): the shared 2-core machine switches between a fast and a ~35 % slower state within
+    # seconds, and a pair usually falls in one state where the medians may not
+    out["jacobian_over_simulation"] = float(np.median([j[0] / s_[0] for s_, j in zip(sims, jacs, strict=True)]))
+    out["jacobian_over_simulation_cpu"] = float(np.median([j[1] / s_[1] for s_, j in zip(sims, jacs, strict=True)]))
 
     # --- SciPy: the same residuals from solve_ivp over the NumPy model, one span timed
     import scipy.integrate
