@@ -256,7 +256,7 @@ def cosine_series(x: Float[Array, "..."], coef: Float[Array, "... m"]) -> Float[
     ``d/dx = -2 pi sum_n n coef_n sin(2 pi n x)``, where JAX's rule for `cos` evaluates `m`
     sines more for a tangent; the sum (and its slope) are computed once per evaluation
     (`_materialised`). On the paper's gearbox a simulation is ~1.4x faster and a forward-mode
-    Jacobian ~1.7x (benchmarks/README.md, sixth round). Agrees with the direct sum to
+    Jacobian ~1.7x (benchmarks/README.md, "Fit", sixth round). Agrees with the direct sum to
     rounding (~1e-15 of the amplitude at 12 harmonics); differentiable to any order (the rule
     is itself JAX).
     """
