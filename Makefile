@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check dtwin identify tests benchmarks
+	$(VENV)/bin/ruff check dtwin identify tests benchmarks data
 
 test: lint
 	$(VENV)/bin/pytest -q -m "not slow" -n 2 --dist loadgroup

@@ -7,18 +7,18 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
 
 - ``determined`` (default): ``sun_fault, sensor_gain, k_sun_planet`` (the sensor gain free,
   so not profiled: ``Features(gain="fixed")``), parameters this record determines by the
-  identifiability flags of `identify.uncertainty` at the truth (95 % half-widths 21 %, 29 %
+  identifiability flags of `dtwin.identify.uncertainty` at the truth (95 % half-widths 21 %, 29 %
   and 49 % of the values; k_sun_planet is at the flag's 50 % margin; benchmarks/README.md
   "Fit" lists the candidates checked).
 - ``stiffness``: ``sun_fault, k_sun_planet, k_ring_planet`` with the gain profiled — the two
   mesh stiffnesses are NOT determined by a 5 kHz steady record (their modes sit at 6.8–12 kHz,
   docs/identification.md): the cost of a fit whose parameters the data do not pin (LM wanders).
 
-- **JAX** (`identify.fit.fit`): Levenberg–Marquardt (optimistix), forward-mode Jacobians
+- **JAX** (`dtwin.identify.fit.fit`): Levenberg–Marquardt (optimistix), forward-mode Jacobians
   through diffrax, called twice with different starts: the first call includes compilation
   (persistent cache off unless `--cache`), the second is the cost of a fit once compiled
   (wall, CPU, LM steps, intervals). Then one residual evaluation (= one simulation and the
-  spectrum) and one forward-mode Jacobian (``identify.fit._jacobian``: residuals and Jacobian
+  spectrum) and one forward-mode Jacobian (``dtwin.identify.fit._jacobian``: residuals and Jacobian
   from one primal-and-tangents solve), each timed after compilation, five times interleaved:
   the Jacobian's cost relative to one simulation as the median of the five pairs' ratios.
 - **SciPy** (what a user without JAX writes): the same residual vector computed from
@@ -31,7 +31,7 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
   number of simulations: (steps + 1) × (1 + p), the LM steps taken from the JAX fit (stated as
   an assumption: SciPy's LM on the same problem takes a similar number of steps).
 
-`--rtol` sets the simulation tolerance of the fit (``rtol = atol``, `identify.fit.make_problem`;
+`--rtol` sets the simulation tolerance of the fit (``rtol = atol``, `dtwin.identify.fit.make_problem`;
 library default 1e-5), for JAX and SciPy alike.
 
 Usage: ``python benchmarks/bench_fit.py [--case determined|stiffness] [--duration 4]
@@ -66,7 +66,7 @@ def main(argv=None) -> int:
     p.add_argument("--scipy-span", type=float, default=0.35)
     p.add_argument("--max-steps", type=int, default=30)
     p.add_argument("--tol", type=float, default=None,
-                   help="the fit's Cauchy tolerance (identify.fit.fit's `tol`; default: fit's)")
+                   help="the fit's Cauchy tolerance (dtwin.identify.fit.fit's `tol`; default: fit's)")
     p.add_argument("--cache", action="store_true", help="keep the persistent compile cache")
     p.add_argument("--quick", action="store_true", help="0.5 s record, 0.03 s SciPy span")
     p.add_argument("--json", action="store_true")
@@ -84,11 +84,11 @@ def main(argv=None) -> int:
     jax.config.update("jax_enable_x64", True)
     from dtwin.build import build_twin
     from dtwin.faults import MissingTooth
+    from dtwin.identify.fit import _jacobian, fit, make_problem
+    from dtwin.identify.params import current_value
+    from dtwin.identify.residuals import Features, observation_residuals, observe
     from dtwin.simulate import DAQ, daq_filter, initial_state, simulate
     from dtwin.spec import preset
-    from identify.fit import _jacobian, fit, make_problem
-    from identify.params import current_value
-    from identify.residuals import Features, observation_residuals, observe
 
     load_start = load_average()
     f_sun, fs = 30.0, 5000.0
@@ -97,7 +97,7 @@ def main(argv=None) -> int:
     truth = {n: current_value(truth_tw, n) for n in free}
     rec = simulate(truth_tw, duration=args.duration, f_sun=f_sun,
                    daq=DAQ(sample_rate=fs, snr_db=10.0), discard=0.05, seed=3).to_record()
-    # a free sensor gain replaces the profiled one (identify.residuals, "Gain")
+    # a free sensor gain replaces the profiled one (dtwin.identify.residuals, "Gain")
     feats = Features(gain="fixed" if "sensor_gain" in free else "profile")
     kw = dict(f_sun=f_sun, features=feats, rtol=args.rtol, atol=args.rtol)
     starts = [{n: truth[n] * f for n, f in zip(free, (0.8, 1.2, 0.8), strict=True)},
@@ -166,7 +166,7 @@ def main(argv=None) -> int:
     from reference_numpy import ReferenceModel
 
     tw0 = prob.pset.apply(prob.twin, prob.pset.values(theta))
-    from identify.residuals import _with_speed
+    from dtwin.identify.residuals import _with_speed
 
     tw0 = _with_speed(tw0, prob.observations[0])
     ref = ReferenceModel(tw0)

@@ -5,10 +5,10 @@ A small fleet of `--records` short synthetic records of the paper's gearbox (tor
 spread over 29.5 … 30.6 Hz and estimated from each record), one free parameter (``sun_fault``,
 start 0.3), residuals in the order domain (``Features(grid="orders", f_max=31.5)``, the fleet's
 default), Levenberg–Marquardt (`--tol`, `--max-steps`) with forward-mode Jacobians, intervals
-computed (as :mod:`identify.fleet` does). The same records and settings for both paths:
+computed (as :mod:`dtwin.identify.fleet` does). The same records and settings for both paths:
 
-- **loop**: ``identify.fit.fit`` record after record (one start each);
-- **batch**: ``identify.fit.fit_batch`` on all records: one compiled, ``vmap``-ed optimistix
+- **loop**: ``dtwin.identify.fit.fit`` record after record (one start each);
+- **batch**: ``dtwin.identify.fit.fit_batch`` on all records: one compiled, ``vmap``-ed optimistix
   call (records step in lockstep; the batch costs its slowest member's iterations).
 
 Each is called twice: the first call includes compilation (the persistent compilation cache
@@ -52,10 +52,10 @@ def main(argv=None) -> int:
 
     from dtwin.build import build_twin
     from dtwin.faults import MissingTooth
+    from dtwin.identify.fit import fit, fit_batch
+    from dtwin.identify.residuals import Features
     from dtwin.simulate import DAQ, simulate
     from dtwin.spec import preset
-    from identify.fit import fit, fit_batch
-    from identify.residuals import Features
 
     spec = preset("paper-sim")
     sev = np.linspace(0.35, 0.65, n)

@@ -6,6 +6,7 @@ these (and the submodules' documented functions).
 """
 
 from . import _config  # noqa: F401  (float64 + compilation cache, before anything else)
+from ._version import __version__ as __version__
 from .build import build_twin as build_twin
 from .build import daq_from_spec as daq_from_spec
 from .coupling import DriveComparison as DriveComparison
@@ -83,4 +84,3 @@ from .stiffness import transmission_error as transmission_error
 from .twin import Coords as Coords
 from .twin import Twin as Twin
 
-__version__ = "0.1.0"

@@ -170,7 +170,7 @@ def step_samples(folder: OutputFolder) -> str:
 
 def step_identify(folder: OutputFolder, quick: bool = False) -> str:
     try:
-        from identify.demo import demo_section  # type: ignore[import-not-found]
+        from dtwin.identify.demo import demo_section  # type: ignore[import-not-found]
     except ImportError:
         return ""
     return demo_section(folder, DATA, quick=quick)

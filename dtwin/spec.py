@@ -15,7 +15,7 @@ field in ``docs/spec.md``.
 ISO 6336-1 (:func:`dtwin.stiffness.mesh_stiffness_mean`) unless the spec gives them (sections
 ``[mesh]`` and ``[lumped]`` win over geometry).
 
-Presets ship as TOML files in ``data/specs/``: ``paper-sim``, ``paper-bench``, ``lin-parker``
+Presets ship as TOML files inside the package, ``dtwin/presets/``: ``paper-sim``, ``paper-bench``, ``lin-parker``
 (:func:`preset`).
 """
 
@@ -35,8 +35,8 @@ from typing import Any
 from .errors import GeometryError, SpecError
 from .registry import REGISTRY
 
-SPECS_DIR = Path(__file__).resolve().parent.parent / "data" / "specs"
-"""Folder of the bundled preset specs (``data/specs/*.toml``)."""
+SPECS_DIR = Path(__file__).resolve().parent / "presets"
+"""Folder of the bundled preset specs (``dtwin/presets/*.toml``, installed with the package)."""
 
 PRESETS = ("paper-sim", "paper-bench", "paper-like", "lin-parker")
 """Names of the bundled presets."""

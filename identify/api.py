@@ -1,6 +1,6 @@
 """The identification API for users and scripts (re-exports; the CLI calls the same functions).
 
-    from identify.api import fit, estimate_severity, severity_series, ParameterSet, Features
+    from dtwin.identify.api import fit, estimate_severity, severity_series, ParameterSet, Features
 
     res = fit(records, "bench.toml", ["k_sun_planet", "k_ring_planet", "zeta_mesh", "sun_fault"],
               starts=9, refine=3)

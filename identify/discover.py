@@ -1,15 +1,15 @@
 """Discrepancy discovery: where the twin and the measurement disagree, which effect explains it,
 add it, refit, and show the held-out gap shrink (issue 8; docs/discovery.md).
 
-**Loop** (:func:`discover`): speed from the data (:func:`identify.lines.estimate_speed`); the
+**Loop** (:func:`discover`): speed from the data (:func:`dtwin.identify.lines.estimate_speed`); the
 base twin simulated over the record; then per step
 
-1. residual lines over 0 … Nyquist (:func:`identify.lines.residual_lines`), each with its
+1. residual lines over 0 … Nyquist (:func:`dtwin.identify.lines.residual_lines`), each with its
    kinematic description;
 2. candidates ranked by *coverage*: the share of the residual line power (measured over model)
    lying on their signature (:func:`coverage`); the best `max_refit` are refit;
 3. each is refit about the current model (below) and scored on held-out data: statistic ``T``,
-   bootstrap p-value, held-out gap (:mod:`identify.gap`) and parameter intervals;
+   bootstrap p-value, held-out gap (:mod:`dtwin.identify.gap`) and parameter intervals;
 4. kept: among candidates with ``p <= alpha / K`` (Bonferroni over the K refit; family-wise level
    `alpha` = 1 % per step) whose main parameter's interval excludes zero, the one with the
    smallest held-out gap. Members of its look-alike group that fit as well (within `tie_db`) or
@@ -27,7 +27,7 @@ the diffrax solve, exact in parameters that enter the parts linearly) give::
     A_model(theta, g) = g |Z0 + J theta|
 
 The fit compares levels ``L = 20 log10(A + F)`` (``F`` the measured noise floor, added before
-the log as in :mod:`identify.gap`) with ``optimistix.least_squares`` (Levenberg–Marquardt,
+the log as in :mod:`dtwin.identify.gap`) with ``optimistix.least_squares`` (Levenberg–Marquardt,
 ``jac="fwd"``) with a free gain per fold, over the *fit bins*: the candidate's signature bins plus the bins where the
 current model has a line. Non-negative parameters are fitted as ``exp(u)``. Starts: the
 dominant eigenvector of the signature-weighted response ``sum_k w_k Re(J_k^H J_k)`` scaled to
@@ -251,7 +251,7 @@ def _null_batch(inp: FitInputs, Ystar, floor_star):
 
 def white_noise_spectra(rng: np.random.Generator, n_draws: int, seg_len: int, n_folds: int,
                         bins: np.ndarray | None = None) -> np.ndarray:
-    """Hann spectra (amplitude-scaled as :func:`identify.gap.segment_spectra`) of unit white
+    """Hann spectra (amplitude-scaled as :func:`dtwin.identify.gap.segment_spectra`) of unit white
     noise divided by their median amplitude ``2 sqrt(ln 2 sum w^2) / sum w``: shape
     (n_draws, n_folds, bins); multiply by a floor to get noise of that floor."""
     w = np.hanning(seg_len + 1)[:-1]
@@ -378,7 +378,7 @@ class DiscoverySettings:
       in the step): a candidate is kept only with p ≤ alpha / (number refit).
     - `n_boot`: bootstrap draws of the null statistic per candidate (raised to K / alpha so that
       the smallest attainable p-value lies below the level).
-    - `threshold_db`, `excess_db`, `tolerance_bins`: residual-line detection (identify.lines).
+    - `threshold_db`, `excess_db`, `tolerance_bins`: residual-line detection (dtwin.identify.lines).
     - `max_steps`: budget of effects added; `max_refit`: candidates refit per step (by coverage).
     - `min_coverage`: a candidate must cover this fraction of the residual line power.
     - `tie_db`: members of one look-alike group whose held-out gaps differ by less are not told
@@ -778,7 +778,7 @@ def p_value(t: float, t_null: np.ndarray, rng: np.random.Generator | None = None
 
 
 def _adapted(effects, context) -> list:
-    """The effects specialised by their :meth:`~identify.effects.AbstractEffect.adapt` (those
+    """The effects specialised by their :meth:`~dtwin.identify.effects.AbstractEffect.adapt` (those
     returning ``None`` withdrawn)."""
     out = []
     for e in effects:
@@ -822,8 +822,8 @@ def discover(
     - `record`: a :class:`dtwin.io.Record` (first channel) or a 1-D signal with `sample_rate`.
     - `spec`: the gearbox spec (`dtwin.spec.Spec`, path or mapping): kinematics, DAQ and the
       base twin (``build_twin(spec, kind=kind)``) unless `base_twin` is given (e.g. the twin
-      fitted by :func:`identify.fit.fit`).
-    - `candidates`: effects to try (default: :func:`identify.effects.registered_effects`).
+      fitted by :func:`dtwin.identify.fit.fit`).
+    - `candidates`: effects to try (default: :func:`dtwin.identify.effects.registered_effects`).
     - `settings`: :class:`DiscoverySettings`.
     - `log`: a callable receiving progress lines (default: silent).
 

@@ -1,9 +1,9 @@
 """Fit the twin's parameters to measured records: optimistix least squares through diffrax.
 
 :func:`fit` runs, in order, before any simulation: the parameter names against the registry
-(:class:`identify.params.ParameterSet`), the records (NaN, rate, length:
-:func:`identify.residuals.observe`), the operating point of each record
-(:mod:`identify.operating_point`). Then
+(:class:`dtwin.identify.params.ParameterSet`), the records (NaN, rate, length:
+:func:`dtwin.identify.residuals.observe`), the operating point of each record
+(:mod:`dtwin.identify.operating_point`). Then
 
 1. **multi-start**: a coarse grid of starts in the nondimensional θ (every combination of
    ``{-spread, 0, +spread}`` per parameter, sub-sampled with `seed` to `n_starts`, always with
@@ -18,7 +18,7 @@
    2.5–2.7× one simulation for 3 parameters on a 4 s record (benchmarks/README.md "Fit") — or
    reverse mode (``jac="rev"``: checkpointed adjoint, for many parameters); it stops on a
    Cauchy test or when the optimum is within `sigma_tol` standard errors (:func:`_make_solver`);
-3. the best converged start is the answer; :mod:`identify.uncertainty` adds intervals,
+3. the best converged start is the answer; :mod:`dtwin.identify.uncertainty` adds intervals,
    correlations and identifiability flags from the residuals and Jacobian of the solver's last
    accepted step there (no further simulation).
 
@@ -402,7 +402,7 @@ class FitResult:
     """Outcome of :func:`fit`.
 
     - `names`, `values` (SI, dict), `theta` (unconstrained optimum), `initial` (SI, dict);
-    - `uncertainty` (:class:`identify.uncertainty.Uncertainty`, or None);
+    - `uncertainty` (:class:`dtwin.identify.uncertainty.Uncertainty`, or None);
     - `loss` (½‖r‖² at the optimum), `loss_history` (½‖r‖² at every residual evaluation of the
       solver from the chosen start: the loss over iterations, rejected trial steps included), `start_losses` (the batched multi-start evaluation), `starts` (θ),
       `refined` (per refined start: θ, converged, steps, loss);

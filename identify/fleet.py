@@ -1,23 +1,23 @@
 """Fleet runs: identify many records of one gearbox type, batched on one machine or as Ray tasks.
 
 A wind farm or a production line records hundreds of gearboxes every day. :func:`run_fleet`
-fits every record (:mod:`identify.fit`) and keeps one result file per record, so that a fleet
+fits every record (:mod:`dtwin.identify.fit`) and keeps one result file per record, so that a fleet
 of records becomes a table (:func:`write_table`) and per-machine trends
-(:mod:`identify.trends`).
+(:mod:`dtwin.identify.trends`).
 
 **Work units.** Records are read once by the driver (machine, timestamp, SHA-256, length and
 rate), grouped by ``(sample rate, samples)`` and cut into tasks of ``batch_size`` records
 (:func:`plan`). The residuals are taken in the **order domain** by default
-(``FleetSettings.grid="orders"``: :class:`identify.residuals.Features` with ``grid="orders"``
+(``FleetSettings.grid="orders"``: :class:`dtwin.identify.residuals.Features` with ``grid="orders"``
 and ``f_max``): spectra sampled on a fixed grid of orders of the input speed, harmonics and
 solver limits set by the fleet's highest speed ``f_max``, so a problem's shapes and statics
 depend only on the record's length and rate — records at different speeds share one compiled
 fit. A task (:func:`fit_task`) builds each record's problem
-(:func:`identify.fit.make_problem`), splits its records by problem *structure*
-(:func:`identify.fit.stack_problems`' condition: in the order domain, length and rate, so the
+(:func:`dtwin.identify.fit.make_problem`), splits its records by problem *structure*
+(:func:`dtwin.identify.fit.stack_problems`' condition: in the order domain, length and rate, so the
 split is a no-op after :func:`plan`'s grouping; with ``grid="hz"`` also the speed rounded to
-0.1 Hz) and fits each sub-group with :func:`identify.fit.fit_batch` (one compiled, ``vmap``-ed
-optimistix call, one start θ = 0 per record) or, for a single record, :func:`identify.fit.fit`
+0.1 Hz) and fits each sub-group with :func:`dtwin.identify.fit.fit_batch` (one compiled, ``vmap``-ed
+optimistix call, one start θ = 0 per record) or, for a single record, :func:`dtwin.identify.fit.fit`
 (multi-start when ``starts > 1``).
 
 **Engines.** ``engine="ray"``: each task is a Ray task (``num_cpus=1``; local Ray started with
@@ -32,7 +32,7 @@ installed.
 
 **Results** (``RESULTS/``): ``records/<key>.json`` per fitted record (schema
 ``dtwin.fleet.result/1``: identity, values, 95 % intervals, flags, gap, operating point and the
-full :meth:`identify.fit.FitResult.to_dict`), ``records/<key>.discover.json`` per discovery,
+full :meth:`dtwin.identify.fit.FitResult.to_dict`), ``records/<key>.discover.json`` per discovery,
 ``failed/<key>.json`` for records that failed (removed when they succeed later), ``runs/<UTC
 time>.json`` (a manifest per run: command, settings, spec, versions, counts) and the table.
 The *driver* writes each file atomically (:func:`dtwin.io.output.atomic_write_bytes`) as soon
@@ -46,7 +46,7 @@ record's metadata (``machine``, ``timestamp``), else the machine is the record's
 name and the timestamp is unknown. Timestamps are ISO 8601 (a naive time is taken as UTC) or
 seconds since the epoch.
 
-**Gap.** ``gap_db`` is :mod:`identify.gap`'s level difference applied to the fit's own points:
+**Gap.** ``gap_db`` is :mod:`dtwin.identify.gap`'s level difference applied to the fit's own points:
 ``sqrt(mean (L_meas − L_model)²)`` in dB over the points standing 12 dB over the measured floor
 in either spectrum, at the fitted parameters (in-sample; the held-out gap is discovery's).
 
@@ -120,7 +120,7 @@ class FleetSettings:
     - `free`: registry names fitted (e.g. ``("sun_fault",)``); `kind`: the twin
       (``torsional`` or ``translational``); `initial`: ``((name, value), ...)`` starting values
       (SI); `f_sun`: input speed (Hz) for every record (None: estimated from each record).
-    - `solver`, `starts`, `refine`, `max_steps`, `tol`, `channel`: as :func:`identify.fit.fit`.
+    - `solver`, `starts`, `refine`, `max_steps`, `tol`, `channel`: as :func:`dtwin.identify.fit.fit`.
     - `grid`: ``orders`` (default: the order domain, module docstring) or ``hz`` (DFT bins, as
       ``dtwin identify``; records batch together only within 0.1 Hz of speed).
     - `order_step`: step of the order grid (orders of the input speed; None: one DFT bin at
@@ -130,9 +130,9 @@ class FleetSettings:
     - `batch_size`: records per task, fitted in one ``vmap``-ed call when they share a
       structure (1: one record per task); batching uses one start per record.
     - `max_retries`: retries of a task whose worker died or that raised a non-dtwin exception.
-    - `discover`: run :func:`identify.discover.discover` on every fitted record (its own task);
+    - `discover`: run :func:`dtwin.identify.discover.discover` on every fitted record (its own task);
       `discover_options`: ``((field, value), ...)`` of
-      :class:`identify.discover.DiscoverySettings`.
+      :class:`dtwin.identify.discover.DiscoverySettings`.
     """
 
     free: tuple[str, ...] = ("sun_fault",)
@@ -191,7 +191,7 @@ class FleetSettings:
         return dataclasses.replace(self, f_max=round(1.05 * float(f), 6))
 
     def fit_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`identify.fit.fit` / ``fit_batch`` (without the starts);
+        """Keyword arguments of :func:`dtwin.identify.fit.fit` / ``fit_batch`` (without the starts);
         call on :meth:`resolved` settings."""
         from .residuals import Features
 
@@ -648,7 +648,7 @@ def _fitted_twin(spec, settings: FleetSettings, values: Mapping[str, float], f_s
 def discover_task(job: Mapping[str, Any], spec_data: Mapping[str, Any], settings: FleetSettings,
                   fit_entry: Mapping[str, Any], *, fingerprint: str, engine: str = "local",
                   inject: str | None = None, attempts_dir: str | None = None) -> dict[str, Any]:
-    """Discovery on one record about its fitted twin (:func:`identify.discover.discover`):
+    """Discovery on one record about its fitted twin (:func:`dtwin.identify.discover.discover`):
     effects named with their main parameter, held-out gap before and after, unexplained lines.
     A `DtwinError` is reported; other exceptions propagate (retried)."""
     from dtwin.io.readers import read_record

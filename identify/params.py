@@ -225,7 +225,7 @@ class ParameterSet(eqx.Module):
             if info.name == "f_sun":
                 raise ParameterError(
                     "f_sun is the operating point: it is estimated from the record before the "
-                    "fit (identify.operating_point) and held fixed; do not list it as free"
+                    "fit (dtwin.identify.operating_point) and held fixed; do not list it as free"
                 )
             if not settable(info.name):
                 raise ParameterError(f"parameter {info.name!r} cannot be fitted by identify yet")
@@ -353,7 +353,7 @@ class ParameterSet(eqx.Module):
     def twin_indices(self) -> tuple[int, ...]:
         """Positions in `free` of the parameters that change the twin (all but
         ``sensor_gain``, which scales the simulated signal after the solve): only these need
-        tangents through the ODE (`identify.fit._value_and_jacfwd`)."""
+        tangents through the ODE (`dtwin.identify.fit._value_and_jacfwd`)."""
         return tuple(i for i, n in enumerate(self.free) if n != "sensor_gain")
 
     def gain(self, values) -> jax.Array:

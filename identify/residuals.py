@@ -21,7 +21,7 @@ over parameter vectors, starts or records of one shape works).
   `f_max`, the band half-widths are exact orders, the default step is one DFT bin at `f_max`,
   the solver's step limit is set for `f_max` and the twin starts in its steady state at the
   record's own (traced) speed — records of one length and rate at any speed up to `f_max`
-  share one compiled fit and stack into one ``vmap`` (:func:`identify.fit.fit_batch`).
+  share one compiled fit and stack into one ``vmap`` (:func:`dtwin.identify.fit.fit_batch`).
 - ``spectrogram`` (run-ups, coast-downs): Hann short-time amplitude spectra (``segment`` s,
   half overlap) over ``band`` (Hz); the twin follows the speed profile estimated from the record,
   so the same frame shows the same instant.
@@ -286,7 +286,7 @@ def observe(
     **Arguments:**
 
     - `record`: a `dtwin.io.Record`; `twin`: the fitted twin (tooth numbers).
-    - `f_sun`: input speed (Hz) from :mod:`identify.operating_point` (the ramp's start for a
+    - `f_sun`: input speed (Hz) from :mod:`dtwin.identify.operating_point` (the ramp's start for a
       run-up); `f_end`: the ramp's end (Hz), None for a steady record.
     - `features`: :class:`Features`; `channel`; `weight`: this record's weight in a joint fit.
     - `discard` (s): transient the twin simulates before the record starts; `oversample`: the
@@ -403,7 +403,7 @@ def observe(
 def drive_at(twin, f_start, f_end=None, duration: float | None = None, discard: float = 0.0):
     """`twin` with its drive's speed set point replaced: constant `f_start` (Hz), or a linear
     ramp reaching `f_start` at ``t = discard`` (the first recorded sample) and `f_end` at
-    ``discard + duration`` (a run-up record as :func:`identify.residuals.observe` sees it).
+    ``discard + duration`` (a run-up record as :func:`dtwin.identify.residuals.observe` sees it).
     Values may be JAX arrays (traced)."""
     from dtwin.parts.drive import DrivePart
     from dtwin.parts.speed_source import SpeedProfile

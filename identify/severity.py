@@ -3,13 +3,13 @@
 :func:`estimate_severity` fits the severity of the fault at a named location
 (``<location>_fault``, a registry name), optionally with further free parameters (mesh
 stiffness, damping), and returns it with its 95 % interval — a profile-likelihood interval when
-the estimate lies near 0 or 1 (:mod:`identify.uncertainty`).
+the estimate lies near 0 or 1 (:mod:`dtwin.identify.uncertainty`).
 
 :func:`severity_series` runs the same fit over a series of records (e.g. one per day of a
 machine's life): all records of one length and rate share one compiled fit (the observations
 differ only in their arrays), so after the first record each fit costs only its iterations.
 The trajectories of the severity and of the other free parameters, with their intervals, come
-back as :class:`SeveritySeries`; :func:`identify.api.plot_severity_series` draws them (the
+back as :class:`SeveritySeries`; :func:`dtwin.identify.api.plot_severity_series` draws them (the
 paper's degradation-model idea).
 """
 
@@ -62,7 +62,7 @@ def estimate_severity(
 
     **Arguments:** `record`; `spec_or_twin`; `location` (``sun``, ``planet``, ``ring``); `free`:
     further registry names fitted together; `initial_severity`; keyword arguments of
-    :func:`identify.fit.fit` (``f_sun``, ``features``, ``starts``, ``progress`` …).
+    :func:`dtwin.identify.fit.fit` (``f_sun``, ``features``, ``starts``, ``progress`` …).
     """
     name = _name(location)
     names = [name] + [n for n in free if n != name]
@@ -112,7 +112,7 @@ def severity_series(
     **Arguments:** `records` (in time order); `spec_or_twin`; `location`; `free` (further
     parameters); `labels` (default ``record0`` …); `initial_severity`; `warm_start`: start each
     fit from the previous record's values (a slowly evolving machine); keyword arguments of
-    :func:`identify.fit.fit`.
+    :func:`dtwin.identify.fit.fit`.
     """
     name = _name(location)
     names = [name] + [n for n in free if n != name]

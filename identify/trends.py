@@ -1,7 +1,7 @@
 """Per-machine trends of a fleet: severity and mesh-parameter trajectories over time, with
 intervals, and a flag when a trend crosses a threshold.
 
-From the per-record results of :mod:`identify.fleet` (:func:`identify.fleet.load_results`),
+From the per-record results of :mod:`dtwin.identify.fleet` (:func:`dtwin.identify.fleet.load_results`),
 :func:`machine_trends` collects, per machine, every fitted parameter against time (the records'
 timestamps; records without one are placed one day apart in record order and say so).
 
@@ -212,7 +212,7 @@ def machine_trends(
     horizon_days: float = 90.0,
 ) -> dict[str, MachineTrend]:
     """Trends per machine from fleet results (``status == "ok"`` entries of
-    :func:`identify.fleet.load_results`).
+    :func:`dtwin.identify.fleet.load_results`).
 
     **Arguments:** `results`; `thresholds`: parameter → ``(value, "above"|"below")`` (value
     SI, or ``"-20%"`` relative to the first record), merged over :data:`DEFAULT_THRESHOLDS`;

@@ -1,7 +1,7 @@
 """Uncertainty and identifiability of a fit, from the Jacobian at the optimum.
 
 With ``J = ∂r/∂θ`` (``jax.jacfwd`` of the residuals at the solution θ*, in the nondimensional
-coordinates of :mod:`identify.params`), ``m`` residuals and ``p`` free parameters:
+coordinates of :mod:`dtwin.identify.params`), ``m`` residuals and ``p`` free parameters:
 
 **Residual variance** ``s² = ‖r‖² / (m - p - q)`` (``q`` = 1 per record whose gain is profiled
 out).
@@ -11,7 +11,7 @@ leaks every line into ~3 bins, so the same noise moves neighbouring log-amplitud
 ``s²(JᵀJ)⁻¹`` — which counts every bin as a new observation — would be too small by about the
 window's equivalent noise bandwidth (1.5 bins for Hann) or more. We estimate the correlation
 ``ρ(ℓ)`` of the residuals at lags ``ℓ = 1 … 4`` inside each band (pairs of points of the same
-group, :func:`identify.residuals.point_groups`), truncated at its first non-positive value, build
+group, :func:`dtwin.identify.residuals.point_groups`), truncated at its first non-positive value, build
 the banded correlation matrix ``C`` (zero across bands) and use the sandwich
 
 .. math:: \\operatorname{Cov}(θ) = s² (JᵀJ)^{-1} Jᵀ C J (JᵀJ)^{-1}
@@ -139,7 +139,7 @@ def analyse(
 ) -> Uncertainty:
     """Covariance, intervals and identifiability flags (module docstring).
 
-    **Arguments:** `pset` (:class:`identify.params.ParameterSet`); `theta` (optimum); `r`
+    **Arguments:** `pset` (:class:`dtwin.identify.params.ParameterSet`); `theta` (optimum); `r`
     (residuals, ``(m,)``); `J` (``(m, p)`` at the optimum); `groups` (point groups); the number
     of profiled gains; `profile_fn(thetas) -> residuals` (batched, ``(k, p) → (k, m)``) for the
     profile likelihood of severities (optional).

@@ -112,7 +112,7 @@ NB01 = [
     md("""
     ## The gearbox
 
-    `preset("paper-like")` reads `data/specs/paper-like.toml`. Its characteristic frequencies at
+    `preset("paper-like")` reads `dtwin/presets/paper-like.toml`. Its characteristic frequencies at
     1800 rpm are the paper's Table 2 (in brackets).
     """),
     code("""
@@ -538,7 +538,7 @@ NB03 = [
        25 dB SNR — so the fit is no inverse crime);
     2. estimates the operating point from the spectrum (the bench runs at 1782 rpm, not 1800);
     3. fits the sun fault severity, both mesh stiffnesses and the mesh damping with
-       `identify.fit` (Levenberg–Marquardt through diffrax, forward-mode Jacobians), with 95 %
+       `dtwin.identify.fit` (Levenberg–Marquardt through diffrax, forward-mode Jacobians), with 95 %
        intervals, correlations and identifiability flags, and compares measured and fitted
        spectra;
     4. follows the severity over a series of records (a fault growing), the paper's
@@ -573,7 +573,7 @@ NB03 = [
     import warnings
     from pathlib import Path
 
-    from identify import (estimate_speed, fit, plot_fit, plot_severity_series,
+    from dtwin.identify import (estimate_speed, fit, plot_fit, plot_severity_series,
                           severity_series)
     from dtwin.cli.cmd_spectrum import spectrum_report
     from dtwin.plotting.fit import plot_loss_history
@@ -746,7 +746,7 @@ NB04_STUB = [
 
     The discrepancy-discovery workflow on a record with a hidden effect, step by step, with the
     held-out gap shrinking. The cells are written (`NB04` in `notebooks/_build.py`) against
-    `identify.discover.discover` and `dtwin.plotting.discover`; they are switched on
+    `dtwin.identify.discover.discover` and `dtwin.plotting.discover`; they are switched on
     (`READY_04 = True` there) once that workflow is committed. Until then this notebook is
     this note, and `tests/test_notebooks.py` skips it.
     """),
@@ -760,7 +760,7 @@ NB04 = [
     # 04 — What is the model missing?
 
     No twin is complete. After a fit the valuable question is *what is the model missing?*
-    The discovery workflow (`identify.discover`, docs/discovery.md) answers it step by step:
+    The discovery workflow (`dtwin.identify.discover`, docs/discovery.md) answers it step by step:
     it lists the spectral lines the measurement has and the model lacks, describes each by its
     kinematics (integer combinations of the gear frequencies), ranks the candidate effects of
     its library by how much of that residual their signature covers, refits the best ones,
@@ -793,7 +793,7 @@ NB04 = [
     """),
     code(SETUP),
     code("""
-    from identify import DiscoverySettings, discover
+    from dtwin.identify import DiscoverySettings, discover
     from dtwin.plotting.discover import plot_gap_bars, plot_step_spectra
     """),
     md("""

@@ -5,16 +5,16 @@ the significance statistic with a false-alarm rate within a factor 1.5 of nomina
 import numpy as np
 import pytest
 
-from dtwin.spec import preset
-from dtwin.spectrum import amplitude_spectrum, noise_floor
-from identify.gap import fold_segments, gap, named_bands, segment_spectra
-from identify.lines import (
+from dtwin.identify.gap import fold_segments, gap, named_bands, segment_spectra
+from dtwin.identify.lines import (
     Kinematics,
     chance_match_probability,
     describe,
     estimate_speed,
     residual_lines,
 )
+from dtwin.spec import preset
+from dtwin.spectrum import amplitude_spectrum, noise_floor
 
 
 @pytest.fixture(scope="module")
@@ -53,9 +53,9 @@ def test_describe_reports_ties(kin):
 
 def test_no_match_far_from_every_combination(kin):
     # scan for a frequency at least 3 bins (0.5 Hz bins) away from every combination
-    from identify.lines import _table
+    from dtwin.identify.lines import _table
 
-    _, freq, _, _ = _table(kin, __import__("identify.lines").lines.LineBounds())
+    _, freq, _, _ = _table(kin, __import__("dtwin.identify.lines").lines.LineBounds())
     grid = np.arange(300.0, 2400.0, 0.05)
     dist = np.min(np.abs(grid[:, None] - np.sort(freq)[None, :]), axis=1)
     f = float(grid[np.argmax(dist)])
@@ -69,7 +69,7 @@ def test_chance_match_probability_against_monte_carlo(kin):
     p = chance_match_probability(kin, tol, 2500.0)
     rng = np.random.default_rng(0)
     f = rng.uniform(0, 2500.0, 20000)
-    from identify.lines import LineBounds, _table
+    from dtwin.identify.lines import LineBounds, _table
 
     _, freq, _, _ = _table(kin, LineBounds())
     freq = np.sort(freq)

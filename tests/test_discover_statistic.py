@@ -10,14 +10,14 @@ estimate and the whole fit-and-score procedure."""
 import numpy as np
 import pytest
 
-from dtwin.spectrum import noise_floor
-from identify.discover import (
+from dtwin.identify.discover import (
     candidate_inputs,
     heldout_statistic,
     null_statistics,
     p_value,
 )
-from identify.gap import FLOOR_BINS, segment_spectra
+from dtwin.identify.gap import FLOOR_BINS, segment_spectra
+from dtwin.spectrum import noise_floor
 
 FS, N = 5000.0, 10000
 T = np.arange(N) / FS

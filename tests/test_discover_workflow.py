@@ -20,13 +20,18 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import identify.effects as E
+import dtwin.identify.effects as E
 from dtwin.build import build_twin, daq_from_spec
+from dtwin.identify.discover import DiscoverySettings, discover, extended_model
+from dtwin.identify.effects.base import (
+    AbstractEffect,
+    EffectContext,
+    EffectParameter,
+    SignatureLine,
+)
+from dtwin.identify.lines import Kinematics, describe
 from dtwin.parts.base import AbstractPart, Modulation
 from dtwin.spec import load_spec, preset, spec_to_dict
-from identify.discover import DiscoverySettings, discover, extended_model
-from identify.effects.base import AbstractEffect, EffectContext, EffectParameter, SignatureLine
-from identify.lines import Kinematics, describe
 
 N_SAMPLES = 10000
 SNR_DB = 30.0
@@ -211,7 +216,7 @@ def test_null_records_add_nothing(seed, spec, base_twin, truth):
 
 
 def test_unexplained_tone(spec, kin, base_twin, truth):
-    from identify.lines import LineBounds, _table
+    from dtwin.identify.lines import LineBounds, _table
 
     _, freq, _, _ = _table(kin, LineBounds())
     grid = np.arange(600.0, 1900.0, 0.05)

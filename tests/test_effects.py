@@ -8,15 +8,15 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import identify.effects as E
+import dtwin.identify.effects as E
 from dtwin.build import build_twin
+from dtwin.identify.effects.base import EffectContext
+from dtwin.identify.effects.transfer_path import locate_resonance
+from dtwin.identify.lines import Kinematics
 from dtwin.parts.bearing_defect import PlanetBearingDefect, bearing_frequencies
 from dtwin.parts.housing_resonance import HousingResonance, resonance_gain
 from dtwin.spec import load_spec, preset, spec_to_dict
 from dtwin.twin import Coords
-from identify.effects.base import EffectContext
-from identify.effects.transfer_path import locate_resonance
-from identify.lines import Kinematics
 
 GEOMETRY = dict(n_rolling_elements=13, ball_diameter=0.005, pitch_diameter=0.025)
 
@@ -139,7 +139,7 @@ def test_time_varying_path_signature_is_allowed_lines():
 
 
 def test_window_mean_closed_form():
-    from identify.effects.transfer_path import window_mean
+    from dtwin.identify.effects.transfer_path import window_mean
 
     phi = np.linspace(0, 2 * np.pi, 20001)[:-1]
     for p in (0.0, 1.0, 4.0, 2.5):

@@ -1,4 +1,4 @@
-"""identify.fleet / identify.trends / `dtwin fleet` (issue 10 "Tests that must pass").
+"""dtwin.identify.fleet / dtwin.identify.trends / `dtwin fleet` (issue 10 "Tests that must pass").
 
 A fleet of three short synthetic records (torsional twin, 0.35 s at 5 kHz, 30 dB SNR, sun-fault
 severity 0.35 / 0.5 / 0.65 at input speeds 29.5 / 30.0 / 30.6 Hz, machine and timestamp in the
@@ -43,7 +43,7 @@ TOL = 1e-3  # LM rtol (atol = TOL/100): above the residuals' ODE-tolerance jitte
 
 
 def _settings(**kw):
-    from identify.fleet import FleetSettings
+    from dtwin.identify.fleet import FleetSettings
 
     base = dict(free=("sun_fault",), initial={"sun_fault": 0.3}, max_steps=40, tol=TOL,
                 max_retries=1)
@@ -77,7 +77,7 @@ def fleet_records(tmp_path_factory, spec):
 def sequential(fleet_records, spec, tmp_path_factory):
     """Run 1: rec1's task raises (injected, every attempt) and the run is interrupted after the
     second entry; run 2: no injection, runs to the end."""
-    from identify.fleet import run_fleet
+    from dtwin.identify.fleet import run_fleet
 
     out = tmp_path_factory.mktemp("fleet-seq") / "results"
     pattern = str(fleet_records / "**" / "*.dtwin.h5")
@@ -103,7 +103,7 @@ def sequential(fleet_records, spec, tmp_path_factory):
 
 
 def _values(out):
-    from identify.fleet import load_results
+    from dtwin.identify.fleet import load_results
 
     return {r["record"].split("/")[-1]: r for r in load_results(out) if r["status"] == "ok"}
 
@@ -175,7 +175,7 @@ def test_ray_cluster_matches_sequential(sequential, spec, tmp_path):
                               "(ray>=2.9, pyarrow>=15) to run the cluster test")
     import psutil
 
-    from identify.fleet import run_fleet
+    from dtwin.identify.fleet import run_fleet
 
     assert not ray.is_initialized()
     # two workers on the CI's two cores; a small object store (the tasks pass only JSON)
@@ -211,10 +211,10 @@ def test_order_domain_shapes_do_not_depend_on_speed(fleet_records, spec):
     one problem structure (statics and shapes), so they stack into one vmap; on DFT bins
     (``grid="hz"``) the structures differ. No simulation."""
     from dtwin.errors import FitError
+    from dtwin.identify.fit import make_problem, stack_problems
+    from dtwin.identify.fleet import _structure
     from dtwin.io.readers import read_record
     from dtwin.spec import spec_to_dict
-    from identify.fit import make_problem, stack_problems
-    from identify.fleet import _structure
 
     recs = [read_record(fleet_records / f"m{i}" / f"rec{i}.dtwin.h5") for i in range(3)]
 
@@ -244,13 +244,13 @@ def test_order_domain_shapes_do_not_depend_on_speed(fleet_records, spec):
 def test_batched_fit_agrees_with_single_fits(sequential, spec, tmp_path, monkeypatch):
     """The three records (29.5, 30.0, 30.6 Hz) in one task: ONE batched fit_batch call (order
     domain: one structure for every speed); every fit converged, and the values equal the
-    single fits of the sequential run (identify.fit.fit, same start θ = 0, same solver) to the
+    single fits of the sequential run (dtwin.identify.fit.fit, same start θ = 0, same solver) to the
     solver tolerance."""
     import importlib
 
-    from identify.fleet import run_fleet
+    from dtwin.identify.fleet import run_fleet
 
-    fit_module = importlib.import_module("identify.fit")  # identify.fit is also the function
+    fit_module = importlib.import_module("dtwin.identify.fit")  # dtwin.identify.fit is also the function
 
     calls = []
     fit_batch = fit_module.fit_batch
@@ -282,7 +282,7 @@ def test_batched_fit_agrees_with_single_fits(sequential, spec, tmp_path, monkeyp
 
 def test_table_and_cli(sequential, capsys):
     from dtwin.cli import main
-    from identify.fleet import TABLE_NAME
+    from dtwin.identify.fleet import TABLE_NAME
 
     out = sequential["out"]
     first = sequential["run2"].table
@@ -312,7 +312,7 @@ def test_table_and_cli(sequential, capsys):
 
 
 def test_without_ray_runs_locally_and_skips_done(sequential, spec, monkeypatch):
-    import identify.fleet as fleet
+    import dtwin.identify.fleet as fleet
 
     monkeypatch.setattr(fleet, "ray_available", lambda: False)
     run = fleet.run_fleet([sequential["pattern"]], spec, sequential["out"], _settings(),
@@ -323,7 +323,7 @@ def test_without_ray_runs_locally_and_skips_done(sequential, spec, monkeypatch):
 
 def test_other_settings_refused(sequential, spec):
     from dtwin.errors import OutputExistsError
-    from identify.fleet import run_fleet
+    from dtwin.identify.fleet import run_fleet
 
     with pytest.raises(OutputExistsError, match="other fit settings"):
         run_fleet([sequential["pattern"]], spec, sequential["out"], _settings(max_steps=7),
@@ -332,7 +332,7 @@ def test_other_settings_refused(sequential, spec):
 
 # ------------------------------------------------------------------------------ identity
 def test_manifest_overrides_metadata_and_folder(tmp_path, fleet_records):
-    from identify.fleet import _make_job, read_fleet_manifest
+    from dtwin.identify.fleet import _make_job, read_fleet_manifest
 
     rec0 = fleet_records / "m0" / "rec0.dtwin.h5"
     csv = tmp_path / "fleet.csv"
@@ -363,7 +363,7 @@ def _series(machine, days, sev, half=0.03):
 
 
 def test_trend_flags_on_synthetic_series():
-    from identify.trends import fit_trend, machine_trends
+    from dtwin.identify.trends import fit_trend, machine_trends
 
     rng = np.random.default_rng(0)
     days = list(range(7))

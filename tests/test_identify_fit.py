@@ -1,4 +1,4 @@
-"""identify.fit / severity / CLI against records of known truth (issue 7 "Tests that must pass").
+"""dtwin.identify.fit / severity / CLI against records of known truth (issue 7 "Tests that must pass").
 
 No inverse crime in the CI form: the truth's mesh-stiffness waveform keeps 30 Fourier harmonics
 (sharper single/double-contact steps) and carries a 0.5 µm transmission error, the fitted twin
@@ -46,7 +46,7 @@ def truth_record(spec):
 
 @pytest.fixture(scope="module")
 def severity_fit(truth_record, spec):
-    from identify.severity import estimate_severity
+    from dtwin.identify.severity import estimate_severity
 
     return estimate_severity(truth_record, spec, "sun", initial_severity=0.35, max_steps=25)
 
@@ -80,9 +80,9 @@ def test_fit_uses_the_solvers_last_residuals_and_jacobian(severity_fit):
     simulation): they equal a fresh evaluation there, to the ODE solver's noise."""
     import jax.numpy as jnp
 
-    from identify.fit import _jacobian
-    from identify.residuals import point_groups
-    from identify.uncertainty import analyse
+    from dtwin.identify.fit import _jacobian
+    from dtwin.identify.residuals import point_groups
+    from dtwin.identify.uncertainty import analyse
 
     res = severity_fit.fit
     prob = res.problem
@@ -98,7 +98,7 @@ def test_gauss_newton_step_in_sigma_matches_least_squares():
     squares, and a dependent column gets no step."""
     import jax.numpy as jnp
 
-    from identify.fit import _gauss_newton_step
+    from dtwin.identify.fit import _gauss_newton_step
 
     rng = np.random.default_rng(0)
     J = rng.normal(size=(200, 4)) * np.array([1.0, 1e3, 1e-3, 5.0])
@@ -117,7 +117,7 @@ def test_starts_refined_by_vmap_and_by_map_agree(truth_record, spec):
     """Two starts refined in one call, batched by `vmap` (a GPU's way) and by `lax.map` (the
     CPU default): the same optimum (to the ODE solver's noise) and no deadlock of batched
     linear algebra inside the loop (the stopping rule uses no LAPACK call)."""
-    from identify.fit import fit
+    from dtwin.identify.fit import fit
 
     kw = dict(f_sun=F_SUN_TRUE, starts=[{"sun_fault": 0.35}, {"sun_fault": 0.65}], refine=2,
               max_steps=15, uncertainty=False)
@@ -136,8 +136,8 @@ def test_gain_column_outside_the_ode_is_exact(truth_record, spec):
     import jax
     import jax.numpy as jnp
 
-    from identify.fit import _jacobian, make_problem
-    from identify.residuals import Features
+    from dtwin.identify.fit import _jacobian, make_problem
+    from dtwin.identify.residuals import Features
 
     prob, _ = make_problem(truth_record, spec, ["sun_fault", "sensor_gain"], f_sun=F_SUN_TRUE,
                            initial={"sun_fault": 0.4}, features=Features(gain="fixed"))
@@ -196,8 +196,8 @@ RUNUP_NOMINAL = (35.0, 42.0)
 
 @pytest.fixture(scope="module")
 def runup_fit(spec):
-    from identify.fit import fit
-    from identify.residuals import drive_at
+    from dtwin.identify.fit import fit
+    from dtwin.identify.residuals import drive_at
 
     truth_tw = build_twin(spec, kind="torsional", faults=(MissingTooth(0.5, location="sun"),))
     T, discard = 0.5, 0.05
@@ -250,8 +250,8 @@ def test_runup_recovers_mesh_parameters_from_30pc_off(spec):
     2-core CPU, starts mapped one after another, 467 s): all 5 starts end at one point,
     severity −0.020, k_sun_planet +3.3 %, k_ring_planet −0.2 %, zeta_mesh +5.3 %, in 5–11 LM
     steps."""
-    from identify.fit import fit
-    from identify.residuals import drive_at
+    from dtwin.identify.fit import fit
+    from dtwin.identify.residuals import drive_at
 
     truth_tw = build_twin(spec, kind="torsional", faults=(MissingTooth(0.5, location="sun"),))
     T, discard, nominal = 4.0, 0.05, RUNUP_NOMINAL
@@ -275,7 +275,7 @@ def test_runup_recovers_mesh_parameters_from_30pc_off(spec):
 
 @pytest.mark.slow
 def test_severity_series_in_order(spec):
-    from identify.severity import severity_series
+    from dtwin.identify.severity import severity_series
 
     truth = [0.1, 0.3, 0.5, 0.7, 0.9]
     recs = []

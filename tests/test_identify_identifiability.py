@@ -20,11 +20,11 @@ import pytest
 
 from dtwin.build import build_twin
 from dtwin.faults import MissingTooth
+from dtwin.identify.fit import _jacobian, make_problem
+from dtwin.identify.residuals import drive_at, point_groups
+from dtwin.identify.uncertainty import analyse
 from dtwin.simulate import DAQ, simulate
 from dtwin.spec import preset
-from identify.fit import _jacobian, make_problem
-from identify.residuals import drive_at, point_groups
-from identify.uncertainty import analyse
 
 FREE = ["sun_fault", "k_sun_planet", "k_ring_planet", "zeta_mesh"]
 SNR_DB = 10.0
@@ -77,7 +77,7 @@ def test_steady_5khz_severity_within_005(spec, truth_twin):
     0.055 at 0.5 s → 0.019 at 4 s (1.96 σ = 0.038 < 0.05); with the three mesh parameters free
     as well 0.065 at 1 s → 6.5 s would be needed. The mesh parameters are flagged on such a
     record (test above), so they stay at the spec's values and the severity is fitted alone."""
-    from identify.severity import estimate_severity
+    from dtwin.identify.severity import estimate_severity
 
     rec = simulate(truth_twin, duration=4.0, f_sun=30.0, daq=DAQ(sample_rate=5000.0,
                    snr_db=SNR_DB), discard=0.05, seed=2).to_record()
@@ -100,7 +100,7 @@ def test_runup_25khz_determines_stiffness_and_damping(spec, truth_twin):
 def test_product_pair_is_flagged(steady_5k, spec, truth_twin):
     """Below the modes the signal is ∝ gain × load torque (linear response to the static
     deflection): with the gain not profiled, the pair has a near-null singular direction."""
-    from identify.residuals import Features
+    from dtwin.identify.residuals import Features
 
     u = _analyse_at_truth(steady_5k, spec, truth_twin, ["sensor_gain", "load_torque"], f_sun=30.0,
                           features=Features(gain="fixed"))
@@ -113,8 +113,8 @@ def _coverage(spec, truth_twin, n_real, duration):
     """Real refits: `n_real` seeded noise realisations of one clean record (10 dB SNR), fitted
     in ONE batched `fit_batch` call (vmap over records on a GPU, lax.map on a CPU) from the truth; per parameter the
     number of 95 % intervals holding the truth and mean predicted sd / spread of estimates."""
+    from dtwin.identify.fit import fit_batch
     from dtwin.io.record import Record
-    from identify.fit import fit_batch
 
     clean = simulate(truth_twin, duration=duration, f_sun=30.0, daq=DAQ(sample_rate=5000.0),
                      discard=0.05).to_record()
@@ -141,7 +141,7 @@ def test_interval_coverage_refits(spec, truth_twin):
 
     Measured: sun_fault 11/12 inside, ratio 1.19; k_ring_planet 12/12, ratio 1.08 (relative
     spread 0.30: not determined at 5 kHz); all 12 converged (statistical stopping rule,
-    `identify.fit.SIGMA_TOL`); ~100 s on the quiet 2-core CPU, the records mapped one after
+    `dtwin.identify.fit.SIGMA_TOL`); ~100 s on the quiet 2-core CPU, the records mapped one after
     another (1352 s at load 10–16 when they were vmapped and LM ran to its 20-step limit)."""
     res, inside, ratio = _coverage(spec, truth_twin, 12, 0.5)
     print("inside", inside, "ratio", ratio, "converged", sum(r.converged for r in res))

@@ -1,4 +1,4 @@
-"""identify.operating_point: the input speed from the data, before any fit (issue 7 item 2).
+"""dtwin.identify.operating_point: the input speed from the data, before any fit (issue 7 item 2).
 
 Synthetic records with known speed: mesh harmonics with planet-pass sidebands (the lines the
 sideband rule of reference.md §2 allows for Zr mod N = 0) plus noise, at the bench's actual
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from dtwin.build import build_twin
+from dtwin.identify.operating_point import estimate_speed, estimate_speed_profile, gear_orders
 from dtwin.io.record import Record
 from dtwin.spec import preset
-from identify.operating_point import estimate_speed, estimate_speed_profile, gear_orders
 
 
 @pytest.fixture(scope="module")

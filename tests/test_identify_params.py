@@ -1,4 +1,4 @@
-"""identify.params: registry names, transforms, writing values into a twin; and bad inputs that
+"""dtwin.identify.params: registry names, transforms, writing values into a twin; and bad inputs that
 must fail before any simulation (issue 7, "bad input gives a clear error before any compute")."""
 
 import jax
@@ -8,11 +8,11 @@ import pytest
 
 from dtwin.build import build_twin
 from dtwin.errors import ParameterError, RecordError
+from dtwin.identify.params import ParameterSet, current_value
 from dtwin.io.record import Record
 from dtwin.parts.drive import LoadPart
 from dtwin.parts.local_fault import LocalFault
 from dtwin.spec import preset
-from identify.params import ParameterSet, current_value
 
 FREE = ["k_sun_planet", "k_ring_planet", "zeta_mesh", "sun_fault"]
 
@@ -105,7 +105,7 @@ def _record(n=5000, fs=5000.0, f_sun=30.0):
 @pytest.fixture
 def no_compute(monkeypatch):
     """Any simulation during the test fails it: errors must come before compute."""
-    import identify.residuals as res
+    import dtwin.identify.residuals as res
 
     def boom(*a, **k):
         raise AssertionError("simulated although the input was bad")
@@ -124,14 +124,14 @@ def no_compute(monkeypatch):
     ids=["too-short", "rate-too-low", "nan"],
 )
 def test_bad_records_fail_before_compute(no_compute, make, error, match):
-    from identify.fit import fit
+    from dtwin.identify.fit import fit
 
     with pytest.raises(error, match=match):
         fit(make(), preset("paper-sim"), ["sun_fault"], f_sun=30.0)
 
 
 def test_unknown_free_name_fails_before_compute(no_compute):
-    from identify.fit import fit
+    from dtwin.identify.fit import fit
 
     with pytest.raises(ParameterError, match="Did you mean"):
         fit(_record(), preset("paper-sim"), ["sun_fualt"], f_sun=30.0)

@@ -3,7 +3,7 @@
 Each command lives in its own module ``dtwin/cli/cmd_<name>.py`` that imports :data:`app` and
 decorates its function with ``@app.command()`` (or adds a sub-app with ``app.add_typer``).
 :func:`dtwin.cli.main` imports every such module, so a new command needs no edit elsewhere.
-Commands that need :mod:`identify` import it inside the function (the twin never depends on the
+Commands that need :mod:`dtwin.identify` import it inside the function (the twin never depends on the
 identification package).
 
 CLI convention (every command): a readable table on the terminal; ``--json`` prints the results

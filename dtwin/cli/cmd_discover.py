@@ -4,7 +4,7 @@
                    [--channel C] [--sample-rate HZ] [--max-steps 3] [--alpha 0.01]
                    [--n-boot 400] [--seed 0] [--json] [--out DIR] [--force]
 
-Runs :func:`identify.discover.discover` (docs/discovery.md) on one channel of the record with
+Runs :func:`dtwin.identify.discover.discover` (docs/discovery.md) on one channel of the record with
 the spec's base twin. Terminal: one line per step (effect named, why, main parameter with its
 99 % interval, held-out gap before → after) and the unexplained lines. ``--json``: the whole
 result on stdout. ``--out DIR``: ``discover.json``, ``discover.md`` (readable report),
@@ -28,7 +28,7 @@ def _fmt_lines(lines, k=8) -> str:
 
 
 def markdown_report(result, record_name: str) -> str:
-    """The readable report (Markdown) of a :class:`identify.discover.DiscoveryResult`."""
+    """The readable report (Markdown) of a :class:`dtwin.identify.discover.DiscoveryResult`."""
     out = [f"# Discrepancy discovery: {record_name}", "",
            f"Input speed {result.f_sun:.4f} Hz (from the data); fm {result.kinematics.f_mesh:.2f} "
            f"Hz, fc {result.kinematics.f_carrier:.3f} Hz. Family-wise level per step "
@@ -96,8 +96,8 @@ def discover(
     force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
 ) -> None:
     """Find where twin and measurement disagree, name the missing effect, add it, refit."""
-    from identify.discover import DiscoverySettings
-    from identify.discover import discover as run
+    from dtwin.identify.discover import DiscoverySettings
+    from dtwin.identify.discover import discover as run
 
     from ..errors import SpecError
     from ..io.output import to_jsonable

@@ -11,7 +11,7 @@
     dtwin fleet trends RESULTS [--threshold 'sun_fault>0.4' ...] [--horizon DAYS]
                    [--out DIR] [--json] [--force]
 
-``identify`` runs :func:`identify.fleet.run_fleet`: Ray tasks (local Ray by default, an
+``identify`` runs :func:`dtwin.identify.fleet.run_fleet`: Ray tasks (local Ray by default, an
 existing cluster with ``--ray-address``; without Ray installed the records run one after
 another here), a progress bar over records, per-task retries, one JSON file per record in
 ``RESULTS/records`` written as each task finishes, a re-run skips what is done, and the table
@@ -83,8 +83,8 @@ def fleet_identify(
                                "overwrite the table."),
 ) -> None:
     """Identify every record of a fleet: Ray tasks, one result file per record, a table."""
-    from identify.fit import check_free
-    from identify.fleet import FleetSettings, run_fleet
+    from dtwin.identify.fit import check_free
+    from dtwin.identify.fleet import FleetSettings, run_fleet
 
     from .cmd_spectrum import channel_token, load_gearbox
 
@@ -128,7 +128,7 @@ def fleet_table(
     force: bool = typer.Option(False, "--force", help="Overwrite the existing table."),
 ) -> None:
     """Gather the per-record results into one table (a new file unless --force)."""
-    from identify.fleet import load_results, table_rows, write_table
+    from dtwin.identify.fleet import load_results, table_rows, write_table
 
     if not (results / "records").is_dir() and not (results / "failed").is_dir():
         raise SpecError([("RESULTS", f"{results} holds no fleet results (records/ or failed/)")])
@@ -168,8 +168,8 @@ def fleet_trends(
     force: bool = typer.Option(False, "--force", help="Overwrite an existing trends folder."),
 ) -> None:
     """Per-machine parameter trends and flags, a plot per machine and a fleet overview."""
-    from identify.fleet import load_results
-    from identify.trends import machine_trends, parse_threshold
+    from dtwin.identify.fleet import load_results
+    from dtwin.identify.trends import machine_trends, parse_threshold
 
     from ..io.output import OutputFolder
     from ..plotting.fleet import plot_fleet_overview, plot_machine_trend

@@ -1,4 +1,4 @@
-"""``dtwin identify`` and ``dtwin severity``: fit the twin to records (:mod:`identify`).
+"""``dtwin identify`` and ``dtwin severity``: fit the twin to records (:mod:`dtwin.identify`).
 
     dtwin identify RECORD... (--spec FILE | --preset NAME)
                    --free k_sun_planet,k_ring_planet,zeta_mesh,sun_fault
@@ -51,7 +51,7 @@ def _records(paths: list[Path], sample_rate: float | None):
 
 
 def _write(out, force, inputs, gearbox, params, result, name: str, extra: dict) -> Path:
-    from identify.api import plot_fit
+    from dtwin.identify.api import plot_fit
 
     from ..plotting.fit import plot_loss_history
     from .cmd_spectrum import open_output
@@ -90,7 +90,7 @@ def identify(
     progress: bool = typer.Option(False, "--progress", help="Print the stages and losses."),
 ) -> None:
     """Fit twin parameters (registry names) to measured spectra, with 95 % intervals."""
-    from identify.fit import check_free, fit
+    from dtwin.identify.fit import check_free, fit
 
     from .cmd_spectrum import channel_token
 
@@ -134,8 +134,8 @@ def severity(
     force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
 ) -> None:
     """Severity of the fault at a location, with its 95 % interval."""
-    from identify.fit import check_free
-    from identify.severity import estimate_severity
+    from dtwin.identify.fit import check_free
+    from dtwin.identify.severity import estimate_severity
 
     from .cmd_spectrum import channel_token
 

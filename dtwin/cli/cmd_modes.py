@@ -8,7 +8,7 @@ relative sensitivities ``(k/f) df/dk`` to the sun–planet and ring–planet mes
 frequency in mesh orders when the gearbox's operating speed is known); ``--json`` prints the
 same as JSON on stdout; ``--out DIR`` writes ``modes.json``, ``modes.png`` and
 ``manifest.json``. ``lin-parker`` is Lin & Parker's (1999) example
-(``data/specs/lin-parker.toml``); ``--planets N`` replaces the preset's or spec's number of
+(``dtwin/presets/lin-parker.toml``); ``--planets N`` replaces the preset's or spec's number of
 planets (equally spaced), e.g. Lin & Parker's N = 4 and 5 cases.
 """
 

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from .._version import __version__
 from ..errors import OutputExistsError, RecordError, UnreadableFileError
 from .output import publish, to_jsonable
 from .readers import resolve_rate, str_list, to_str
@@ -38,8 +39,6 @@ _ERRORS = (OSError, KeyError, ValueError, RuntimeError, TypeError, IndexError)
 def write_into(record: Record, path: str | os.PathLike) -> None:
     """Write `record` into a (new or truncated) HDF5 file at `path` (not atomic: see `write`)."""
     import h5py
-
-    from .. import __version__
 
     with h5py.File(path, "w") as f:
         f.attrs["dtwin_format"] = FORMAT_NAME

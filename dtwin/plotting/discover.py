@@ -1,7 +1,7 @@
-"""Figures of a discrepancy search (:func:`identify.discover.discover`): measured vs model
+"""Figures of a discrepancy search (:func:`dtwin.identify.discover.discover`): measured vs model
 spectra at each step with the residual lines marked, and the held-out gap step by step.
 
-Functions take a :class:`identify.discover.DiscoveryResult` and return matplotlib Figures; the
+Functions take a :class:`dtwin.identify.discover.DiscoveryResult` and return matplotlib Figures; the
 CLI (``dtwin discover``) saves them.
 """
 

@@ -1,7 +1,7 @@
 """Figures of a fleet: one machine's parameter trends with intervals, thresholds and flags, and
 an overview of every machine's latest severity.
 
-The functions take :class:`identify.trends.MachineTrend` objects (duck-typed: plain attributes)
+The functions take :class:`dtwin.identify.trends.MachineTrend` objects (duck-typed: plain attributes)
 and return a matplotlib Figure; ``dtwin fleet trends`` and scripts call the same functions.
 """
 

@@ -8,7 +8,7 @@ An effect is a final subclass of :class:`AbstractEffect`. It names
   :mod:`dtwin.registry` on first use), units, the *scale* of one fitting unit and whether the
   value is non-negative. ``theta = 0`` must give exactly the base model (nested models);
 - its **signature** (:meth:`AbstractEffect.signature`): the spectral lines it adds to an ideal
-  gearbox, as a function of the kinematics (:class:`identify.lines.Kinematics`);
+  gearbox, as a function of the kinematics (:class:`dtwin.identify.lines.Kinematics`);
 - its **main parameter** (:meth:`AbstractEffect.main`, a scalar of ``theta``: an amplitude) and
   the **typical range** of that amplitude on real machines (`typical_range`, with a note);
 - its **group**: effects whose signatures coincide (look-alikes) share a group name; the search
@@ -25,7 +25,7 @@ lines, a time-varying transfer path stands down when the base twin already has o
 ``None`` withdraws the candidate. The default keeps the effect as it is.
 
 New effects plug in without touching the search: subclass, then pass an instance to
-:func:`identify.discover.discover` (``candidates=``) or call :func:`register_effect`. Only
+:func:`dtwin.identify.discover.discover` (``candidates=``) or call :func:`register_effect`. Only
 `parameters`, `parts`, `signature` and `main` are required; `description`, `main_name`,
 `main_unit`, `typical_range` and `typical_note` default to "not documented" placeholders (the
 library's own effects document them all).
@@ -93,7 +93,7 @@ class EffectContext:
     `spec` (the gearbox spec), `base_twin`, `kin` (kinematics at the estimated speed); the
     whole-record Hann amplitude spectra `freqs` (Hz), `measured` and `model` (the base twin,
     gain-matched), the measured noise `floor`; `lines`: the residual lines of the base twin
-    (:func:`identify.lines.residual_lines`); `threshold_db`: line detection threshold.
+    (:func:`dtwin.identify.lines.residual_lines`); `threshold_db`: line detection threshold.
     """
 
     spec: object

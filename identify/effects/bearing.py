@@ -29,7 +29,7 @@ class PlanetBearingEffect(AbstractEffect):
     pin). Lines
     ``m fm + j f_d + l f_mod + n fc`` (0 ≤ m ≤ 4, 1 ≤ |j| ≤ 4, |l| ≤ 1, |n| ≤ 3): the bearing
     frequencies enter the description through this signature only (its labels), not through
-    the order-bound search of :mod:`identify.lines`. Each race is its own group
+    the order-bound search of :mod:`dtwin.identify.lines`. Each race is its own group
     (``planet_bearing_<race>``): their frequencies differ.
     """
 
