@@ -48,7 +48,7 @@ def plot_fit(result: FitResult, record_index: int = 0, *, label_peaks: bool = Tr
     gear-frequency combinations (:func:`dtwin.spectrum.label_frequency`)."""
     import numpy as np
 
-    from dtwin.plotting.fit import plot_fit_spectrum
+    from .plotting.fit import plot_fit_spectrum
 
     freqs, meas, model = result.spectra()[record_index]
     labels = []
@@ -86,7 +86,7 @@ def _labels(result: FitResult, i: int, freqs, meas, n: int = 8):
 
 def plot_severity_series(series: SeveritySeries, truth=None):
     """Figure of the trajectories of a :class:`SeveritySeries` (one panel per parameter)."""
-    from dtwin.plotting.fit import plot_trajectories
+    from .plotting.fit import plot_trajectories
 
     vals = {n: series.trajectory(n)[0] for n in series.names}
     lo = {n: series.trajectory(n)[1] for n in series.names}

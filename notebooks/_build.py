@@ -576,7 +576,7 @@ NB03 = [
     from dtwin.identify import (estimate_speed, fit, plot_fit, plot_severity_series,
                           severity_series)
     from dtwin.cli.cmd_spectrum import spectrum_report
-    from dtwin.plotting.fit import plot_loss_history
+    from dtwin.identify.plotting.fit import plot_loss_history
     from dtwin.plotting.spectrum import plot_spectrum_peaks
 
     # the bench's 21/31/84 set needs profile shift: dtwin says so at every spec load
@@ -746,13 +746,13 @@ NB04_STUB = [
 
     The discrepancy-discovery workflow on a record with a hidden effect, step by step, with the
     held-out gap shrinking. The cells are written (`NB04` in `notebooks/_build.py`) against
-    `dtwin.identify.discover.discover` and `dtwin.plotting.discover`; they are switched on
+    `dtwin.identify.discover.discover` and `dtwin.identify.plotting.discover`; they are switched on
     (`READY_04 = True` there) once that workflow is committed. Until then this notebook is
     this note, and `tests/test_notebooks.py` skips it.
     """),
 ]
 
-#: The discovery workflow (identify/discover.py, dtwin/plotting/discover.py) is committed.
+#: The discovery workflow (identify/discover.py, identify/plotting/discover.py) is committed.
 READY_04 = True
 
 NB04 = [
@@ -794,7 +794,7 @@ NB04 = [
     code(SETUP),
     code("""
     from dtwin.identify import DiscoverySettings, discover
-    from dtwin.plotting.discover import plot_gap_bars, plot_step_spectra
+    from dtwin.identify.plotting.discover import plot_gap_bars, plot_step_spectra
     """),
     md("""
     ## The measurement, with a hidden effect

@@ -126,8 +126,8 @@ def test_group_named_gap_shrinks(case, spec, base_twin, truth):
     if case == "carrier":
         # the report's pieces (dtwin discover writes them): Markdown, JSON-ready dict, figures
         from dtwin.cli.cmd_discover import markdown_report
+        from dtwin.identify.plotting.discover import plot_gap_bars, plot_step_spectra
         from dtwin.io.output import to_jsonable
-        from dtwin.plotting.discover import plot_gap_bars, plot_step_spectra
 
         md = markdown_report(res, "record")
         assert "## Step 1" in md and "held-out gap" in md

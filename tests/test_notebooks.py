@@ -108,7 +108,7 @@ def test_fit_figures_have_titles_axis_units_and_legends():
     units, a legend (issue 9, requirement 4)."""
     import numpy as np
 
-    from dtwin.plotting.fit import plot_loss_history, plot_trajectories
+    from dtwin.identify.plotting.fit import plot_loss_history, plot_trajectories
 
     fig = plot_trajectories(["day 1", "day 2"], {"sun_fault": np.r_[0.1, 0.2],
                                                  "k_sun_planet": np.r_[2e8, 2e8]},

@@ -127,7 +127,7 @@ def discover(
         for r in result.unexplained[:15]:
             typer.echo(f"unexplained: {r.frequency:9.2f} Hz  +{r.excess_db:5.1f} dB  {r.text}")
     if out is not None:
-        from ..plotting.discover import plot_gap_bars, plot_step_spectra
+        from dtwin.identify.plotting.discover import plot_gap_bars, plot_step_spectra
 
         unit = record.units[record.index(ch)] or "-"
         folder = open_output(out, force, [record_file, spec], gearbox,

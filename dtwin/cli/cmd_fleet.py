@@ -169,10 +169,10 @@ def fleet_trends(
 ) -> None:
     """Per-machine parameter trends and flags, a plot per machine and a fleet overview."""
     from dtwin.identify.fleet import load_results
+    from dtwin.identify.plotting.fleet import plot_fleet_overview, plot_machine_trend
     from dtwin.identify.trends import machine_trends, parse_threshold
 
     from ..io.output import OutputFolder
-    from ..plotting.fleet import plot_fleet_overview, plot_machine_trend
 
     try:
         th = dict(parse_threshold(t) for t in threshold)

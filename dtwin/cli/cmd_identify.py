@@ -52,8 +52,8 @@ def _records(paths: list[Path], sample_rate: float | None):
 
 def _write(out, force, inputs, gearbox, params, result, name: str, extra: dict) -> Path:
     from dtwin.identify.api import plot_fit
+    from dtwin.identify.plotting.fit import plot_loss_history
 
-    from ..plotting.fit import plot_loss_history
     from .cmd_spectrum import open_output
 
     folder = open_output(out, force, inputs, gearbox, params)

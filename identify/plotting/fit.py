@@ -111,7 +111,7 @@ def plot_trajectories(
 
 def _unit(name: str) -> str:
     """The registry's unit of parameter `name` ("1" for dimensionless; "?" if unknown)."""
-    from ..registry import REGISTRY
+    from dtwin.registry import REGISTRY
 
     info = REGISTRY.get(name)
     return "?" if info is None else ("dimensionless" if info.unit == "1" else info.unit)
