@@ -43,9 +43,12 @@ from .spectrum import amplitude_spectrum, get_window
 
 __all__ = [
     "CampbellData",
+    "OrderMap",
     "Waterfall",
     "campbell",
     "mesh_angle",
+    "order_cuts",
+    "order_map",
     "order_spectrum",
     "resample_to_angle",
     "shaft_speed",
@@ -403,3 +406,122 @@ def campbell(
     else:
         nat = {f"f{i + 1}": float(v) for i, v in enumerate(natural_frequencies)}
     return CampbellData(speed, wf.freqs, wf.amplitude[:, idx], lines, nat)
+
+
+@dataclasses.dataclass(frozen=True)
+class OrderMap:
+    """Order spectra of successive stretches of a run-up (order vs speed colour map).
+
+    - `speed`: mean reference-shaft speed of each stretch (Hz), ascending; ``60 × speed`` is rpm.
+    - `orders`: order bins (cycles per revolution, resolution ``1 / revs_per_segment``).
+    - `amplitude`: shape ``(order, speed)``, amplitude-corrected (a locked tone of amplitude A on a
+      bin reads A), unit of the signal.
+    - `times`: centre time (s) of each stretch, in the order of `speed`.
+    - `revs_per_segment`, `window`: the stretch length (revolutions) and its window;
+      `enbw_bins`: the window's equivalent noise bandwidth (bins), for :func:`order_cuts`.
+    """
+
+    speed: np.ndarray
+    orders: np.ndarray
+    amplitude: np.ndarray
+    times: np.ndarray
+    revs_per_segment: int
+    window: str
+    enbw_bins: float = 1.5
+
+    @property
+    def rpm(self) -> np.ndarray:
+        """Reference-shaft speed of each stretch (rev/min)."""
+        return 60.0 * self.speed
+
+
+def order_map(
+    x: np.ndarray,
+    sample_rate: float,
+    angle: np.ndarray,
+    *,
+    max_order: float,
+    revs_per_segment: int = 4,
+    overlap: float = 0.5,
+    window: str = "hann",
+    samples_per_rev: int | None = None,
+) -> OrderMap:
+    """Order map of a run-up or coast-down: the signal is resampled on the shaft angle
+    (:func:`resample_to_angle`), cut into stretches of `revs_per_segment` revolutions overlapping
+    by `overlap`, and each stretch's order spectrum is taken (:func:`order_spectrum` scaling),
+    tagged with the stretch's mean speed.
+
+    **Arguments:**
+
+    - `x`: one channel at `sample_rate` (Hz); `angle`: the reference-shaft angle (rad) at every
+      sample, from :func:`tacho_angle` or :func:`mesh_angle`.
+    - `max_order`: highest order kept (cycles/rev).
+    - `revs_per_segment`: revolutions per stretch (order resolution ``1 / revs_per_segment``,
+      speed resolution: the speed change over a stretch).
+    - `overlap`: fraction of a stretch shared with the next.
+    - `samples_per_rev`: angular sampling; default a power of two at least
+      ``2.5 × max_order × f_max / f_min`` (the anti-alias rule of :func:`resample_to_angle`).
+
+    **Returns:** an :class:`OrderMap`.
+    """
+    x = _signal(x)
+    fs = float(sample_rate)
+    angle = _check_angle(angle, x.size)
+    if not max_order > 0:
+        raise RecordError(f"max_order must be positive, got {max_order}")
+    speed = shaft_speed(angle, fs)
+    f_lo, f_hi = float(np.min(speed)), float(np.max(speed))
+    if f_lo <= 0:
+        raise RecordError("the shaft stands still in part of the record; cut it to where it turns")
+    if samples_per_rev is None:
+        need = max(2.5 * max_order * f_hi / f_lo, 4.0 * max_order, 8.0)
+        samples_per_rev = int(2 ** np.ceil(np.log2(need)))
+    spr = int(samples_per_rev)
+    grid, xa = resample_to_angle(x, fs, angle, spr)
+    t_grid = np.interp(grid, angle, np.arange(x.size) / fs)
+    nper = int(revs_per_segment) * spr
+    if int(revs_per_segment) < 1 or nper > xa.size:
+        raise RecordError(f"revs_per_segment must lie between 1 and the record's "
+                          f"{xa.size // spr} revolutions, got {revs_per_segment}")
+    if not 0 <= overlap < 1:
+        raise RecordError(f"overlap must be a fraction in [0, 1), got {overlap}")
+    hop = max(1, int(round((1 - overlap) * nper)))
+    starts = np.arange(0, xa.size - nper + 1, hop)
+    w = get_window(window, nper)
+    segs = np.stack([xa[s : s + nper] for s in starts])
+    segs = segs - segs.mean(axis=1, keepdims=True)
+    amp = np.abs(np.fft.rfft(segs * w, axis=1)) / w.sum()
+    amp[:, 1:] *= 2.0
+    if nper % 2 == 0:
+        amp[:, -1] /= 2.0
+    orders = np.fft.rfftfreq(nper, 1.0 / spr)
+    keep = orders <= max_order
+    dt = t_grid[starts + nper - 1] - t_grid[starts]
+    seg_speed = (nper - 1) / spr / dt
+    centre = 0.5 * (t_grid[starts + nper - 1] + t_grid[starts])
+    idx = np.argsort(seg_speed, kind="stable")
+    enbw = float(nper * np.sum(w * w) / w.sum() ** 2)
+    return OrderMap(seg_speed[idx], orders[keep], amp[idx][:, keep].T, centre[idx],
+                    int(revs_per_segment), window, enbw)
+
+
+def order_cuts(om: OrderMap, orders: Mapping[str, float], *, half_width_bins: int = 2) -> dict[str, np.ndarray]:
+    """Amplitude of each order against speed (order cuts / order tracks) from an
+    :class:`OrderMap`.
+
+    The amplitude of order ``o`` in a stretch is the root of the power summed over the bins
+    within `half_width_bins` of ``o``, divided by the window's equivalent noise bandwidth in bins
+    (Parseval): a locked tone of amplitude A reads A wherever it falls between bins (the Hann
+    main lobe spans ±2 bins). **Returns:** name → amplitude (unit of the signal), one value per
+    ``om.speed``; orders beyond the map's range give NaN.
+    """
+    d_o = float(om.orders[1] - om.orders[0])
+    out = {}
+    for name, o in orders.items():
+        k = int(round(float(o) / d_o))
+        lo, hi = k - half_width_bins, k + half_width_bins
+        if lo < 1 or hi >= om.orders.size:
+            out[str(name)] = np.full(om.speed.shape, np.nan)
+            continue
+        out[str(name)] = np.sqrt(np.sum(om.amplitude[lo : hi + 1] ** 2, axis=0) / om.enbw_bins)
+    return out

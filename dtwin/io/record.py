@@ -94,3 +94,58 @@ class Record:
             units=tuple(self.units[i] for i in idx),
             groups={},
         )
+
+    def to_xarray(self):
+        """The record as an ``xarray.DataArray`` of dims ``("channel", "time")``: coordinates
+        ``time`` (s) and ``channel`` (names), ``unit`` along ``channel``, the tachometer (if any)
+        as coordinate ``tacho`` along ``time``; ``attrs`` hold the sampling rate, the tachometer's
+        pulses per revolution and shaft, the groups and the JSON-able metadata. Needs xarray
+        (``pip install xarray``, in the ``test`` extra)."""
+        try:
+            import xarray as xr
+        except ImportError as e:  # pragma: no cover - depends on the environment
+            raise ImportError("Record.to_xarray needs xarray: pip install xarray") from e
+        from .output import to_jsonable
+
+        coords: dict[str, Any] = {"time": ("time", self.time, {"units": "s"}),
+                                  "channel": ("channel", list(self.channels)),
+                                  "unit": ("channel", [u or "" for u in self.units])}
+        if self.tacho is not None:
+            coords["tacho"] = ("time", np.asarray(self.tacho, dtype=np.float64))
+        attrs = {"sample_rate_hz": float(self.sample_rate),
+                 "tacho_ppr": self.tacho_ppr if self.tacho_ppr is not None else "",
+                 "tacho_shaft": self.tacho_shaft or "",
+                 "groups": {k: list(v) for k, v in self.groups.items()},
+                 "metadata": to_jsonable(self.metadata)}
+        return xr.DataArray(self.data, dims=("channel", "time"), coords=coords, attrs=attrs,
+                            name="vibration")
+
+    def to_dataframe(self):
+        """The record as a pandas DataFrame: index ``time`` (s), one column per channel (and
+        ``tacho`` when present); units in ``df.attrs["units"]``, the sampling rate in
+        ``df.attrs["sample_rate_hz"]``. Needs pandas (``pip install 'dtwin[fleet]'``)."""
+        try:
+            import pandas as pd
+        except ImportError as e:  # pragma: no cover - depends on the environment
+            raise ImportError("Record.to_dataframe needs pandas: pip install 'dtwin[fleet]'") from e
+        cols = {c: self.data[i] for i, c in enumerate(self.channels)}
+        if self.tacho is not None:
+            cols["tacho"] = np.asarray(self.tacho, dtype=np.float64)
+        df = pd.DataFrame(cols, index=pd.Index(self.time, name="time"))
+        df.attrs["units"] = {c: u for c, u in zip(self.channels, self.units, strict=True)}
+        df.attrs["sample_rate_hz"] = float(self.sample_rate)
+        return df
+
+    def channel_list(self, channel: str | int) -> list[int]:
+        """Rows selected by a ``--channel`` token: ``"all"`` (every channel), a group name (a
+        triaxial sensor's ``acc1`` → ``acc1_x, acc1_y, acc1_z``), a comma-separated list of
+        names/indices, or one name/index."""
+        if isinstance(channel, str):
+            if channel == "all":
+                return list(range(len(self.channels)))
+            if channel in self.groups:
+                return [self.index(c) for c in self.groups[channel]]
+            if "," in channel:
+                return [self.index(int(c) if c.strip().lstrip("-").isdigit() else c.strip())
+                        for c in channel.split(",") if c.strip()]
+        return [self.index(channel)]

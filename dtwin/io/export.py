@@ -1,0 +1,122 @@
+"""Arrays out: every figure's data as CSV and NPZ with named columns and units, and tables as
+pandas DataFrames.
+
+Files written by :func:`write_columns` (1-D columns of equal length: a spectrum, a PSD, a
+waveform):
+
+- ``STEM.csv``: a header row ``name [unit],name [unit],…`` (the unit in brackets, ``[1]`` for
+  dimensionless), then one row per sample, full float precision (``repr``), comma-separated;
+  ``pandas.read_csv`` reads it as it is;
+- ``STEM.npz``: one array per column under its bare name, plus ``units`` (a string array, same
+  order as ``columns``) and ``columns``; ``numpy.load(path)`` reads it without pickle.
+
+:func:`write_grid` writes a 2-D map (a waterfall, an order map): the NPZ holds the two axes and
+the grid (shape ``(len(y), len(x))``); the CSV holds it in long form, one row per cell
+(``x [unit],y [unit],z [unit]``).
+
+Both go through :class:`dtwin.io.output.OutputFolder`, so they are atomic and listed in the
+manifest.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["columns_csv", "columns_dataframe", "read_columns_csv", "write_columns", "write_grid"]
+
+
+def _unit_text(unit: str | None) -> str:
+    return unit if unit else "1"
+
+
+def columns_csv(columns: Mapping[str, Any], units: Mapping[str, str | None]) -> str:
+    """The CSV text of equal-length 1-D `columns` (name → array) with `units` (name → unit)."""
+    names = list(columns)
+    arrays = [np.asarray(columns[n]).ravel() for n in names]
+    lengths = {a.size for a in arrays}
+    if len(lengths) > 1:
+        raise ValueError(f"columns differ in length: {dict(zip(names, map(len, arrays), strict=True))}")
+    for n in names:
+        if "," in n or "\n" in n:
+            raise ValueError(f"column name {n!r} holds a comma or newline")
+    buf = io.StringIO()
+    buf.write(",".join(f"{n} [{_unit_text(units.get(n))}]" for n in names) + "\n")
+    if arrays:
+        for row in zip(*arrays, strict=True):
+            buf.write(",".join(_cell(v) for v in row) + "\n")
+    return buf.getvalue()
+
+
+def _cell(v: Any) -> str:
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    s = str(v)
+    return f'"{s}"' if ("," in s or '"' in s) else s
+
+
+def read_columns_csv(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """Read a CSV written by :func:`write_columns` back: ``(columns, units)`` (numeric columns)."""
+    text = Path(path).read_text()
+    header, *rows = text.strip("\n").split("\n")
+    names, units = [], {}
+    for h in header.split(","):
+        name, _, rest = h.partition(" [")
+        names.append(name)
+        units[name] = rest.rstrip("]")
+    data = np.array([[float(c) for c in r.split(",")] for r in rows]) if rows else np.empty((0, len(names)))
+    return {n: data[:, i] for i, n in enumerate(names)}, units
+
+
+def _npz_bytes(arrays: Mapping[str, Any], units: Sequence[str], names: Sequence[str]) -> bytes:
+    buf = io.BytesIO()
+    np.savez(buf, **{k: np.asarray(v) for k, v in arrays.items()},
+             units=np.asarray(list(units), dtype=str), columns=np.asarray(list(names), dtype=str))
+    return buf.getvalue()
+
+
+def write_columns(folder, stem: str, columns: Mapping[str, Any],
+                  units: Mapping[str, str | None]) -> list[Path]:
+    """Write ``STEM.csv`` and ``STEM.npz`` of 1-D `columns` into `folder` (an
+    :class:`~dtwin.io.output.OutputFolder`); **returns** the two paths."""
+    names = list(columns)
+    csv = folder.write_text(f"{stem}.csv", columns_csv(columns, units))
+    npz = folder.write_bytes(f"{stem}.npz", _npz_bytes(
+        columns, [_unit_text(units.get(n)) for n in names], names))
+    return [csv, npz]
+
+
+def write_grid(folder, stem: str, x: tuple[str, Any, str | None], y: tuple[str, Any, str | None],
+               z: tuple[str, Any, str | None]) -> list[Path]:
+    """Write a 2-D map: `x`, `y`, `z` are ``(name, values, unit)``, ``z`` of shape
+    ``(len(y), len(x))``. NPZ: the axes and the grid; CSV: long form (module docstring)."""
+    (xn, xv, xu), (yn, yv, yu), (zn, zv, zu) = x, y, z
+    xv, yv, zv = np.asarray(xv), np.asarray(yv), np.asarray(zv)
+    if zv.shape != (yv.size, xv.size):
+        raise ValueError(f"{zn} has shape {zv.shape}, expected ({yv.size}, {xv.size})")
+    xx, yy = np.meshgrid(xv, yv)
+    units = {xn: xu, yn: yu, zn: zu}
+    csv = folder.write_text(f"{stem}.csv", columns_csv(
+        {xn: xx.ravel(), yn: yy.ravel(), zn: zv.ravel()}, units))
+    npz = folder.write_bytes(f"{stem}.npz", _npz_bytes(
+        {xn: xv, yn: yv, zn: zv}, [_unit_text(units[n]) for n in (xn, yn, zn)], [xn, yn, zn]))
+    return [csv, npz]
+
+
+def columns_dataframe(columns: Mapping[str, Any], units: Mapping[str, str | None] | None = None):
+    """A pandas DataFrame of `columns`, units kept in ``df.attrs["units"]`` (pandas is needed:
+    ``pip install dtwin[fleet]`` or ``pandas``)."""
+    try:
+        import pandas as pd
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError("DataFrames need pandas: pip install 'dtwin[fleet]' (or pandas)") from e
+    df = pd.DataFrame({k: np.asarray(v) if not isinstance(v, list) else v
+                       for k, v in columns.items()})
+    df.attrs["units"] = {k: _unit_text((units or {}).get(k)) for k in columns}
+    return df
