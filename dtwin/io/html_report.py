@@ -1,0 +1,222 @@
+"""One self-contained HTML page per run (``report.html``): summary, figures embedded as base64
+PNG, tables and the manifest, readable in any browser with no other file and no network.
+
+Commands call :func:`write_html_report` with what they produced, on the same
+:class:`~dtwin.io.output.OutputFolder` they write their other files into, before the folder is
+committed (a staged folder publishes the page together with everything else, or nothing).
+
+    from dtwin.io.html_report import write_html_report
+
+    write_html_report(
+        folder,                                   # the OutputFolder of the run
+        title="Calibration of bench-1",
+        summary={"record": "bench.h5", "f_sun (Hz)": 29.7},     # or a paragraph of text
+        figures={"Measured vs fitted": fig, "Loss": "loss.png"},  # Figure, PNG bytes or a file
+        tables={"Parameters": rows},              # list of dicts, DataFrame, or (header, rows)
+        notes=["k_sun_planet is NOT DETERMINED by a 5 kHz record"],
+    )
+
+The page has no scripts and no external links; images are ``data:image/png;base64,…`` URIs.
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import html
+import io
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = ["figure_png", "html_report", "write_html_report"]
+
+_CSS = """
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;
+margin:0 auto;max-width:1150px;padding:1.2em 1.6em;color:#1d2430;line-height:1.45}
+h1{font-size:1.55em;margin:.2em 0 .1em}h2{font-size:1.2em;margin-top:1.6em;
+border-bottom:1px solid #d5dae1;padding-bottom:.2em}
+.meta{color:#5b6572;font-size:.9em}
+table{border-collapse:collapse;margin:.5em 0 1em;font-size:.88em}
+th,td{border:1px solid #d5dae1;padding:.25em .6em;text-align:left;vertical-align:top}
+th{background:#eef1f5}td.num{text-align:right;font-variant-numeric:tabular-nums}
+tr:nth-child(even) td{background:#f8f9fb}
+figure{margin:1em 0 1.6em}figure img{max-width:100%;height:auto;border:1px solid #e3e6ea}
+figcaption{font-size:.9em;color:#39424e;margin-top:.3em}
+ul.notes li{margin:.2em 0}
+nav a{margin-right:1em}
+details{margin:.6em 0}summary{cursor:pointer;font-weight:600}
+pre{background:#f4f6f8;padding:.8em;overflow:auto;font-size:.8em;max-height:40em}
+"""
+
+
+def figure_png(fig: Any, dpi: int = 110) -> bytes:
+    """PNG bytes of a matplotlib Figure (tight bounding box)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    return buf.getvalue()
+
+
+def _png_of(item: Any, folder_path: Path | None) -> bytes:
+    if isinstance(item, (bytes, bytearray)):
+        return bytes(item)
+    if isinstance(item, (str, Path)):
+        p = Path(item)
+        if not p.is_absolute() and folder_path is not None:
+            p = folder_path / p
+        return p.read_bytes()
+    if hasattr(item, "savefig"):
+        return figure_png(item)
+    raise TypeError(f"a figure must be a matplotlib Figure, PNG bytes or a PNG file, got "
+                    f"{type(item).__name__}")
+
+
+def _fmt(v: Any) -> tuple[str, bool]:
+    """Cell text and whether it is numeric."""
+    import numpy as np
+
+    if isinstance(v, (bool, np.bool_)):
+        return str(bool(v)), False
+    if isinstance(v, (int, np.integer)):
+        return str(int(v)), True
+    if isinstance(v, (float, np.floating)):
+        f = float(v)
+        return (f"{f:.4g}" if np.isfinite(f) else str(f)), True
+    if v is None:
+        return "", False
+    if isinstance(v, (list, tuple)) and all(isinstance(x, (int, float)) for x in v) and v:
+        return "[" + ", ".join(_fmt(x)[0] for x in v) + "]", False
+    return str(v), False
+
+
+def _table_rows(table: Any) -> tuple[list[str], list[list[Any]]]:
+    if hasattr(table, "to_dict") and hasattr(table, "columns"):  # a pandas DataFrame
+        header = [str(c) for c in table.columns]
+        return header, table.to_numpy().tolist()
+    if isinstance(table, tuple) and len(table) == 2:
+        return [str(h) for h in table[0]], [list(r) for r in table[1]]
+    if isinstance(table, Mapping):  # name -> value: a two-column table
+        return ["quantity", "value"], [[k, v] for k, v in table.items()]
+    rows = list(table)
+    header: list[str] = []
+    for r in rows:
+        header += [str(k) for k in r if str(k) not in header]
+    return header, [[r.get(h) for h in header] for r in rows]
+
+
+def _table_html(caption: str, table: Any) -> str:
+    header, rows = _table_rows(table)
+    out = [f"<table><caption style='text-align:left;font-weight:600'>{html.escape(caption)}"
+           "</caption><thead><tr>"]
+    out += [f"<th>{html.escape(h)}</th>" for h in header]
+    out.append("</tr></thead><tbody>")
+    for r in rows:
+        out.append("<tr>")
+        for v in r:
+            text, num = _fmt(v)
+            out.append(f"<td class='num'>{html.escape(text)}</td>" if num
+                       else f"<td>{html.escape(text)}</td>")
+        out.append("</tr>")
+    out.append("</tbody></table>")
+    return "".join(out)
+
+
+def html_report(
+    title: str,
+    *,
+    summary: str | Mapping[str, Any] | None = None,
+    figures: Mapping[str, Any] | None = None,
+    tables: Mapping[str, Any] | None = None,
+    notes: Sequence[str] = (),
+    manifest: Mapping[str, Any] | None = None,
+    folder_path: Path | None = None,
+) -> str:
+    """The HTML text of a report (arguments as :func:`write_html_report`)."""
+    from .output import to_jsonable
+
+    figures = dict(figures or {})
+    tables = dict(tables or {})
+    parts = ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+             "<meta name='viewport' content='width=device-width,initial-scale=1'>",
+             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+             f"<h1>{html.escape(title)}</h1>"]
+    created = (manifest or {}).get("created") or _dt.datetime.now(_dt.UTC).isoformat(
+        timespec="seconds")
+    version = ((manifest or {}).get("versions") or {}).get("dtwin", "")
+    parts.append(f"<p class='meta'>written {html.escape(str(created))}"
+                 + (f" by dtwin {html.escape(str(version))}" if version else "") + "</p>")
+    nav = [("summary", "Summary")] if summary else []
+    nav += [("figures", "Figures")] if figures else []
+    nav += [("tables", "Tables")] if tables else []
+    nav += [("manifest", "Manifest")] if manifest is not None else []
+    parts.append("<nav>" + "".join(f"<a href='#{a}'>{t}</a>" for a, t in nav) + "</nav>")
+    if summary:
+        parts.append("<h2 id='summary'>Summary</h2>")
+        if isinstance(summary, Mapping):
+            parts.append(_table_html("", summary))
+        else:
+            parts += [f"<p>{html.escape(p)}</p>" for p in str(summary).split("\n\n")]
+    if notes:
+        parts.append("<ul class='notes'>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes)
+                     + "</ul>")
+    if figures:
+        parts.append("<h2 id='figures'>Figures</h2>")
+        for cap, item in figures.items():
+            b64 = base64.b64encode(_png_of(item, folder_path)).decode("ascii")
+            parts.append(f"<figure><img alt='{html.escape(cap, quote=True)}' "
+                         f"src='data:image/png;base64,{b64}'><figcaption>{html.escape(cap)}"
+                         "</figcaption></figure>")
+    if tables:
+        parts.append("<h2 id='tables'>Tables</h2>")
+        parts += [_table_html(cap, t) for cap, t in tables.items()]
+    if manifest is not None:
+        m = to_jsonable(manifest)
+        parts.append("<h2 id='manifest'>Manifest</h2>")
+        brief = {k: m.get(k) for k in ("created", "command", "seed") if k in m}
+        if isinstance(m.get("command"), list):
+            brief["command"] = " ".join(m["command"])
+        for name, info in (m.get("inputs") or {}).items():
+            brief[f"input {name}"] = f"sha256 {info.get('sha256', '')[:16]}…, {info.get('bytes')} bytes"
+        parts.append(_table_html("Run", brief))
+        parts.append("<details><summary>manifest.json (full)</summary><pre id='manifest-json'>"
+                     + html.escape(json.dumps(m, indent=2)) + "</pre></details>")
+    parts.append("</body></html>\n")
+    return "\n".join(parts)
+
+
+def write_html_report(
+    folder: Any,
+    *,
+    title: str,
+    summary: str | Mapping[str, Any] | None = None,
+    figures: Mapping[str, Any] | None = None,
+    tables: Mapping[str, Any] | None = None,
+    notes: Sequence[str] = (),
+    manifest: Mapping[str, Any] | None = None,
+    name: str = "report.html",
+) -> Path:
+    """Write one self-contained HTML report into an output folder.
+
+    **Arguments:**
+
+    - `folder`: the :class:`~dtwin.io.output.OutputFolder` of the run (staged or not); the page
+      is written with its atomic writer and listed in its manifest.
+    - `title`: the page's heading (e.g. ``"dtwin identify: bench_sun_fault.dtwin.h5"``).
+    - `summary`: a paragraph of text (blank lines separate paragraphs) or a mapping
+      quantity → value shown as a two-column table (floats with 4 significant digits).
+    - `figures`: caption → a matplotlib ``Figure``, PNG ``bytes``, or the name of a PNG already
+      written into `folder` (or any path); each is embedded as a base64 PNG.
+    - `tables`: caption → a list of dicts (columns in first-seen order), a pandas DataFrame,
+      a ``(header, rows)`` tuple, or a mapping (two columns).
+    - `notes`: short lines shown as a list under the summary (flags, warnings).
+    - `manifest`: the manifest shown at the end; default ``folder.manifest`` (command, inputs
+      with SHA-256, versions, parameters, files), in full inside a collapsible block.
+    - `name`: file name in `folder` (``report.html``).
+
+    **Returns:** the path written (inside the staging folder until a staged folder commits).
+    """
+    text = html_report(title, summary=summary, figures=figures, tables=tables, notes=notes,
+                       manifest=folder.manifest if manifest is None else manifest,
+                       folder_path=Path(folder.path))
+    return folder.write_text(name, text)
