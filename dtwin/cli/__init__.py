@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
+import signal
 import sys
+import threading
 
 from .app import app
 
@@ -15,19 +18,62 @@ def _load_commands() -> None:
             importlib.import_module(f"{__name__}.{mod.name}")
 
 
-def main(argv: list[str] | None = None) -> None:
-    """Entry point of the ``dtwin`` console script."""
-    from ..errors import DtwinError
+class Terminated(BaseException):
+    """SIGTERM arrived (raised in the main thread by the handler :func:`main` installs)."""
 
+
+_SIGNALS: list[int] = []
+
+
+def _on_signal(signum: int, frame: object) -> None:
+    _SIGNALS.append(signum)
+    if signum == signal.SIGTERM:
+        raise Terminated()
+    raise KeyboardInterrupt()
+
+
+def _interrupt_exit(signum: int) -> SystemExit:
+    name = "SIGTERM" if signum == signal.SIGTERM else "SIGINT"
+    print(f"interrupted ({name}): nothing was written to --out; run the same command again to "
+          "start over (fleet runs resume)", file=sys.stderr)
+    return SystemExit(128 + int(signum))
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of the ``dtwin`` console script.
+
+    Exit codes: 0 done, 1 a fleet with failed records, 2 bad input (a
+    :class:`~dtwin.errors.DtwinError` or a usage error, one ``error:`` line on stderr), 130
+    interrupted by SIGINT (Ctrl-C), 143 terminated by SIGTERM, 70 an internal error (a bug:
+    the traceback is shown with ``DTWIN_DEBUG=1``).
+    """
+    from ..errors import DtwinError
+    from .logs import setup_logging
+
+    setup_logging()
     _load_commands()
+    _SIGNALS.clear()
+    old = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            old[sig] = signal.signal(sig, _on_signal)
     try:
         app(args=argv, standalone_mode=False)
     except DtwinError as e:
         print(f"error: {e}", file=sys.stderr)
         raise SystemExit(2) from None
+    except (KeyboardInterrupt, Terminated):
+        raise _interrupt_exit(_SIGNALS[0] if _SIGNALS else signal.SIGINT) from None
     except SystemExit:
+        if _SIGNALS:
+            raise _interrupt_exit(_SIGNALS[0]) from None
         raise
+    except OSError as e:  # a file system refusal that no check foresaw: say what, no traceback
+        print(f"error: {e}; check the path and its permissions", file=sys.stderr)
+        raise SystemExit(2) from None
     except Exception as e:  # usage errors (click's, bundled in typer) print their message
+        if isinstance(e.__cause__ or e.__context__, KeyboardInterrupt) or _SIGNALS:
+            raise _interrupt_exit(_SIGNALS[0] if _SIGNALS else signal.SIGINT) from None
         show = getattr(e, "show", None)
         code = getattr(e, "exit_code", None)
         if callable(show) and isinstance(code, int):
@@ -35,7 +81,17 @@ def main(argv: list[str] | None = None) -> None:
             raise SystemExit(code) from None
         if type(e).__name__ == "Abort":
             raise SystemExit(1) from None
-        raise
+        if os.environ.get("DTWIN_DEBUG"):
+            raise
+        print(f"internal error: {type(e).__name__}: {e}\nthis is a bug in dtwin: please report "
+              "it with the command line (DTWIN_DEBUG=1 shows the traceback)", file=sys.stderr)
+        raise SystemExit(70) from None
+    else:
+        if _SIGNALS:  # an interrupt swallowed on the way (a callback, a library): still report it
+            raise _interrupt_exit(_SIGNALS[0])
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
 
 
 __all__ = ["app", "main"]

@@ -22,3 +22,24 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        from .._version import __version__
+
+        typer.echo(f"dtwin {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _global_options(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                 help="Print dtwin's version and exit."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Errors only: no warnings, notes "
+                               "or progress on stderr (before the command: dtwin -q COMMAND)."),
+) -> None:
+    """dtwin: a differentiable digital twin of planetary gearboxes."""
+    from .logs import set_quiet
+
+    set_quiet(quiet)

@@ -13,13 +13,13 @@ the terminal lists the frequencies under their registry names (``f_sun``, ``f_ca
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import typer
 
 from ..errors import SpecError
+from . import options as opts
 from .app import app
 
 _MEANING = {
@@ -71,55 +71,32 @@ def freqs_report(spec: Any, f_sun: float | None, planet_fault: str, source: str)
     }
 
 
-def _load(preset: str | None, spec_file: Path | None):
-    from .. import spec as spec_mod
-
-    if (preset is None) == (spec_file is None):
-        raise SpecError([("--preset/--spec", "give exactly one of --preset NAME or --spec FILE")])
-    if preset is not None:
-        return spec_mod.preset(preset), preset
-    return spec_mod.load_spec(spec_file), str(spec_file)
-
 
 @app.command()
 def freqs(
-    preset: str | None = typer.Option(
-        None, "--preset", help="paper-sim, paper-bench or lin-parker (bundled specs)."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    preset: str | None = opts.preset_option(),
+    spec: Path | None = opts.spec_option(),
     f_sun: float | None = typer.Option(
         None, "--f-sun", help="Input (sun) speed in Hz; default: the spec's operating.f_sun."),
     planet_fault: str = typer.Option(
         "paper", "--planet-fault", help="paper (f_mesh/Zp) or both_flanks (2 f_mesh/Zp)."),
-    json_out: bool = typer.Option(False, "--json", help="Print results as JSON on stdout."),
-    out: Path | None = typer.Option(
-        None, "--out", help="Write freqs.json and manifest.json into this folder."),
-    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
+    json_out: bool = opts.json_option(),
+    out: Path | None = opts.out_option("freqs.json"),
+    force: bool = opts.force_option(),
 ) -> None:
     """Characteristic frequencies (mesh, carrier, fault, planet pass) of a gearbox."""
-    from ..spec import spec_to_dict
-
-    spec_obj, source = _load(preset, spec)  # geometry warnings go to stderr
-    report = freqs_report(spec_obj, f_sun, planet_fault, source)
-    if json_out:
-        typer.echo(json.dumps(report, indent=2))
-    else:
-        _print_table(report)
-    if out is not None:
-        from ..io.output import OutputFolder
-
-        folder = OutputFolder(
-            out, force=force, inputs=[spec] if spec is not None else [],
-            spec=spec_to_dict(spec_obj),
-            parameters={"source": source, "f_sun": report["f_sun_hz"],
-                        "planet_fault": planet_fault},
-        )
-        folder.write_json("freqs.json", report)
-        if not json_out:
-            typer.echo(f"wrote {folder.path}/freqs.json, manifest.json", err=True)
+    opts.choice("--planet-fault", planet_fault, ("paper", "both_flanks"))
+    opts.input_speed_option("--f-sun", f_sun)
+    opts.check_out(out, force)
+    gb = opts.load_gearbox(preset, spec)  # geometry warnings go to stderr
+    report = freqs_report(gb.spec, f_sun, planet_fault, gb.source)
+    opts.emit(report, json_out=json_out, table=lambda: _print_table(report), out=out,
+              force=force, files={"freqs.json": report}, gearbox=gb,
+              parameters={"source": gb.source, "f_sun": report["f_sun_hz"],
+                          "planet_fault": planet_fault})
 
 
 def _print_table(report: dict[str, Any]) -> None:
-    from rich.console import Console
     from rich.table import Table
 
     g = report["gears"]
@@ -138,8 +115,8 @@ def _print_table(report: dict[str, Any]) -> None:
             meaning += (" (paper: f_mesh/Zp)" if report["planet_fault"] == "paper"
                         else " (both flanks: 2 f_mesh/Zp)")
         table.add_row(name, f"{v:.3f}", f"{report['orders'][name]:.4f}", meaning)
-    console = Console()
-    console.print(table)
+    console = opts.console()
+    opts.print_table(table)
     console.print(
         f"a = {geo['centre_distance'] * 1e3:.3f} mm, x = ({geo['x_sun']:.4f}, "
         f"{geo['x_planet']:.4f}, {geo['x_ring']:.4f}), α_sp = "

@@ -14,43 +14,14 @@ planets (equally spaced), e.g. Lin & Parker's N = 4 and 5 cases.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import typer
 
-from ..errors import SpecError
+from . import options as opts
 from .app import app
-
-
-def load_gearbox(preset: str | None, spec_file: Path | None, planets: int | None):
-    """Lumped parameters, the validated spec and a source label for the CLI's gearbox options.
-
-    ``--planets N`` replaces ``gears.n_planets`` of the preset or spec (equally spaced planets),
-    so that the geometry checks of :mod:`dtwin.gears` still apply (tip circles that overlap are
-    refused).
-    """
-    from .. import spec as spec_mod
-
-    if (preset is None) == (spec_file is None):
-        raise SpecError([("--preset/--spec", "give exactly one of --preset NAME or --spec FILE")])
-    if preset is not None:
-        spec = spec_mod.preset(preset)
-        source = preset
-    else:
-        spec = spec_mod.load_spec(spec_file)
-        source = str(spec_file)
-    if planets is not None:
-        if planets < 1:
-            raise SpecError([("--planets", f"must be >= 1, got {planets}")])
-        data = spec_mod.spec_to_dict(spec)
-        data.pop("source", None)
-        data["gears"]["n_planets"] = planets
-        data.get("imperfections", {}).pop("planet_position_errors", None)
-        spec = spec_mod.load_spec(data)
-    return spec_mod.lumped_from_spec(spec), spec, source
 
 
 def _mesh_frequency(spec: Any, lp: Any) -> float | None:
@@ -96,55 +67,45 @@ def modes_report(lp, model: str, f_mesh: float | None) -> dict[str, Any]:
 
 @app.command()
 def modes(
-    preset: str | None = typer.Option(
-        None, "--preset", help="paper-sim, paper-bench or lin-parker (Lin & Parker 1999)."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    preset: str | None = opts.preset_option(),
+    spec: Path | None = opts.spec_option(),
     model: str = typer.Option(
         "translational", "--model", help="translational (Lin & Parker, 3 DOF per body) or "
         "torsional (rotations only)."),
     planets: int | None = typer.Option(
         None, "--planets", help="Override the number of planets (equally spaced)."),
-    json_out: bool = typer.Option(False, "--json", help="Print results as JSON on stdout."),
-    out: Path | None = typer.Option(
-        None, "--out", help="Write modes.json, modes.png and manifest.json into this folder."),
-    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
+    json_out: bool = opts.json_option(),
+    out: Path | None = opts.out_option("modes.json, modes.png"),
+    force: bool = opts.force_option(),
 ) -> None:
     """Natural frequencies and Lin & Parker mode types at mean mesh stiffness."""
     from ..modal import MODELS
 
-    if model not in MODELS:
-        raise SpecError([("--model", f"unknown model {model!r}; use translational or torsional")])
-    lp, spec_obj, source = load_gearbox(preset, spec, planets)
+    opts.choice("--model", model, tuple(MODELS))
+    opts.at_least("--planets", planets, 1)
+    if planets is not None and planets > 12:
+        raise opts.OptionError("--planets", f"at most 12 planets, got {planets}")
+    opts.check_out(out, force)
+    gb = opts.load_gearbox(preset, spec, planets=planets)
+    lp, spec_obj, source = gb.lumped(), gb.spec, gb.source
     f_mesh = _mesh_frequency(spec_obj, lp)
     sample_rate = spec_obj["sensor"].get("sample_rate")
     report, res = modes_report(lp, model, f_mesh)
     report["source"] = source
-    if json_out:
-        typer.echo(json.dumps(report, indent=2))
-    else:
-        _print_table(report)
-    if out is not None:
-        from ..io.output import OutputFolder
+
+    def files() -> dict:
         from ..plotting.modes import plot_modes
-        from ..spec import spec_to_dict
 
-        folder = OutputFolder(
-            out, force=force, inputs=[spec] if spec is not None else [],
-            spec=spec_to_dict(spec_obj),
-            parameters={"model": model, "source": source, "n_planets": lp.n_planets},
-        )
-        folder.write_json("modes.json", report)
-        fig = plot_modes(res, f_mesh=f_mesh, sample_rate=sample_rate, title=f"{source}: natural frequencies, {model} model")
-        folder.savefig("modes.png", fig)
-        import matplotlib.pyplot as plt
+        return {"modes.json": report,
+                "modes.png": plot_modes(res, f_mesh=f_mesh, sample_rate=sample_rate,
+                                        title=f"{source}: natural frequencies, {model} model")}
 
-        plt.close(fig)
-        if not json_out:
-            typer.echo(f"wrote {folder.path}/modes.json, modes.png, manifest.json", err=True)
+    opts.emit(report, json_out=json_out, table=lambda: _print_table(report), out=out,
+              force=force, files=files, gearbox=gb,
+              parameters={"model": model, "source": source, "n_planets": lp.n_planets})
 
 
 def _print_table(report: dict[str, Any]) -> None:
-    from rich.console import Console
     from rich.table import Table
 
     mesh = report["f_mesh_hz"]
@@ -164,4 +125,4 @@ def _print_table(report: dict[str, Any]) -> None:
         if mesh:
             cells.append(f"{r['mesh_order']:.2f}")
         table.add_row(*cells)
-    Console().print(table)
+    opts.print_table(table)

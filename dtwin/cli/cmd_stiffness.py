@@ -16,34 +16,14 @@ stdout. ``--out DIR``: ``stiffness.json`` (with the curves), ``stiffness.png``, 
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import typer
 
 from ..errors import SpecError
+from . import options as opts
 from .app import app
-
-_PRESETS = ("paper-sim", "paper-bench")
-
-
-def _load(preset: str | None, spec_file: Path | None):
-    """(spec, lumped parameters, source label) for ``--preset`` or ``--spec``."""
-    if (preset is None) == (spec_file is None):
-        raise SpecError([("--preset/--spec", "give exactly one of --preset NAME or --spec FILE")])
-    from .. import spec as spec_mod
-
-    if preset is not None:
-        if preset not in _PRESETS:
-            raise SpecError([("--preset", f"unknown preset {preset!r}; use one of "
-                              f"{', '.join(_PRESETS)} (or --spec FILE)")])
-        spec = spec_mod.preset(preset)
-        source = preset
-    else:
-        spec = spec_mod.load_spec(spec_file)
-        source = str(spec_file)
-    return spec, spec_mod.lumped_from_spec(spec), source
 
 
 def _fault_label(f: Any) -> str:
@@ -129,8 +109,8 @@ def stiffness_report(lp: Any, faults: Any, curves: dict[str, Any]) -> dict[str, 
 
 @app.command()
 def stiffness(
-    preset: str | None = typer.Option(None, "--preset", help="paper-sim or paper-bench."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    preset: str | None = opts.preset_option(),
+    spec: Path | None = opts.spec_option(),
     fault: list[str] | None = typer.Option(
         None, "--fault", help="LOCATION:KIND:SEVERITY[:TOOTH[:PLANET[:FLANK]]], e.g. "
         "sun:missing_tooth:0.5 or planet:pitting:0.3:4:1 (repeatable; kinds missing_tooth, "
@@ -141,19 +121,21 @@ def stiffness(
     cycles: float | None = typer.Option(
         None, "--cycles", help="Mesh cycles shown (default: teeth of the faulty gear, Zs "
         "without faults)."),
-    json_out: bool = typer.Option(False, "--json", help="Print results as JSON on stdout."),
-    out: Path | None = typer.Option(
-        None, "--out", help="Write stiffness.json, stiffness.png and manifest.json here."),
-    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
+    json_out: bool = opts.json_option(),
+    out: Path | None = opts.out_option("stiffness.json, stiffness.png"),
+    force: bool = opts.force_option(),
 ) -> None:
     """Mesh-stiffness waveform of planet 0's sun and ring meshes, healthy and faulty."""
     from ..faults import faults_from_table, parse_fault
 
-    spec_obj, lp, source = _load(preset, spec)
+    opts.positive("--cycles", cycles)
+    if cycles is not None and cycles > 10_000:
+        raise opts.OptionError("--cycles", f"at most 10000 mesh cycles, got {cycles:g}")
+    opts.check_out(out, force)
+    gb = opts.load_gearbox(preset, spec)
+    spec_obj, lp, source = gb.spec, gb.lumped(), gb.source
     faults = [parse_fault(f) for f in fault] if fault else list(faults_from_table(spec_obj["faults"]))
     n_harm = int(spec_obj["mesh"].get("n_harmonics", 12))
-    if cycles is not None and not cycles > 0:
-        raise SpecError([("--cycles", f"must be positive, got {cycles}")])
     for f in faults:  # boundary checks (tooth, planet) before any computation
         if f.location == "planet" and f.planet >= lp.n_planets:
             raise SpecError([("--fault", f"planet {f.planet} does not exist; the gear set has "
@@ -167,23 +149,12 @@ def stiffness(
     report["source"] = source
     report["planet"] = planet
     report["n_harmonics"] = n_harm
-    if json_out:
-        typer.echo(json.dumps(report, indent=2))
-    else:
-        _print_table(report)
-    if out is not None:
-        import matplotlib.pyplot as plt
+
+    def files() -> dict:
         import numpy as np
 
-        from ..io.output import OutputFolder
         from ..plotting.stiffness import plot_mesh_stiffness
-        from ..spec import spec_to_dict
 
-        folder = OutputFolder(
-            out, force=force, inputs=[spec] if spec is not None else [],
-            spec=spec_to_dict(spec_obj), parameters={"source": source, "fault": fault or []},
-        )
-        folder.write_json("stiffness.json", {**report, "curves": curves})
         zoom = None
         if faults:
             loss = (curves["k_sun_planet"] - curves["k_sun_planet_faulty"]
@@ -197,14 +168,14 @@ def stiffness(
             zoom=zoom, planet=planet, fault_label=" + ".join(r["label"] for r in report["faults"]) or "faulty",
             title=f"{source}: mesh stiffness (Zs={lp.z_sun}, Zp={lp.z_planet}, Zr={lp.z_ring})",
         )
-        folder.savefig("stiffness.png", fig)
-        plt.close(fig)
-        if not json_out:
-            typer.echo(f"wrote {folder.path}/stiffness.json, stiffness.png, manifest.json", err=True)
+        return {"stiffness.json": {**report, "curves": curves}, "stiffness.png": fig}
+
+    opts.emit(report, json_out=json_out, table=lambda: _print_table(report), out=out,
+              force=force, files=files, gearbox=gb,
+              parameters={"source": source, "fault": fault or []})
 
 
 def _print_table(report: dict[str, Any]) -> None:
-    from rich.console import Console
     from rich.table import Table
 
     faulty = bool(report["faults"])
@@ -225,7 +196,7 @@ def _print_table(report: dict[str, Any]) -> None:
         if faulty:
             cells.append(f"{r['k_min_faulty']:.4g}")
         table.add_row(*cells)
-    console = Console()
-    console.print(table)
+    console = opts.console()
+    opts.print_table(table)
     for f in report["faults"]:
         console.print(f"fault: {f['label']} (severity = {f['meaning']})")

@@ -8,7 +8,12 @@ Every output of dtwin goes through :class:`OutputFolder`:
   (:class:`~dtwin.errors.OutputExistsError` otherwise);
 - ``manifest.json`` records the command line, the SHA-256 of every input file, the spec, the
   versions of dtwin and its main dependencies, the seed and any parameters, and lists the files
-  written. It is rewritten (atomically) after each file, so it is always complete.
+  written. It is rewritten (atomically) after each file, so it is always complete;
+- a *staged* folder (``OutputFolder(..., staged=True)`` used as a context manager, as every
+  command does) writes into a hidden ``.partial-*`` folder inside the result folder and moves
+  the files in, the manifest last, only when the run has finished: an interrupted or failed
+  run leaves no result file and no manifest, so the same command afterwards starts cleanly
+  (the leftovers of an unfinished run are removed and may be overwritten without ``--force``).
 
 Inputs are only ever opened for reading.
 """
@@ -20,6 +25,8 @@ import hashlib
 import json
 import os
 import platform
+import shutil
+import signal
 import sys
 import tempfile
 from collections.abc import Iterable, Mapping
@@ -93,6 +100,26 @@ def _nan_to_str(val: Any) -> Any:
     return val
 
 
+class _signals_deferred:
+    """Hold SIGINT and SIGTERM back inside the block and deliver them after it (main thread)."""
+
+    def __enter__(self) -> None:
+        import threading
+
+        self._held: list[int] = []
+        self._old: dict[int, Any] = {}
+        if threading.current_thread() is not threading.main_thread():
+            return
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._old[sig] = signal.signal(sig, lambda s, f: self._held.append(s))
+
+    def __exit__(self, *exc: Any) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        for sig in self._held[:1]:
+            signal.raise_signal(sig)
+
+
 def _default_mode() -> int:
     umask = os.umask(0)
     os.umask(umask)
@@ -145,6 +172,9 @@ class OutputFolder:
     - `spec`: the spec (a mapping) used.
     - `seed`: random seed, if any.
     - `parameters`: further parameters of the run.
+    - `staged`: write into a hidden staging folder; :meth:`commit` (or leaving the ``with``
+      block normally) moves the files in, the manifest last; :meth:`discard` (or leaving it by
+      an exception, Ctrl-C included) removes them.
     """
 
     def __init__(
@@ -157,9 +187,12 @@ class OutputFolder:
         spec: Mapping[str, Any] | None = None,
         seed: int | None = None,
         parameters: Mapping[str, Any] | None = None,
+        staged: bool = False,
     ):
         self.path = Path(path)
         self.force = force
+        self.staged = staged
+        self._final = self.path
         self.path.mkdir(parents=True, exist_ok=True)
         self.manifest: dict[str, Any] = {
             "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -178,7 +211,56 @@ class OutputFolder:
                 f"{self.path} already holds a result (manifest.json); choose another --out "
                 "folder or pass --force to overwrite"
             )
+        if staged:
+            # no manifest: what lies here is left over from a run that never finished
+            self._unfinished = not (self.path / "manifest.json").exists()
+            for old in self.path.glob(".partial-*"):
+                if old.is_dir():
+                    shutil.rmtree(old, ignore_errors=True)
+            self.path = Path(tempfile.mkdtemp(prefix=".partial-", dir=self._final))
+            return
         self._write_manifest()
+
+    def __enter__(self) -> OutputFolder:
+        return self
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        if exc_type is None:
+            self.commit()
+        else:
+            self.discard()
+
+    def commit(self) -> Path:
+        """Move the staged files into the result folder, the manifest last (staged folders).
+
+        Signals are held back while the files move, so Ctrl-C cannot split a result.
+        **Returns:** the result folder.
+        """
+        if not self.staged or self.path == self._final:
+            return self._final
+        with _signals_deferred():
+            overwrite = self.force or self._unfinished
+            for name in self.manifest["files"]:
+                target = self._final / name
+                if target.exists() and not overwrite:
+                    raise OutputExistsError(f"{target} already exists; choose another output "
+                                            "folder or pass --force to overwrite")
+            for name in self.manifest["files"]:
+                os.replace(self.path / name, self._final / name)
+            staging, self.path = self.path, self._final
+            self._write_manifest()
+            shutil.rmtree(staging, ignore_errors=True)
+        return self._final
+
+    def discard(self) -> None:
+        """Remove the staged files (staged folders); the result folder stays as it was."""
+        if self.staged and self.path != self._final:
+            shutil.rmtree(self.path, ignore_errors=True)
+            self.path = self._final
+            try:
+                self._final.rmdir()  # only if it is empty (we may have created it)
+            except OSError:
+                pass
 
     def add_input(self, p: str | os.PathLike) -> None:
         p = Path(p)
@@ -190,6 +272,8 @@ class OutputFolder:
         self._write_manifest()
 
     def _write_manifest(self) -> None:
+        if self.staged and self.path != self._final:
+            return  # written by commit(), after the files
         data = json.dumps(self.manifest, indent=2, sort_keys=False).encode()
         atomic_write_bytes(self.path / "manifest.json", data, force=True)
 

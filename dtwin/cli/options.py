@@ -1,0 +1,415 @@
+"""What every command of the CLI shares: options, the one gearbox loader, checks of values, the
+record reader and the output tail ("a table, or ``--json``, and ``--out DIR``").
+
+A command module declares its options with the factories here (``PRESET``, ``SPEC``, ``JSON``,
+``out_option(...)``, ``FORCE``), checks every value before any work starts (:func:`positive`,
+:func:`choice`, :func:`check_out`, ...), and ends with :func:`emit`, which prints the table or
+the JSON and writes the result files into ``--out`` through a staged
+:class:`~dtwin.io.output.OutputFolder` (the files appear together with their manifest, or not
+at all). Every failure is a :class:`~dtwin.errors.DtwinError` whose message names the option
+and says what to change.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from ..errors import RecordError, SpecError
+
+PRESETS = ("paper-sim", "paper-bench", "paper-like", "lin-parker")
+"""The bundled presets (``dtwin/presets``); kept equal to :data:`dtwin.spec.PRESETS` by a test."""
+
+_PRESET_HELP = "Bundled gearbox: " + ", ".join(PRESETS) + "."
+
+
+class OptionError(SpecError):
+    """A command-line value is out of range or not understood; the message names the option.
+
+    A :class:`~dtwin.errors.SpecError` (the CLI's convention for bad settings: ``problems``
+    holds ``(option, message)``), printed as ``OPTION: MESSAGE``.
+    """
+
+    def __init__(self, option: str, message: str):
+        self.option = option
+        self.problems = [(option, message)]
+        Exception.__init__(self, f"{option}: {message}")
+
+
+
+# --- option factories (each call gives a fresh typer.Option) ------------------------------------
+
+
+def preset_option(help: str = _PRESET_HELP) -> Any:
+    return typer.Option(None, "--preset", help=help)
+
+
+def spec_option(help: str = "Gearbox spec file (TOML); see docs/spec.md.") -> Any:
+    return typer.Option(None, "--spec", help=help)
+
+
+def json_option(help: str = "Print the result as JSON on stdout (nothing else on stdout).") -> Any:
+    return typer.Option(False, "--json", help=help)
+
+
+def out_option(files: str = "result files", required: bool = False) -> Any:
+    return typer.Option(... if required else None, "--out",
+                        help=f"Write {files} and manifest.json into this folder (atomically: "
+                        "all of them or none).")
+
+
+def force_option(help: str = "Overwrite a finished result in --out.") -> Any:
+    return typer.Option(False, "--force", help=help)
+
+
+def channel_option() -> Any:
+    return typer.Option("0", "--channel", help="Channel name or index.")
+
+
+def sample_rate_option() -> Any:
+    return typer.Option(None, "--sample-rate", help="Sampling rate (Hz) if the file states none.")
+
+
+# --- checks of values ---------------------------------------------------------------------------
+
+
+def finite(option: str, value: float | None) -> float | None:
+    """`value` unless it is NaN or infinite (None passes)."""
+    if value is not None and not math.isfinite(value):
+        raise OptionError(option, f"must be a finite number, got {value}")
+    return value
+
+
+def positive(option: str, value: float | None, *, allow_zero: bool = False,
+             unit: str = "") -> float | None:
+    """`value` if it is a finite number > 0 (>= 0 with `allow_zero`); None passes."""
+    if value is None:
+        return None
+    finite(option, value)
+    if value < 0 or (value == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise OptionError(option, f"must be {bound}{' ' + unit if unit else ''}, got {value:g}")
+    return value
+
+
+def at_least(option: str, value: int | None, low: int) -> int | None:
+    """An integer option of at least `low` (None passes)."""
+    if value is not None and value < low:
+        raise OptionError(option, f"must be at least {low}, got {value}")
+    return value
+
+
+def in_range(option: str, value: float | None, low: float, high: float,
+             what: str = "") -> float | None:
+    """`value` in the closed interval [low, high] (None passes)."""
+    if value is None:
+        return None
+    finite(option, value)
+    if not low <= value <= high:
+        raise OptionError(option, f"must lie in [{low:g}, {high:g}]{' ' + what if what else ''}, "
+                          f"got {value:g}")
+    return value
+
+
+def choice(option: str, value: str | None, allowed: Sequence[str]) -> str | None:
+    """`value` if it is one of `allowed` (None passes), else an error listing them."""
+    if value is not None and value not in allowed:
+        import difflib
+
+        close = difflib.get_close_matches(str(value), list(allowed), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise OptionError(option, f"unknown value {value!r}{hint}; use one of "
+                          f"{', '.join(allowed)}")
+    return value
+
+
+def band(option: str, value: tuple[float, float] | None,
+         nyquist: float | None = None) -> tuple[float, float] | None:
+    """A frequency band LOW HIGH (Hz) with 0 <= LOW < HIGH (<= `nyquist` if given)."""
+    if value is None:
+        return None
+    lo, hi = value
+    finite(option, lo)
+    finite(option, hi)
+    if not 0 <= lo < hi:
+        raise OptionError(option, f"needs 0 <= LOW < HIGH (Hz), got {lo:g} {hi:g}")
+    if nyquist is not None and hi > nyquist:
+        raise OptionError(option, f"HIGH = {hi:g} Hz lies above Nyquist ({nyquist:g} Hz, half "
+                          "the sampling rate); lower it")
+    return (float(lo), float(hi))
+
+
+def input_speed_option(option: str, value: float | None) -> float | None:
+    """An input (sun) speed in Hz in (0, 500]; a value that looks like rpm gets a hint."""
+    if value is None:
+        return None
+    finite(option, value)
+    if not 0 < value <= 500:
+        hint = (f" (did you mean {value:g} rpm = {value / 60:g} Hz?)" if value > 500 else "")
+        raise OptionError(option, f"must be the input speed in Hz in (0, 500], got "
+                          f"{value:g}{hint}")
+    return float(value)
+
+
+def existing_file(option: str, path: Path | None) -> Path | None:
+    """`path` if it names a readable file (None passes)."""
+    if path is None:
+        return None
+    if not path.exists():
+        raise OptionError(option, f"{path} does not exist; check the path")
+    if path.is_dir():
+        raise OptionError(option, f"{path} is a folder; give a file")
+    if not os.access(path, os.R_OK):
+        raise OptionError(option, f"{path} cannot be read (permissions); fix them or copy it")
+    return path
+
+
+def check_out(out: Path | None, force: bool, *, option: str = "--out") -> Path | None:
+    """Check an output folder before any work: not a file, creatable and writable, and not
+    holding a finished result (``manifest.json``) unless `force`."""
+    if out is None:
+        return None
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OptionError(option, f"{out} is a file, not a folder; give a folder (it is created "
+                          "if missing)")
+    probe = out
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise OptionError(option, f"{probe} is a file, so {out} cannot be created; choose "
+                          "another folder")
+    if not _writable(probe):
+        raise OptionError(option, f"{probe} is not writable; choose a folder you can write to")
+    if not force and (out / "manifest.json").exists():
+        from ..errors import OutputExistsError
+
+        raise OutputExistsError(f"{option}: {out} already holds a result (manifest.json); choose "
+                                "another folder or pass --force to overwrite")
+
+    return out
+
+
+def _writable(folder: Path) -> bool:
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return False
+    import tempfile
+
+    try:  # os.access says yes to root and on some network file systems: try it
+        fd, tmp = tempfile.mkstemp(prefix=".dtwin-probe-", dir=folder)
+    except OSError:
+        return False
+    os.close(fd)
+    os.unlink(tmp)
+    return True
+
+
+# --- the gearbox --------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Gearbox:
+    """A validated spec with where it came from.
+
+    **Fields:** `spec` (:class:`dtwin.spec.Spec`), `source` (preset name or file path),
+    `file` (the spec file, an input of the run, or None for a preset).
+    """
+
+    spec: Any
+    source: str
+    file: Path | None = None
+
+    def lumped(self) -> Any:
+        """Lumped parameters (:func:`dtwin.spec.lumped_from_spec`)."""
+        from ..spec import lumped_from_spec
+
+        return lumped_from_spec(self.spec)
+
+    def spec_dict(self) -> dict[str, Any]:
+        from ..spec import spec_to_dict
+
+        return spec_to_dict(self.spec)
+
+
+def load_gearbox(preset: str | None, spec_file: Path | None, *, required: bool = True,
+                 planets: int | None = None, presets: Sequence[str] = PRESETS,
+                 why: str = "this command needs the gearbox") -> Gearbox | None:
+    """The gearbox of ``--preset NAME`` or ``--spec FILE`` (the one loader of the CLI).
+
+    **Arguments:** `required`: refuse when neither is given (else return None); `planets`:
+    replace ``gears.n_planets`` (equally spaced planets; the geometry checks still apply);
+    `presets`: the presets this command accepts; `why`: said when the gearbox is missing.
+
+    **Raises:** :class:`OptionError` / :class:`~dtwin.errors.SpecError` naming what to change.
+    """
+    from .. import spec as spec_mod
+
+    if preset is not None and spec_file is not None:
+        raise OptionError("--preset/--spec", "give one of --preset NAME or --spec FILE, not both")
+    if preset is None and spec_file is None:
+        if required:
+            raise OptionError("--preset/--spec", f"{why}: pass --preset NAME "
+                              f"({', '.join(presets)}) or --spec FILE")
+        return None
+    if preset is not None:
+        choice("--preset", preset, presets)
+        spec, source, file = spec_mod.preset(preset), preset, None
+    else:
+        existing_file("--spec", spec_file)
+        spec, source, file = spec_mod.load_spec(spec_file), str(spec_file), Path(spec_file)
+    if planets is not None:
+        at_least("--planets", planets, 1)
+        data = spec_mod.spec_to_dict(spec)
+        data.pop("source", None)
+        data["gears"]["n_planets"] = planets
+        data.get("imperfections", {}).pop("planet_position_errors", None)
+        spec = spec_mod.load_spec(data)
+    return Gearbox(spec, source, file)
+
+
+# --- records ------------------------------------------------------------------------------------
+
+
+def channel_token(channel: str) -> str | int:
+    """``"2"`` → 2 (an index), anything else stays a name."""
+    channel = channel.strip()
+    return int(channel) if channel.lstrip("-").isdigit() else channel
+
+
+def read_record(path: Path, sample_rate: float | None = None, **kwargs: Any) -> Any:
+    """Read a record file (read-only) with :func:`dtwin.io.readers.read_record`."""
+    from ..io.readers import read_record as _read
+
+    existing_file("RECORD", Path(path))
+    positive("--sample-rate", sample_rate, unit="Hz")
+    return _read(path, sample_rate=sample_rate, **kwargs)
+
+
+def check_channel(record: Any, channel: str | int) -> None:
+    """Refuse a channel the record does not have, listing those it has."""
+    try:
+        record.index(channel)
+    except (KeyError, IndexError, ValueError):
+        raise RecordError(f"--channel: the record has no channel {channel!r}; it has "
+                          f"{list(record.channels)} (names or indices 0.."
+                          f"{len(record.channels) - 1})") from None
+
+
+# --- the output tail ----------------------------------------------------------------------------
+
+
+def emit(
+    report: Mapping[str, Any],
+    *,
+    json_out: bool,
+    table: Callable[[], None] | None = None,
+    out: Path | None = None,
+    force: bool = False,
+    files: Mapping[str, Any] | Callable[[], Mapping[str, Any]] | None = None,
+    inputs: Iterable[Path | None] = (),
+    gearbox: Gearbox | None = None,
+    parameters: Mapping[str, Any] | None = None,
+    seed: int | None = None,
+) -> Path | None:
+    """The tail of every command: the table (or ``--json``), then the files in ``--out``.
+
+    `files` maps a file name to what goes in it: a mapping (JSON), a matplotlib figure (PNG or
+    the suffix's format), ``str``/``bytes``, or a callable ``writer(tmp_path)``; a callable
+    giving that mapping defers building figures until they are needed. The files appear together with
+    ``manifest.json``, or not at all (interrupt, failure: see :class:`dtwin.io.output.OutputFolder`).
+
+    **Returns:** the folder written, or None.
+    """
+    import json as _json
+
+    from ..io.output import to_jsonable
+
+    if json_out:
+        typer.echo(_json.dumps(to_jsonable(report), indent=2))
+    elif table is not None:
+        table()
+    if out is None:
+        return None
+    written = write_outputs(out, force=force, files=files, inputs=inputs, gearbox=gearbox,
+                            parameters=parameters, seed=seed)
+    if not json_out:
+        import logging
+
+        logging.getLogger("dtwin").info("wrote %s: %s, manifest.json", written,
+                                        ", ".join(_names(files)))
+    return written
+
+
+def _names(files: Any) -> list[str]:
+    return list(files) if isinstance(files, Mapping) else ["results"]
+
+
+def write_outputs(out: Path, *, force: bool = False,
+                  files: Mapping[str, Any] | Callable[[], Mapping[str, Any]] | None = None,
+                  inputs: Iterable[Path | None] = (), gearbox: Gearbox | None = None,
+                  parameters: Mapping[str, Any] | None = None, seed: int | None = None) -> Path:
+    """Write `files` (see :func:`emit`) into `out` through a staged output folder."""
+    from ..io.output import OutputFolder
+
+    ins = [Path(p) for p in inputs if p is not None]
+    if gearbox is not None and gearbox.file is not None and gearbox.file not in ins:
+        ins.append(gearbox.file)
+    with OutputFolder(out, force=force, inputs=ins,
+                      spec=gearbox.spec_dict() if gearbox is not None else None,
+                      parameters=parameters, seed=seed, staged=True) as folder:
+        items = files() if callable(files) else (files or {})
+        for name, value in items.items():
+            _write_one(folder, name, value)
+    return folder.path
+
+
+def _write_one(folder: Any, name: str, value: Any) -> None:
+    if isinstance(value, (bytes, bytearray)):
+        folder.write_bytes(name, bytes(value))
+    elif isinstance(value, str):
+        folder.write_text(name, value)
+    elif hasattr(value, "savefig"):
+        import matplotlib.pyplot as plt
+
+        folder.savefig(name, value)
+        plt.close(value)
+    elif callable(value):
+        folder.write_with(name, value)
+    else:
+        folder.write_json(name, value)
+
+
+def console() -> Any:
+    """A rich console for tables: wraps cells rather than cutting them, 120 columns when the
+    output is not a terminal (a pipe or a file), the terminal's width otherwise."""
+    import sys
+
+    from rich.console import Console
+
+    width = None if sys.stdout.isatty() else int(os.environ.get("COLUMNS", "120") or 120)
+    return Console(width=width, soft_wrap=False)
+
+
+def print_table(table: Any) -> None:
+    """Print a rich table so that no cell is cut (columns fold instead of ellipsis)."""
+    for col in table.columns:
+        if col.overflow == "ellipsis":
+            col.overflow = "fold"
+    console().print(table)
+
+
+__all__ = [
+    "PRESETS", "Gearbox", "OptionError", "at_least", "band", "channel_option", "channel_token",
+    "check_channel", "check_out", "choice", "console", "emit", "existing_file", "finite",
+    "force_option", "in_range", "input_speed_option", "json_option", "load_gearbox",
+    "out_option", "positive", "preset_option", "print_table", "read_record",
+    "sample_rate_option", "spec_option", "write_outputs",
+]
