@@ -56,6 +56,11 @@ class FitError(DtwinError, RuntimeError):
     """A parameter fit failed to converge or hit a bound."""
 
 
+class SettingsError(DtwinError, ValueError):
+    """Settings of a fit, a discrepancy search or a fleet run are invalid (a value out of its
+    allowed set or range, or settings that contradict each other)."""
+
+
 class ParameterError(DtwinError, KeyError):
     """An unknown parameter name (not in :mod:`dtwin.registry`)."""
 

@@ -100,3 +100,41 @@ def test_effect_is_detected(setup):
     # each fold recovers the effect's amplitude (norm of the parameters, 2.5) within 20 %
     for p in np.asarray(params):
         assert np.linalg.norm(p[:2]) == pytest.approx(2.5, rel=0.2)
+
+
+def test_confidence_sets_the_identification_threshold():
+    """`DiscoverySettings.confidence` acts: the χ² threshold of the amplitude's profile interval
+    is the published quantile (χ²₁: 3.841 at 95 %, 6.635 at 99 %; Abramowitz & Stegun 1964,
+    table 26.8), and an effect whose evidence lies between the two is identified at 95 % and
+    not at 99 % (the 95 % interval excludes zero, the 99 % one does not)."""
+    from dtwin.identify.discover import (
+        amplitude_profile,
+        chi2_quantile,
+        fit_joint,
+        is_identified,
+        normal_quantile,
+        residual_variance,
+    )
+
+    assert chi2_quantile(0.95) == pytest.approx(3.841459, abs=1e-5)
+    assert chi2_quantile(0.99) == pytest.approx(6.634897, abs=1e-5)
+    assert normal_quantile(0.99) == pytest.approx(2.575829, abs=1e-6)
+    base = _tones(BASE)
+    _, Z0 = segment_spectra(base, FS)
+    _, Jc = segment_spectra(_effect_columns(), FS)
+    Jc = np.moveaxis(Jc, 0, -1)
+    eff = _effect_columns()
+    rng = np.random.default_rng(7)
+    x = base + 0.15 * (eff[0] - 0.75 * eff[1]) + SIGMA * rng.standard_normal(N)
+    inp, _, _ = _inputs(x, Z0, Jc)
+    _, fold_params = heldout_statistic(inp)
+    val, _, _, r = fit_joint(inp, np.asarray(fold_params))
+    s2 = residual_variance(inp, r, 2 + 2)
+    decided = {}
+    for c in (0.95, 0.99):
+        c_lo, c_hi, evidence = amplitude_profile(inp, val, s2, chi2_quantile(c))
+        decided[c] = (c_lo, c_hi, is_identified(c_lo, evidence, 1.0, c))
+    assert chi2_quantile(0.95) < evidence < chi2_quantile(0.99), evidence
+    assert decided[0.95][2] and not decided[0.99][2]
+    # nested intervals: the 99 % profile interval contains the 95 % one
+    assert decided[0.99][0] <= decided[0.95][0] and decided[0.99][1] >= decided[0.95][1]

@@ -313,8 +313,9 @@ def test_table_and_cli(sequential, capsys):
 
 def test_without_ray_runs_locally_and_skips_done(sequential, spec, monkeypatch):
     import dtwin.identify.fleet as fleet
+    from dtwin.identify.fleet import ray_engine
 
-    monkeypatch.setattr(fleet, "ray_available", lambda: False)
+    monkeypatch.setattr(ray_engine, "ray_available", lambda: False)  # where run_fleet asks
     run = fleet.run_fleet([sequential["pattern"]], spec, sequential["out"], _settings(),
                           engine="auto", progress=False, table=False)
     assert run.engine == "local" and run.skipped == 3 and run.fitted == 0

@@ -16,7 +16,7 @@ An effect is a final subclass of :class:`AbstractEffect`. It names
 
 Parameters enter the parts *linearly* wherever the physics allows (an eccentricity as its two
 components rather than magnitude and phase), so that the first-order response about the base
-model is exact in the parameters and the fit starts well (``identify/discover.py``).
+model is exact in the parameters and the fit starts well (``identify/discover/``).
 
 An effect may specialise itself to the machine and the record before the search
 (:meth:`AbstractEffect.adapt`, given an :class:`EffectContext`): a planet-bearing defect reads

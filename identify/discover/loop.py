@@ -1,0 +1,317 @@
+"""The discrepancy search loop (:func:`discover`; the method in the package docstring)."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from dtwin.build import build_twin, daq_from_spec
+from dtwin.spec import Spec, load_spec
+from dtwin.spectrum import amplitude_spectrum, as_signal, noise_floor
+
+from ..effects import registered_effects
+from ..effects.base import EffectContext
+from ..gap import FLOOR_BINS, gap, named_bands, segment_spectra
+from ..lines import Kinematics, chance_match_probability, estimate_speed, residual_lines
+from .candidates import _adapted, _bins_of, _dilate, coverage, signature_labels
+from .model import extended_model
+from .results import CandidateResult, DiscoveryResult, Step
+from .settings import DiscoverySettings
+from .statistics import (
+    P_MAX,
+    amplitude_profile,
+    candidate_inputs,
+    chi2_quantile,
+    fit_joint,
+    heldout_statistic,
+    is_identified,
+    normal_quantile,
+    null_statistics,
+    p_value,
+    residual_variance,
+    theta_of,
+)
+
+
+def _log_gain(Y, Z0, floor, thr_db) -> float:
+    thr = floor * 10 ** (thr_db / 20.0)
+    a0 = np.abs(Z0)
+    sel = (Y > thr) & (a0 > 0) & (a0 > 1e-12 * max(a0.max(), 1e-300))
+    sel &= a0 * np.exp(np.median(np.log(Y[sel] / a0[sel])) if sel.any() else 1.0) > thr \
+        if sel.any() else sel
+    if not sel.any():
+        return 0.0
+    return float(np.median(np.log(Y[sel] / a0[sel])))
+
+
+
+def discover(
+    record,
+    spec,
+    *,
+    sample_rate: float | None = None,
+    base_twin=None,
+    kind: str | None = None,
+    candidates: Sequence | None = None,
+    settings: DiscoverySettings = DiscoverySettings(),
+    log=None,
+) -> DiscoveryResult:
+    """Find what the twin is missing, name it, add it, refit, and repeat (docs/discovery.md).
+
+    **Arguments:**
+
+    - `record`: a :class:`dtwin.io.Record` (first channel) or a 1-D signal with `sample_rate`.
+    - `spec`: the gearbox spec (`dtwin.spec.Spec`, path or mapping): kinematics, DAQ and the
+      base twin (``build_twin(spec, kind=kind)``) unless `base_twin` is given (e.g. the twin
+      fitted by :func:`dtwin.identify.fit.fit`).
+    - `candidates`: effects to try (default: :func:`dtwin.identify.effects.registered_effects`).
+    - `settings`: :class:`DiscoverySettings`.
+    - `log`: a callable receiving progress lines (default: silent).
+
+    **Returns:** :class:`DiscoveryResult`.
+    """
+    t_start = time.perf_counter()
+    say = log or (lambda s: None)
+    if not isinstance(spec, Spec):
+        spec = load_spec(spec)
+    x, fs = as_signal(record, sample_rate)
+    n = (len(x) // (2 * settings.n_folds)) * 2 * settings.n_folds
+    x = x[:n] - np.mean(x[:n])
+    candidates = list(candidates) if candidates is not None else registered_effects()
+
+    # 1. speed from the data, kinematics
+    kin0 = Kinematics.from_spec(spec)
+    freqs_full, a_full = amplitude_spectrum(x, fs, "hann")
+    f_est = estimate_speed(freqs_full, np.asarray(a_full), kin0)
+    f_sun = kin0.f_sun if abs(f_est / kin0.f_sun - 1) < 2e-4 else f_est
+    kin = Kinematics.from_spec(spec, f_sun)
+    f_max = fs / 2
+    say(f"speed {f_sun:.4f} Hz (estimated {f_est:.4f}); fm {kin.f_mesh:.2f} Hz")
+
+    # 2. the extended model
+    if base_twin is None:
+        base_twin = build_twin(spec, kind=kind, f_sun=f_sun)
+    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None)
+    # candidates specialised to the machine (spec, base twin) first, then to the record (the
+    # base twin's residual lines); a second model only when the record changed the set
+    ctx = EffectContext(spec, base_twin, kin, threshold_db=settings.threshold_db)
+    originals = candidates
+    candidates = _adapted(originals, ctx)
+    model = extended_model(base_twin, candidates, kin, daq, n, f_sun, settings.solver(),
+                           settings.response)
+    m_sig = model.base_signal()
+    _, Zb = segment_spectra(m_sig, fs, settings.n_folds)
+    _, Yb = segment_spectra(x, fs, settings.n_folds)
+    lgb = [_log_gain(np.abs(Yb[f]), Zb[f], noise_floor(np.abs(Yb[f]), FLOOR_BINS),
+                     settings.threshold_db) for f in range(settings.n_folds)]
+    _, m_b = amplitude_spectrum(m_sig * float(np.exp(np.mean(lgb))), fs, "hann")
+    floor_b = noise_floor(np.asarray(a_full), FLOOR_BINS)
+    lines_b = residual_lines(freqs_full, np.asarray(a_full), np.asarray(m_b), kin,
+                             threshold_db=settings.threshold_db, excess_db=settings.excess_db,
+                             tolerance_bins=settings.tolerance_bins, f_max=f_max)
+    ctx = dataclasses.replace(ctx, freqs=freqs_full, measured=np.asarray(a_full),
+                              model=np.asarray(m_b), floor=floor_b, lines=tuple(lines_b))
+    with_data = _adapted(originals, ctx)
+    if with_data != candidates:
+        say("candidates specialised to the record: "
+            + ", ".join(repr(e) for e in with_data if e not in candidates))
+        candidates = with_data
+        model = extended_model(base_twin, candidates, kin, daq, n, f_sun, settings.solver(),
+                               settings.response)
+        m_sig = model.base_signal()
+    theta_units = np.zeros(model.size)
+
+    # spectra
+    freqs, Yc = segment_spectra(x, fs, settings.n_folds)
+    Y = np.abs(Yc)
+    floor = noise_floor(Y, FLOOR_BINS)
+    df = freqs[1] - freqs[0]
+    nb = len(freqs)
+    bands = named_bands(kin, f_max)
+    tol_full = settings.tolerance_bins * (freqs_full[1] - freqs_full[0])
+    chance = chance_match_probability(kin, tol_full, f_max)
+    # the level of the parameter intervals and of the identification decision
+    z = normal_quantile(settings.confidence)
+    chi2 = chi2_quantile(settings.confidence)
+    rng = np.random.default_rng(settings.seed)
+    seg_len = n // settings.n_folds
+
+    def fold_gains(Z0):
+        return np.array([_log_gain(Y[f], Z0[f], floor[f], settings.threshold_db)
+                         for f in range(settings.n_folds)])
+
+    def heldout_gap(a_model_folds):
+        return gap(freqs, Y, a_model_folds, bands, floor, settings.threshold_db)
+
+    def swap(v):
+        return v[::-1]
+
+    steps: list[Step] = []
+    models, residual_sets = [], []
+    added: set[str] = set()
+    stop = "budget"
+    last_cands: list[CandidateResult] = []
+    initial_gap = None
+    for step_no in range(1, settings.max_steps + 2):
+        _, Z0 = segment_spectra(m_sig, fs, settings.n_folds)
+        lg0 = fold_gains(Z0)
+        # held-out gap of the current model: gains fitted on the other fold
+        gap_now = heldout_gap(np.exp(swap(lg0))[:, None] * np.abs(Z0))
+        if initial_gap is None:
+            initial_gap = gap_now
+        g_full = float(np.exp(np.mean(lg0)))
+        _, m_full = amplitude_spectrum(m_sig * g_full, fs, "hann")
+        m_full = np.asarray(m_full)
+        models.append(m_full)
+        lines = residual_lines(freqs_full, np.asarray(a_full), m_full, kin,
+                               threshold_db=settings.threshold_db, excess_db=settings.excess_db,
+                               tolerance_bins=settings.tolerance_bins, f_max=f_max)
+        residual_sets.append(lines)
+        if step_no > settings.max_steps:
+            break
+        say(f"step {step_no}: held-out gap {gap_now.total:.2f} dB, "
+            f"{sum(r.side == 'measured' for r in lines)} residual lines")
+        # 3. rank by coverage
+        ranked = []
+        cov_all: dict[str, float] = {}
+        for i, e in enumerate(candidates):
+            if e.name in added:
+                continue
+            cov, matched = coverage(e, kin, lines, tol_full, f_max)
+            cov_all[e.name] = cov
+            if cov >= settings.min_coverage:
+                ranked.append((cov, i, matched))
+        ranked.sort(key=lambda t: -t[0])
+        ranked = ranked[: settings.max_refit]
+        if not ranked:
+            stop = "no candidate covers the residual lines"
+            last_cands = []
+            break
+        K_tried = len(ranked)
+        level = settings.alpha / K_tried
+        # the smallest attainable p-value 1/(B+1) must lie below the level alpha/K
+        n_boot = max(settings.n_boot, int(np.ceil(K_tried / settings.alpha)))
+        model.ensure_responses([i for _, i, _ in ranked])
+        model_line = _dilate(np.abs(Z0) * np.exp(lg0)[:, None]
+                             > floor * 10 ** (settings.threshold_db / 20.0))
+        results: list[CandidateResult] = []
+        for cov, i, matched in ranked:
+            e = candidates[i]
+            cr = CandidateResult(e.name, e.group, cov, matched)
+            say(f"  refit {e.name} (coverage {cov:.2f})")
+            Jt = model.response(i)  # (n, p)
+            _, Jc = segment_spectra(Jt.T, fs, settings.n_folds)  # (p, F, K)
+            Jc = np.moveaxis(Jc, 0, -1)  # (F, K, p)
+            sig_lines = [s.frequency for s in e.signature(kin, f_max)]
+            sig = np.broadcast_to(_bins_of(sig_lines, df, nb), Y.shape)
+            if not getattr(e, "modifies_model_lines", False):
+                sig = sig & ~model_line
+            ps = model.parameters[i]
+            p = Jc.shape[-1]
+            inp, sel, K = candidate_inputs(Z0, Jc, Y, floor, sig, model_line,
+                                           [q.nonnegative for q in ps], lg0)
+            nonneg = np.asarray(inp.nonneg)
+            active = np.asarray(inp.active)
+            T, fold_params = heldout_statistic(inp)
+            T = float(T)
+            fold_params = np.asarray(fold_params)
+            # held-out gap with the linearised model, parameters from the other fold
+            a_lin = np.zeros_like(Y)
+            for f in range(settings.n_folds):
+                pf = fold_params[1 - f]
+                th = theta_of(pf, nonneg, active)[:p]
+                a_f = np.exp(pf[-1]) * np.abs(Z0[f] + Jc[f] @ th)
+                a_lin[f] = a_f
+            cr.gap_after = heldout_gap(a_lin).total
+            cr.statistic = T
+            # bootstrap null
+            t_null = null_statistics(inp, rng, n_boot, Z0, floor, sel, seg_len)
+            cr.p_value = p_value(T, t_null, rng)
+            cr.significant = cr.p_value <= level and cr.gap_after < gap_now.total
+            # joint fit and intervals
+            val, loss, jac, r = fit_joint(inp, fold_params)
+            n_par = p + settings.n_folds
+            keep = np.r_[np.arange(p), P_MAX + np.arange(settings.n_folds)]
+            Jk = jac[:, keep]
+            s2 = residual_variance(inp, r, n_par)
+            try:
+                cov_u = s2 * np.linalg.inv(Jk.T @ Jk)
+            except np.linalg.LinAlgError:
+                cov_u = np.full((n_par, n_par), np.inf)
+            u = val[:p]
+            dth = np.where(nonneg[:p] > 0, np.exp(np.clip(u, -700, 700)), 1.0)  # dθ/du
+            th_units = theta_of(val, nonneg, active)[:p]
+            scales = model.scales[model.slice(i)]
+            cr.theta = th_units * scales
+            cr.sigma = np.sqrt(np.abs(np.diag(cov_u)[:p])) * dth * scales
+            gmain = np.asarray(jax.grad(e.main)(jnp.asarray(cr.theta)))
+            cov_th = cov_u[:p, :p] * np.outer(dth * scales, dth * scales)
+            cr.main = float(e.main(jnp.asarray(cr.theta)))
+            cr.main_sigma = float(np.sqrt(max(gmain @ cov_th @ gmain, 0.0)))
+            # identified: the profile interval of the overall amplitude excludes zero (more
+            # reliable than the delta method for a norm near zero, and scale-free)
+            c_lo, c_hi, evidence = amplitude_profile(inp, val, s2, chi2)
+            cr.main_interval = (c_lo * cr.main, c_hi * cr.main)
+            cr.evidence = evidence
+            cr.identified = is_identified(c_lo, evidence, cr.main, settings.confidence)
+            cr.log_gains = val[P_MAX:]
+            say(f"    T {T:.1f} p {cr.p_value:.4f} (level {level:.4f}) gap {cr.gap_after:.2f} dB "
+                f"main {cr.main:.3g} [{cr.main_interval[0]:.3g}, {cr.main_interval[1]:.3g}] "
+                f"identified {cr.identified}")
+            results.append(cr)
+        last_cands = results
+        ok = [c for c in results if c.significant and c.identified]
+        if not ok:
+            stop = "no candidate significant and identified"
+            break
+        best = min(ok, key=lambda c: c.gap_after)
+        i_best = next(i for i, e in enumerate(candidates) if e.name == best.name)
+        members = [e.name for e in candidates if e.group == best.group and e.name != best.name]
+        tried = {c.name: c for c in results}
+        # a member not refit is told apart only when its signature covers (almost) none of
+        # the residual lines; one that covers them but was not refit may fit as well
+        ties = [nm for nm in members
+                if (nm not in tried and cov_all.get(nm, 0.0) >= settings.min_coverage)
+                or (nm in tried and (not np.isfinite(tried[nm].gap_after)
+                                     or tried[nm].gap_after - best.gap_after < settings.tie_db))]
+        named = best.name if not ties else best.group
+        # confirm with the full (nonlinear) model at the joint fit
+        theta_units = theta_units.copy()
+        theta_units[model.slice(i_best)] = best.theta / model.scales[model.slice(i_best)]
+        m_sig = model.signal(theta_units)
+        _, Z1 = segment_spectra(m_sig, fs, settings.n_folds)
+        lg1 = fold_gains(Z1)
+        gap_conf = heldout_gap(np.exp(swap(lg1))[:, None] * np.abs(Z1))
+        gap_lin = best.gap_after
+        e_best = candidates[i_best]
+        params = [dict(name=q.name, unit=q.unit, value=float(v), sigma=float(s),
+                       interval=[float(v - z * s), float(v + z * s)])
+                  for q, v, s in zip(model.parameters[i_best], best.theta, best.sigma, strict=True)]
+        main = dict(name=e_best.main_name, unit=e_best.main_unit, value=best.main,
+                    sigma=best.main_sigma,
+                    interval=list(best.main_interval),
+                    interval_kind=f"profile of the overall amplitude, {100 * settings.confidence:g} %",
+                    delta_method_sigma=best.main_sigma,
+                    typical_range=list(e_best.typical_range), typical_note=e_best.typical_note)
+        gap_after = dataclasses.replace(gap_now, total=gap_lin,
+                                        bands=dict(gap_now.bands, all=gap_lin))
+        steps.append(Step(step_no, best.name, best.group, named, ties, best.matched, params, main,
+                          best.p_value, level, gap_now, gap_after, gap_conf, results,
+                          signature_labels(e_best, kin, best.matched, tol_full, f_max)))
+        added.add(best.name)
+        say(f"  added {best.name} (named {named}); gap {gap_now.total:.2f} → {gap_lin:.2f} dB "
+            f"(confirmed {gap_conf.total:.2f})")
+    final_lines = residual_sets[-1]
+    unexplained = [r for r in final_lines if r.side == "measured"]
+    extra = [r for r in final_lines if r.side == "model"]
+    _, Zf = segment_spectra(m_sig, fs, settings.n_folds)
+    lgf = fold_gains(Zf)
+    final_gap = heldout_gap(np.exp(swap(lgf))[:, None] * np.abs(Zf))
+    return DiscoveryResult(kin, f_sun, fs, settings, steps, initial_gap, final_gap, unexplained,
+                           extra, chance, stop, last_cands, freqs_full, np.asarray(a_full), models,
+                           residual_sets, time.perf_counter() - t_start)

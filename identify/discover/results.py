@@ -1,0 +1,120 @@
+"""Result types of a discrepancy search: one candidate refit, one accepted step, the outcome."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..gap import GapResult
+from ..lines import Kinematics, ResidualLine
+from .settings import DiscoverySettings
+
+
+@dataclasses.dataclass
+class CandidateResult:
+    """One candidate refit in a step."""
+
+    name: str
+    group: str
+    coverage: float
+    matched: list[ResidualLine]
+    statistic: float = float("nan")
+    p_value: float = float("nan")
+    gap_after: float = float("nan")
+    identified: bool = False
+    significant: bool = False
+    theta: np.ndarray | None = None
+    sigma: np.ndarray | None = None
+    main: float = float("nan")
+    main_sigma: float = float("nan")
+    main_interval: tuple[float, float] = (float("nan"), float("nan"))
+    evidence: float = float("nan")
+    log_gains: np.ndarray | None = None
+
+    def to_dict(self) -> dict:
+        return dict(name=self.name, group=self.group, coverage=self.coverage,
+                    statistic=self.statistic, p_value=self.p_value, gap_after=self.gap_after,
+                    identified=self.identified, significant=self.significant,
+                    main=self.main, main_sigma=self.main_sigma,
+                    main_interval=list(self.main_interval), evidence=self.evidence)
+
+
+@dataclasses.dataclass
+class Step:
+    """One accepted effect: what was added, why, with which values, and the gaps."""
+
+    number: int
+    effect: str
+    group: str
+    named: str
+    indistinguishable_from: list[str]
+    matched_lines: list[ResidualLine]
+    parameters: list[dict]
+    main: dict
+    p_value: float
+    level: float
+    gap_before: GapResult
+    gap_after: GapResult
+    gap_confirmed: GapResult
+    candidates: list[CandidateResult]
+    #: the effect's own label (its signature) of each matched line
+    matched_labels: list[str] = dataclasses.field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return dict(
+            number=self.number, effect=self.effect, group=self.group, named=self.named,
+            indistinguishable_from=self.indistinguishable_from,
+            matched_lines=[dict(r.to_dict(), signature=lab) for r, lab in
+                           zip(self.matched_lines, self.matched_labels or
+                               [""] * len(self.matched_lines), strict=True)],
+            parameters=self.parameters, main=self.main, p_value=self.p_value, level=self.level,
+            gap_before=self.gap_before.to_dict(), gap_after=self.gap_after.to_dict(),
+            gap_confirmed=self.gap_confirmed.to_dict(),
+            candidates=[c.to_dict() for c in self.candidates])
+
+
+@dataclasses.dataclass
+class DiscoveryResult:
+    """Outcome of :func:`discover` (``to_dict`` for JSON; spectra kept for the figures)."""
+
+    kinematics: Kinematics
+    f_sun: float
+    sample_rate: float
+    settings: DiscoverySettings
+    steps: list[Step]
+    initial_gap: GapResult
+    final_gap: GapResult
+    unexplained: list[ResidualLine]
+    extra_in_model: list[ResidualLine]
+    chance_match_probability: float
+    stop_reason: str
+    last_candidates: list[CandidateResult]
+    freqs: np.ndarray
+    measured: np.ndarray
+    models: list[np.ndarray]
+    residuals: list[list[ResidualLine]]
+    timing_s: float = 0.0
+
+    @property
+    def named(self) -> list[str]:
+        return [s.named for s in self.steps]
+
+    @property
+    def groups(self) -> list[str]:
+        return [s.group for s in self.steps]
+
+    def to_dict(self) -> dict:
+        return dict(
+            f_sun=self.f_sun, sample_rate=self.sample_rate,
+            kinematics=dataclasses.asdict(self.kinematics),
+            settings=dataclasses.asdict(self.settings),
+            steps=[s.to_dict() for s in self.steps],
+            initial_gap=self.initial_gap.to_dict(), final_gap=self.final_gap.to_dict(),
+            unexplained=[r.to_dict() for r in self.unexplained],
+            extra_in_model=[r.to_dict() for r in self.extra_in_model],
+            chance_match_probability=self.chance_match_probability,
+            stop_reason=self.stop_reason,
+            last_candidates=[c.to_dict() for c in self.last_candidates],
+            timing_s=self.timing_s)
+

@@ -1,0 +1,49 @@
+"""Settings of a discrepancy search (:func:`dtwin.identify.discover.discover`)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from dtwin.simulate import SolverOptions
+
+
+@dataclasses.dataclass(frozen=True)
+class DiscoverySettings:
+    """Settings of :func:`discover` (defaults documented in ``docs/discovery.md``).
+
+    - `alpha`: family-wise level of each step's decision (Bonferroni over the candidates refit
+      in the step): a candidate is kept only with p ≤ alpha / (number refit).
+    - `n_boot`: bootstrap draws of the null statistic per candidate (raised to K / alpha so that
+      the smallest attainable p-value lies below the level).
+    - `threshold_db`, `excess_db`, `tolerance_bins`: residual-line detection (dtwin.identify.lines).
+    - `max_steps`: budget of effects added; `max_refit`: candidates refit per step (by coverage).
+    - `min_coverage`: a candidate must cover this fraction of the residual line power.
+    - `tie_db`: members of one look-alike group whose held-out gaps differ by less are not told
+      apart (the group is named).
+    - `confidence`: level of the parameter intervals (``value ± z sigma``) and of the
+      identification decision: a candidate is identified when its profile interval at this
+      level excludes zero (:func:`dtwin.identify.discover.statistics.is_identified`).
+    - `rtol`, `atol`: solver tolerances of the model simulations; `response`: ``"fd"`` or
+      ``"jvp"`` (:meth:`ExtendedModel.ensure_responses`).
+    """
+
+    n_folds: int = 2
+    alpha: float = 0.01
+    n_boot: int = 400
+    threshold_db: float = 12.0
+    excess_db: float = 6.0
+    tolerance_bins: float = 0.25
+    max_steps: int = 3
+    max_refit: int = 4
+    min_coverage: float = 0.05
+    tie_db: float = 0.2
+    confidence: float = 0.99
+    seed: int = 0
+    rtol: float = 1e-4
+    atol: float = 1e-4
+    response: str = "fd"
+
+    def solver(self):
+        """Solver options of the model simulations (forward-mode responses)."""
+        return SolverOptions(rtol=self.rtol, atol=self.atol, adjoint="forward")
+

@@ -1,0 +1,231 @@
+"""The tasks of a fleet run: fit the records of one task, discover on one fitted record, and the
+result entries they return (run in a worker process under Ray, or here)."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import socket
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import equinox as eqx
+import jax
+import numpy as np
+
+from dtwin.build import build_twin
+from dtwin.errors import DtwinError
+from dtwin.io.readers import read_record
+from dtwin.spec import load_spec
+
+from ..discover import DiscoverySettings, discover
+from ..params import ParameterSet
+from .settings import FAIL_ENV, SCHEMA, FleetSettings
+from .store import _now
+
+#: The module ``dtwin.identify.fit`` (the package re-exports a *function* of that name): its
+#: functions are looked up when a task runs, so a test can count the calls of ``fit_batch``.
+_fit = importlib.import_module("dtwin.identify.fit")
+
+_GAP_THRESHOLD_DB = 12.0
+
+
+def _inject(job: Mapping[str, Any], inject: str | None, attempts_dir: str | None,
+            in_ray: bool) -> None:
+    """Failure injection (module docstring)."""
+    if not inject:
+        return
+    target, _, times = inject.partition("@")
+    target, _, mode = target.partition(":")
+    if not target or target not in job["path"]:
+        return
+    if times:
+        marker = Path(attempts_dir or ".") / f"{job['key']}.attempts"
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        with open(marker, "a") as f:
+            f.write("x")
+        if marker.stat().st_size > int(times):
+            return
+    if mode == "exit" and in_ray:
+        os._exit(17)
+    raise RuntimeError(f"injected failure ({FAIL_ENV}={inject!r}) in the task of {job['path']}")
+
+
+def _identity(job: Mapping[str, Any]) -> dict[str, Any]:
+    return {"record": job["path"], "key": job["key"], "machine": job["machine"],
+            "timestamp": job["timestamp"], "identity_source": job["identity_source"],
+            "sha256": job["sha256"]}
+
+
+def failure_entry(job: Mapping[str, Any], error: BaseException | str, *, stage: str,
+                  fingerprint: str, kind: str = "fit", attempts: int | None = None
+                  ) -> dict[str, Any]:
+    """The result entry of a record that failed at `stage` (``read``, ``fit``, ``task``,
+    ``discover``) with `error`."""
+    if isinstance(error, BaseException):
+        etype, msg = type(error).__name__, str(error)
+    else:
+        etype, msg = "Error", str(error)
+    return {"schema": SCHEMA, "kind": kind, "status": "failed", **_identity(job),
+            "settings_fingerprint": fingerprint, "stage": stage, "error_type": etype,
+            "error": msg[-4000:], "attempts": attempts, "host": socket.gethostname(),
+            "finished": _now()}
+
+
+def fit_gap_db(res) -> float:
+    """In-sample gap (dB) of a fit over its own points (module docstring).
+
+    The residuals at the optimum are the fit's own (`FitResult.residuals`, from its last
+    accepted step): ``r = log(model level) − log(A_meas + F)`` per point, so the model level is
+    ``exp(meas + r)``."""
+    problem = res.problem
+    r = np.asarray(res.residuals)
+    d2, off = [], 0
+    for obs in problem.observations:
+        m = int(obs.meas.shape[0])
+        meas = np.asarray(obs.meas)
+        floor = np.asarray(obs.floor)
+        lr = r[off: off + m] / obs.weight
+        off += obs.size
+        thr = floor * 10.0 ** (_GAP_THRESHOLD_DB / 20.0)
+        a_meas, a_model = np.exp(meas), np.exp(meas + lr)
+        mask = ((a_meas - floor) > thr) | ((a_model - floor) > thr)
+        d2.append(((20.0 / np.log(10.0)) * lr[mask]) ** 2)
+    d = np.concatenate(d2) if d2 else np.zeros(0)
+    return float(np.sqrt(d.mean())) if d.size else 0.0
+
+
+def _fit_entry(job: Mapping[str, Any], res, *, fingerprint: str, engine: str, batched: int,
+               wall: float) -> dict[str, Any]:
+    unc = res.uncertainty
+    intervals = {}
+    std = {}
+    if unc is not None:
+        for i, n in enumerate(res.names):
+            intervals[n] = [float(unc.interval[i][0]), float(unc.interval[i][1])]
+            std[n] = float(unc.std[i])
+    try:
+        gap = fit_gap_db(res)
+    except Exception as e:  # noqa: BLE001 — the gap is a summary; the fit stands without it
+        gap = float("nan")
+        res.message += f"; gap not computed ({type(e).__name__}: {e})"
+    ops = res.operating_points[0] if res.operating_points else {}
+    return {
+        "schema": SCHEMA, "kind": "fit", "status": "ok", **_identity(job),
+        "settings_fingerprint": fingerprint, "names": list(res.names),
+        "values": dict(res.values), "intervals_95": intervals, "std": std,
+        "not_determined": dict(res.not_determined), "converged": bool(res.converged),
+        "at_bound": list(res.at_bound), "message": res.message, "loss": float(res.loss),
+        "iterations": int(res.iterations), "f_sun": ops.get("f_sun"), "operating_point": ops,
+        "gap_db": gap, "engine": engine, "batched_with": batched, "wall_time_s": wall,
+        "host": socket.gethostname(), "pid": os.getpid(), "finished": _now(),
+        "fit": res.to_dict(),
+    }
+
+
+def _structure(problem):
+    static = eqx.partition(problem, eqx.is_array)[1]
+    shapes = jax.tree.map(lambda a: a.shape, eqx.filter(problem, eqx.is_array))
+    return static, shapes
+
+
+def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
+             settings: FleetSettings, *, fingerprint: str, engine: str = "local",
+             inject: str | None = None, attempts_dir: str | None = None) -> list[dict[str, Any]]:
+    """Fit the records of one task (module docstring); one entry per record, ``ok`` or
+    ``failed``. A `DtwinError` of one record is reported for that record; any other exception
+    propagates (Ray retries the task)."""
+    spec = load_spec(spec_data)
+    settings = settings.resolved(spec_data)
+    kw = settings.fit_kwargs()
+    free = list(settings.free)
+    entries: dict[str, dict[str, Any]] = {}
+    ready: list[tuple[Mapping[str, Any], Any, Any]] = []
+    for job in jobs:
+        _inject(job, inject, attempts_dir, engine == "ray")
+        try:
+            rec = read_record(job["path"])
+            prob, _ = _fit.make_problem(rec, spec, free, **{k: v for k, v in kw.items()
+                                                      if k not in ("solver", "max_steps", "tol")})
+            ready.append((job, rec, prob))
+        except DtwinError as e:
+            entries[job["key"]] = failure_entry(job, e, stage="read", fingerprint=fingerprint)
+    groups: list[list[tuple[Mapping[str, Any], Any, Any]]] = []
+    sigs: list[Any] = []
+    for item in ready:
+        s = _structure(item[2])
+        for g, sg in zip(groups, sigs, strict=True):
+            if sg == s:
+                g.append(item)
+                break
+        else:
+            groups.append([item])
+            sigs.append(s)
+
+    def single(job, rec):
+        t0 = time.perf_counter()
+        try:
+            res = _fit.fit(rec, spec, free, starts=settings.starts, refine=settings.refine, **kw)
+            return _fit_entry(job, res, fingerprint=fingerprint, engine=engine, batched=1,
+                              wall=time.perf_counter() - t0)
+        except DtwinError as e:
+            return failure_entry(job, e, stage="fit", fingerprint=fingerprint)
+
+    for g in groups:
+        if len(g) == 1:
+            job, rec, _ = g[0]
+            entries[job["key"]] = single(job, rec)
+            continue
+        t0 = time.perf_counter()
+        try:
+            results = _fit.fit_batch([r for _, r, _ in g], spec, free, **kw)
+        except DtwinError:
+            for job, rec, _ in g:  # isolate the record that fails
+                entries[job["key"]] = single(job, rec)
+            continue
+        wall = (time.perf_counter() - t0) / len(g)
+        for (job, _, _), res in zip(g, results, strict=True):
+            entries[job["key"]] = _fit_entry(job, res, fingerprint=fingerprint, engine=engine,
+                                             batched=len(g), wall=wall)
+    return [entries[j["key"]] for j in jobs]
+
+
+def _fitted_twin(spec, settings: FleetSettings, values: Mapping[str, float], f_sun: float | None):
+    twin = build_twin(spec, kind=settings.kind, f_sun=f_sun)
+    names = [n for n in settings.free if n in values and n != "sensor_gain"]
+    if not names:
+        return twin
+    pset = ParameterSet.build(names, twin, initial={n: float(values[n]) for n in names})
+    return pset.apply(pset.prepare(twin), pset.values(np.zeros(len(names))))
+
+
+def discover_task(job: Mapping[str, Any], spec_data: Mapping[str, Any], settings: FleetSettings,
+                  fit_entry: Mapping[str, Any], *, fingerprint: str, engine: str = "local",
+                  inject: str | None = None, attempts_dir: str | None = None) -> dict[str, Any]:
+    """Discovery on one record about its fitted twin (:func:`dtwin.identify.discover.discover`):
+    effects named with their main parameter, held-out gap before and after, unexplained lines.
+    A `DtwinError` is reported; other exceptions propagate (retried)."""
+    _inject({**job, "path": job["path"] + "#discover"}, inject, attempts_dir, engine == "ray")
+    t0 = time.perf_counter()
+    try:
+        spec = load_spec(spec_data)
+        rec = read_record(job["path"])
+        twin = _fitted_twin(spec, settings, fit_entry.get("values", {}), fit_entry.get("f_sun"))
+        res = discover(rec.select([settings.channel]), spec, base_twin=twin, kind=settings.kind,
+                       settings=DiscoverySettings(**dict(settings.discover_options)))
+    except DtwinError as e:
+        return failure_entry(job, e, stage="discover", fingerprint=fingerprint, kind="discover")
+    return {
+        "schema": SCHEMA, "kind": "discover", "status": "ok", **_identity(job),
+        "settings_fingerprint": fingerprint,
+        "effects": [s.named for s in res.steps],
+        "groups": [s.group for s in res.steps],
+        "main": [dict(s.main, effect=s.effect) for s in res.steps],
+        "gap_initial_db": res.initial_gap.total, "gap_final_db": res.final_gap.total,
+        "unexplained": [r.to_dict() for r in res.unexplained], "stop_reason": res.stop_reason,
+        "engine": engine, "wall_time_s": time.perf_counter() - t0, "host": socket.gethostname(),
+        "finished": _now(), "result": res.to_dict(),
+    }
+
