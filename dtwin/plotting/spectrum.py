@@ -12,14 +12,16 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..spectrum import LabelledPeak
+from .levels import level_axis, levels, place_labels, set_level_limits, unit_text
 
 __all__ = ["peak_table_rows", "plot_spectrum_peaks", "plot_waveform"]
 
 
 def peak_table_rows(labelled: Sequence[LabelledPeak], unit: str) -> list[list[str]]:
     """Rows ``[No., f (Hz), amplitude (unit), dB over floor, label]`` of the label table."""
+    u = unit_text(unit)
     return [
-        [str(lp.number), f"{lp.peak.frequency:.2f}", f"{lp.peak.amplitude:.3g} {unit}",
+        [str(lp.number), f"{lp.peak.frequency:.2f}", f"{lp.peak.amplitude:.3g} {u}",
          f"{lp.peak.above_floor_db:.1f}", lp.text]
         for lp in labelled
     ]
@@ -30,60 +32,69 @@ def plot_spectrum_peaks(
     spec: np.ndarray,
     labelled: Sequence[LabelledPeak],
     *,
-    band: tuple[float, float] | None = (450.0, 550.0),
-    unit: str = "m/s²",
+    band: tuple[float, float] | None = None,
+    unit: str = "m/s^2",
     db: bool = False,
+    scale: str | None = None,
     floor: np.ndarray | None = None,
     title: str = "Amplitude spectrum",
     table: bool = True,
+    channel: str | None = None,
 ) -> Figure:
-    """Spectrum zoomed to `band` (Hz) with the peaks numbered 1, 2, … and a label table below.
+    """Spectrum over `band` (Hz) with the peaks numbered 1, 2, … and a label table below.
 
     **Arguments:**
 
     - `freqs`, `spec`: one-sided amplitude spectrum (Hz, `unit`).
     - `labelled`: peaks from :func:`dtwin.spectrum.label_peaks` (numbered, labelled).
-    - `band`: frequency range shown (Hz), None for all.
-    - `db`: plot ``20 log10(spec)`` (dB re 1 `unit`) instead of the linear amplitude.
+    - `band`: frequency range shown (Hz), None for the whole spectrum (callers pass the
+      gearbox's mesh band, :func:`dtwin.plotting.levels.mesh_band`).
+    - `scale`: ``"db"`` (levels in dB re the unit's ISO 1683 reference, e.g. 1 µm/s²) or
+      ``"linear"``; `db` is the older switch (``db=True`` is ``scale="db"``), linear by default.
     - `floor`: noise floor to draw (same unit as `spec`), optional.
     - `table`: add the table of numbers, frequencies, amplitudes and labels.
+    - `channel`: channel name shown in the title (several channels: one figure each).
     """
+    scale = scale or ("db" if db else "linear")
     freqs = np.asarray(freqs)
     spec = np.asarray(spec)
-    sel = slice(None) if band is None else (freqs >= band[0]) & (freqs <= band[1])
-    conv = (lambda v: 20 * np.log10(np.maximum(v, 1e-300))) if db else (lambda v: v)
-    n_rows = len(labelled)
-    fig = Figure(figsize=(9, 4.5 + (0.22 * n_rows + 0.6 if table and n_rows else 0)))
-    if table and n_rows:
-        gs = fig.add_gridspec(2, 1, height_ratios=[4.5, 0.22 * n_rows + 0.6], hspace=0.35)
+    sel = np.ones(freqs.shape, bool) if band is None else (freqs >= band[0]) & (freqs <= band[1])
+    n_rows = len(labelled) if table else 0
+    table_h = 0.24 * n_rows + 0.5 if n_rows else 0.0
+    fig = Figure(figsize=(10, 4.2 + table_h))
+    if n_rows:
+        gs = fig.add_gridspec(2, 1, height_ratios=[4.2, table_h], hspace=0.12 + 0.9 / (4.2 + table_h))
         ax = fig.add_subplot(gs[0])
         tax = fig.add_subplot(gs[1])
     else:
         ax = fig.add_subplot(1, 1, 1)
         tax = None
-    ax.plot(freqs[sel], conv(spec[sel]), lw=0.8, color="C0", label="spectrum")
+    y, _ = levels(spec[sel], unit, scale)
+    ax.plot(freqs[sel], y, lw=0.7, color="C0", label="spectrum")
     if floor is not None:
-        ax.plot(freqs[sel], conv(np.asarray(floor)[sel]), lw=0.8, ls="--", color="0.5",
-                label="noise floor (running median)")
-    for lp in labelled:
-        y = conv(lp.peak.amplitude)
-        ax.plot([lp.peak.frequency], [y], "v", color="C3", ms=5)
-        ax.annotate(str(lp.number), (lp.peak.frequency, y), textcoords="offset points",
-                    xytext=(0, 6), ha="center", fontsize=8, color="C3")
+        ax.plot(freqs[sel], levels(np.asarray(floor)[sel], unit, scale)[0], lw=0.8, ls="--",
+                color="0.5", label="noise floor (running median)")
+    xs = [lp.peak.frequency for lp in labelled]
+    ys = [float(levels(np.array([lp.peak.amplitude]), unit, scale)[0][0]) for lp in labelled]
     if labelled:
-        ax.plot([], [], "v", color="C3", label="numbered peaks (see table)")
+        ax.plot(xs, ys, "v", color="C3", ms=5, label="numbered peaks (see table)")
     ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel(f"amplitude (dB re 1 {unit})" if db else f"amplitude ({unit})")
-    ax.set_title(title)
-    if band is not None:
-        ax.set_xlim(band)
+    ax.set_ylabel(level_axis("amplitude", unit, scale))
+    ax.set_title(title + (f" [{channel}]" if channel else ""), pad=20)
+    lo, hi = band if band is not None else (float(freqs[0]), float(freqs[-1]))
+    ax.set_xlim(lo - 0.015 * (hi - lo), hi + 0.015 * (hi - lo))  # edge peaks stay readable
+    set_level_limits(ax, y, scale, headroom=0.25)
+    place_labels(ax, xs, ys, [str(lp.number) for lp in labelled], min_sep=0.02)
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper right", fontsize=8)
+    # the legend above the plot area, clear of the peaks and their numbers
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.01, 1.0, 0.1), ncol=3, fontsize=8,
+              frameon=False, borderaxespad=0.0)
     if tax is not None:
         tax.axis("off")
         tab = tax.table(
             cellText=peak_table_rows(labelled, unit),
             colLabels=["No.", "f (Hz)", "amplitude", "dB over floor", "label"],
+            colWidths=[0.07, 0.12, 0.18, 0.14, 0.49],
             loc="upper center", cellLoc="center",
         )
         tab.auto_set_font_size(False)
@@ -93,10 +104,11 @@ def plot_spectrum_peaks(
 
 
 def plot_waveform(
-    t: np.ndarray, x: np.ndarray, *, unit: str = "m/s²", title: str = "Time waveform",
+    t: np.ndarray, x: np.ndarray, *, unit: str = "m/s^2", title: str = "Time waveform",
     stats: bool = True,
 ) -> Figure:
     """Time waveform (s, `unit`), with RMS, kurtosis and crest factor in the legend."""
+    unit = unit_text(unit)
     from ..indicators import time_stats
 
     fig = Figure(figsize=(9, 3.2))

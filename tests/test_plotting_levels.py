@@ -1,0 +1,65 @@
+"""Spectrum-like figures: the level scale states its reference (ISO 1683), every peak lies inside
+the axes, labels are lifted apart, the default band covers the mesh harmonics."""
+
+import numpy as np
+import pytest
+
+from dtwin.plotting.levels import level_axis, levels, mesh_band, place_labels, set_level_limits
+from dtwin.plotting.views import plot_cepstrum, plot_order_spectrum, plot_psd
+
+
+def test_db_reference_is_stated():
+    y, text = levels(np.array([1.0, 1e-6]), "m/s^2", "db")
+    np.testing.assert_allclose(y, [120.0, 0.0])  # 1 m/s² = 120 dB re 1 µm/s²
+    assert text == "dB re 1 µm/s²"
+    assert level_axis("amplitude", "g", "db") == "amplitude (dB re 1 g)"
+    assert level_axis("amplitude", "m/s^2", "linear") == "amplitude (m/s²)"
+    assert level_axis("PSD", "m/s^2", "db", power=True) == "PSD (dB re (1 µm/s²)²/Hz)"
+    with pytest.raises(ValueError):
+        levels(np.ones(2), "g", "log")
+
+
+def test_limits_keep_peaks_inside():
+    from matplotlib.figure import Figure
+
+    ax = Figure().add_subplot()
+    y = np.array([1.0, 40.0, 3.0])
+    for scale in ("linear", "db"):
+        set_level_limits(ax, y if scale == "linear" else 20 * np.log10(y), scale)
+        lo, hi = ax.get_ylim()
+        top = 40.0 if scale == "linear" else 20 * np.log10(40.0)
+        assert hi > top + 0.1 * (top - lo)  # room above the highest peak for its label
+
+
+def test_close_labels_are_lifted():
+    from matplotlib.figure import Figure
+
+    ax = Figure().add_subplot()
+    ax.set_xlim(0, 100)
+    place_labels(ax, [50.0, 50.2, 90.0], [1.0, 1.0, 1.0], ["2fm", "2fm'", "x"])
+    off = {a.get_text(): a.xyann[1] for a in ax.texts}
+    assert off["2fm'"] > off["2fm"]  # 0.2 % of the width apart: lifted one row
+    assert off["x"] == off["2fm"]  # far apart: same row
+
+
+def test_mesh_band():
+    # fm 499 Hz, fc 4.87 Hz, Nyquist 2500 Hz: fm - 12 fc ... 3 fm + 12 fc
+    lo, hi = mesh_band(499.0, 4.87, 2500.0)
+    assert lo == pytest.approx(499.0 - 12 * 4.87) and hi == pytest.approx(3 * 499.0 + 12 * 4.87)
+    assert mesh_band(499.0, 4.87, 800.0)[1] == pytest.approx(499 + 12 * 4.87)
+
+
+def test_view_figures_state_units():
+    o = np.linspace(0, 40, 801)
+    a = np.full(o.shape, 1e-3)
+    a[334] = 1.0
+    fig = plot_order_spectrum(o, a, unit="m/s^2", channel="acc_x")
+    ax = fig.axes[0]
+    assert "dB re 1 µm/s²" in ax.get_ylabel() and "[acc_x]" in ax.get_title()
+    assert ax.get_ylim()[1] > 120.0
+    fig = plot_psd(o, a, unit="m/s^2")
+    assert "²/Hz" in fig.axes[0].get_ylabel() and "^2" not in fig.axes[0].get_ylabel()
+    q = np.arange(2000) / 5000.0
+    fig = plot_cepstrum(q, np.zeros(q.size), spacings={"fc": 6.0, "N fc": 18.0})
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert "1/fc" in texts and "3/N fc" in texts  # both shown where they coincide
