@@ -11,6 +11,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..coupling import MODELS, DriveComparison, SensitivitySweep
+from .levels import unit_text
 
 __all__ = ["plot_drive_comparison", "plot_sensitivity", "plot_sensitivity_sweep"]
 
@@ -38,13 +39,15 @@ def plot_drive_comparison(cmp: DriveComparison, *, title: str | None = None) -> 
         ax1.bar(s + off, cmp.rms[m], width=width, color=_COLOURS[m], label=_LABELS[m])
         ax2.plot(s, 100.0 * cmp.relative_rise(m), _STYLES[m], color=_COLOURS[m], label=_LABELS[m],
                  markerfacecolor="none" if m == "traditional" else None, markersize=8)
-    lo = min(float(np.min(cmp.rms[m])) for m in MODELS)
     hi = max(float(np.max(cmp.rms[m])) for m in MODELS)
-    pad = 0.15 * (hi - lo) if hi > lo else 0.05 * hi
-    ax1.set_ylim(max(lo - pad, 0.0), hi + pad)
+    ax1.set_ylim(0.0, 1.45 * hi)  # bars start at zero: their heights compare; room for the legend
+    for k, m in enumerate(MODELS):
+        off = (k - (len(MODELS) - 1) / 2) * width
+        for si, v in zip(s, cmp.rms[m], strict=True):
+            ax1.text(si + off, v, f"{v:.3g}", ha="center", va="bottom", fontsize=7, rotation=90)
     ax1.set_xticks(s)
     ax1.set_xlabel("sun missing-tooth severity (fraction of face width removed)")
-    ax1.set_ylabel(f"RMS of the sensor signal ({cmp.unit})")
+    ax1.set_ylabel(f"RMS of the sensor signal ({unit_text(cmp.unit)})")
     ax1.set_title("RMS versus fault severity")
     ax1.legend(loc="upper left", fontsize=8)
     ax2.axhline(0.0, color="k", lw=0.6)
@@ -83,7 +86,7 @@ def plot_sensitivity(cmp: DriveComparison, *, title: str | None = None) -> Figur
                     label=f"{_LABELS[m]}: secant")
     ax.axhline(0.0, color="k", lw=0.6)
     ax.set_xlabel("sun missing-tooth severity (fraction of face width removed)")
-    ax.set_ylabel(f"dRMS / dseverity ({cmp.unit} per unit severity)")
+    ax.set_ylabel(f"dRMS / dseverity ({unit_text(cmp.unit)} per unit severity)")
     ax.set_title(title or "Fault sensitivity of the RMS indicator")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -114,7 +117,7 @@ def plot_sensitivity_sweep(sweep: SensitivitySweep, *, title: str | None = None)
         ax.set_xlabel("shaft + coupling stiffness k_shaft (N·m/rad)")
         ax.legend(fontsize=8)
     ax1.axhline(0.0, color="k", lw=0.6)
-    ax1.set_ylabel(f"dRMS / dseverity at s = {sweep.severity:g} ({sweep.unit})")
+    ax1.set_ylabel(f"dRMS / dseverity at s = {sweep.severity:g} ({unit_text(sweep.unit)})")
     ax1.set_title("Sensitivity of both models")
     ax2.axhline(1.0, color="k", lw=0.6)
     ax2.set_ylabel("sensitivity ratio coupled / traditional (1)")
