@@ -26,15 +26,11 @@ from .errors import SpecError
 from .faults import AbstractFault, faults_from_table
 from .parts.base import AbstractPart
 from .parts.drive import DrivePart, LoadPart
-from .parts.imperfections import (
-    CarrierEccentricity,
-    MeshOffsets,
-    SunEccentricity,
-    TransmissionError,
-)
+from .parts.imperfections import MeshOffsets, TransmissionError
 from .parts.local_fault import LocalFault
 from .parts.supports import Supports
 from .parts.transfer_path import PlanetPassTransferPath
+from .registry import lookup
 from .simulate import DAQ
 from .twin import Twin
 
@@ -77,10 +73,9 @@ def spec_parts(spec, *, faults: tuple[AbstractFault, ...] | None = None) -> list
     flts = faults_from_table(spec["faults"]) if faults is None else tuple(faults)
     parts += [LocalFault(f) for f in flts]
     imp = spec["imperfections"]
-    if imp["sun_eccentricity"]:
-        parts.append(SunEccentricity(jnp.asarray(float(imp["sun_eccentricity"]))))
-    if imp["carrier_eccentricity"]:
-        parts.append(CarrierEccentricity(jnp.asarray(float(imp["carrier_eccentricity"]))))
+    for name in ("sun_eccentricity", "carrier_eccentricity"):  # parts built by their address
+        if imp[name]:
+            parts.append(lookup(name).address.make(float(imp[name])))
     if imp["load_sharing"] is not None:
         ls = jnp.asarray(imp["load_sharing"], dtype=jnp.float64)
         n = spec["gears"]["n_planets"]

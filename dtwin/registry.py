@@ -1,20 +1,33 @@
-"""The one registry of parameter names (reference.md §7).
+"""The one registry of parameter names (docs/conventions.md, "Parameter names").
 
 Spec files, the Python API, the CLI (``--free``) and result files all use these names. Each
-entry states its SI unit, where it lives in a spec file (a dotted TOML path), a plausible range
-(used to catch unit slips when a spec is loaded) and the transform a fit uses to keep it inside
-its bounds (``log`` for positive quantities, ``logit`` for quantities inside ``[lower, upper]``,
-``none`` for unbounded ones).
+entry states its SI unit, where it lives in a spec file (a dotted TOML path), where it lives in
+a twin (its :mod:`dtwin.address`: every reader and writer of a twin's parameters goes through
+it), a plausible range (used to catch unit slips when a spec is loaded) and the transform a fit
+uses to keep it inside its bounds (``log`` for positive quantities, ``logit`` for quantities
+inside ``[lower, upper]``, ``none`` for unbounded ones).
 
 Some names are *ties*: ``zeta_mesh`` sets ``zeta_sun_planet`` and ``zeta_ring_planet`` together.
+
+A new parameter is one entry here (or :func:`register` next to the part that owns it) with its
+address; nothing else changes. Parameters that belong to one analysis only (the effects of
+discrepancy discovery) stay out of the global table: :class:`RegistryView` overlays them.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import difflib
+from collections.abc import Iterable, Mapping
 
+import jax.numpy as jnp
+
+from .address import AbstractAddress, LumpedField, PartField, SignalGain, Tie
 from .errors import ParameterError
+from .faults import MissingTooth
+from .parts.drive import LoadPart
+from .parts.imperfections import CarrierEccentricity, SunEccentricity, TransmissionError
+from .parts.local_fault import LocalFault
 
 
 @dataclasses.dataclass(frozen=True)
@@ -32,6 +45,8 @@ class ParameterInfo:
     - `transform`: ``log``, ``logit`` or ``none``: how a fit keeps the value inside `bounds`.
     - `bounds`: (lower, upper) hard bounds for fitting.
     - `ties`: names this parameter sets together (empty for ordinary parameters).
+    - `address`: where it lives in a twin (:mod:`dtwin.address`); None when a twin does not
+      hold it (the operating speed, estimated from a record; motor-table values).
     """
 
     name: str
@@ -42,9 +57,55 @@ class ParameterInfo:
     transform: str = "log"
     bounds: tuple[float, float] = (0.0, float("inf"))
     ties: tuple[str, ...] = ()
+    address: AbstractAddress | None = None
+
+    @property
+    def settable(self) -> bool:
+        """Whether a fit can write this parameter into a twin."""
+        return self.address is not None
 
 
-_P = ParameterInfo
+def _P(*args, **kw) -> ParameterInfo:
+    """An entry; a name that is a field of `LumpedParameters` lives there unless told."""
+    info = ParameterInfo(*args, **kw)
+    if info.address is None and "address" not in kw:
+        try:
+            info = dataclasses.replace(info, address=LumpedField(info.name))
+        except ParameterError:
+            pass
+    return info
+
+
+def _zero_fault(location: str):
+    return LocalFault(MissingTooth(0.0, location=location))
+
+
+def _zero_sun_fault():
+    return _zero_fault("sun")
+
+
+def _zero_planet_fault():
+    return _zero_fault("planet")
+
+
+def _zero_ring_fault():
+    return _zero_fault("ring")
+
+
+def _zero_transmission_error():
+    return TransmissionError(jnp.zeros(()))
+
+
+def _zero_sun_eccentricity():
+    return SunEccentricity(jnp.zeros(()))
+
+
+def _zero_carrier_eccentricity():
+    return CarrierEccentricity(jnp.zeros(()))
+
+
+def _fault(location: str, factory) -> PartField:
+    return PartField(LocalFault, ("fault", "severity"), (("fault.location", location),), factory)
 
 _ENTRIES: tuple[ParameterInfo, ...] = (
     # --- meshes -------------------------------------------------------------------------------
@@ -55,9 +116,11 @@ _ENTRIES: tuple[ParameterInfo, ...] = (
     _P("zeta_ring_planet", "1", "ring-planet mesh damping ratio", "damping.zeta_ring_planet",
        (0.0, 0.5), "logit", (0.0, 0.5)),
     _P("zeta_mesh", "1", "damping ratio of both meshes (tie)", "damping.zeta_mesh",
-       (0.0, 0.5), "logit", (0.0, 0.5), ties=("zeta_sun_planet", "zeta_ring_planet")),
+       (0.0, 0.5), "logit", (0.0, 0.5), ties=("zeta_sun_planet", "zeta_ring_planet"),
+       address=Tie((LumpedField("zeta_sun_planet"), LumpedField("zeta_ring_planet")))),
     _P("te_amplitude", "m", "static transmission-error amplitude (both meshes)",
-       "mesh.te_amplitude", (0.0, 2e-4), "logit", (0.0, 2e-4)),
+       "mesh.te_amplitude", (0.0, 2e-4), "logit", (0.0, 2e-4),
+       address=PartField(TransmissionError, ("amplitude",), factory=_zero_transmission_error)),
     # --- supports -----------------------------------------------------------------------------
     _P("k_bearing_sun", "N/m", "sun bearing translational stiffness", "supports.k_bearing_sun",
        (1e5, 1e11)),
@@ -83,26 +146,36 @@ _ENTRIES: tuple[ParameterInfo, ...] = (
     _P("J_planet", "kg*m^2", "planet polar moment of inertia", "lumped.J_planet", (1e-7, 1e4)),
     # --- faults -------------------------------------------------------------------------------
     _P("sun_fault", "1", "severity of the sun local fault", "faults.sun.severity", (0.0, 1.0),
-       "logit", (0.0, 1.0)),
+       "logit", (0.0, 1.0), address=_fault("sun", _zero_sun_fault)),
     _P("planet_fault", "1", "severity of the planet local fault", "faults.planet.severity",
-       (0.0, 1.0), "logit", (0.0, 1.0)),
+       (0.0, 1.0), "logit", (0.0, 1.0), address=_fault("planet", _zero_planet_fault)),
     _P("ring_fault", "1", "severity of the ring local fault", "faults.ring.severity", (0.0, 1.0),
-       "logit", (0.0, 1.0)),
+       "logit", (0.0, 1.0), address=_fault("ring", _zero_ring_fault)),
+    # --- imperfections ------------------------------------------------------------------------
+    _P("sun_eccentricity", "m", "sun run-out (centre offset turning with the sun)",
+       "imperfections.sun_eccentricity", (0.0, 1e-3), "logit", (0.0, 1e-3),
+       address=PartField(SunEccentricity, ("e",), factory=_zero_sun_eccentricity)),
+    _P("carrier_eccentricity", "m", "carrier eccentricity (all pins offset)",
+       "imperfections.carrier_eccentricity", (0.0, 1e-3), "logit", (0.0, 1e-3),
+       address=PartField(CarrierEccentricity, ("e",), factory=_zero_carrier_eccentricity)),
     # --- operating point ----------------------------------------------------------------------
     _P("f_sun", "Hz", "input (sun) rotation frequency", "operating.f_sun", (0.01, 500.0)),
     _P("load_torque", "N*m", "load torque at the carrier (output)", "operating.load_torque",
-       (0.0, 1e7)),
+       (0.0, 1e7), address=PartField(LoadPart, ("load", "torque_value"))),
     # --- sensor -------------------------------------------------------------------------------
-    _P("sensor_gain", "1", "gain of the transfer path to the sensor", "sensor.gain", (1e-6, 1e6)),
+    _P("sensor_gain", "1", "gain of the transfer path to the sensor", "sensor.gain", (1e-6, 1e6),
+       address=SignalGain()),
 )
 
 REGISTRY: dict[str, ParameterInfo] = {e.name: e for e in _ENTRIES}
 
 
 def register(info: ParameterInfo) -> ParameterInfo:
-    """Add a parameter (e.g. of a motor or an effect part). Names must be new."""
+    """Add a parameter (e.g. of a motor or a new part) to the global table. Names must be new.
+
+    **Raises:** `ParameterError` when the name is registered with another entry."""
     if info.name in REGISTRY and REGISTRY[info.name] != info:
-        raise ValueError(f"parameter {info.name!r} is already registered differently")
+        raise ParameterError(f"parameter {info.name!r} is already registered differently")
     REGISTRY[info.name] = info
     return info
 
@@ -122,3 +195,53 @@ def lookup(name: str) -> ParameterInfo:
 def names() -> list[str]:
     """All registered parameter names, sorted."""
     return sorted(REGISTRY)
+
+
+def get_value(twin, name: str) -> float:
+    """The value (SI) of registry parameter `name` in `twin`, read through its address."""
+    return _address(lookup(name)).get(twin)
+
+
+def set_value(twin, name: str, value):
+    """`twin` with registry parameter `name` set to `value` (SI; differentiable), written
+    through its address. The part it lives in must exist (:func:`ensure_parts`)."""
+    return _address(lookup(name)).set(twin, value)
+
+
+def ensure_parts(twin, names: Iterable[str]):
+    """A twin holding every part the parameters `names` live in (zero-valued parts added where
+    missing: bit-identical dynamics)."""
+    for n in names:
+        info = lookup(n)
+        if info.address is not None:
+            twin = info.address.ensure(twin)
+    return twin
+
+
+def _address(info: ParameterInfo) -> AbstractAddress:
+    if info.address is None:
+        raise ParameterError(f"parameter {info.name!r} does not live in a twin (no address): "
+                             "it cannot be read from or written into one")
+    return info.address
+
+
+@dataclasses.dataclass(frozen=True)
+class RegistryView:
+    """The global registry overlaid with `extra` entries (e.g. the parameters of discovery's
+    effects), without changing the global table. ``lookup`` and ``names`` as the module's; the
+    overlay adds names and never redefines a registered one (``sun_fault`` stays the
+    registry's)."""
+
+    extra: Mapping[str, ParameterInfo] = dataclasses.field(default_factory=dict)
+
+    @classmethod
+    def of(cls, infos: Iterable[ParameterInfo]) -> RegistryView:
+        return cls({i.name: i for i in infos})
+
+    def lookup(self, name: str) -> ParameterInfo:
+        if name not in REGISTRY and name in self.extra:
+            return self.extra[name]
+        return lookup(name)
+
+    def names(self) -> list[str]:
+        return sorted(set(REGISTRY) | set(self.extra))

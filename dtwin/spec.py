@@ -193,9 +193,8 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
     "imperfections": {
         "planet_position_errors": FieldSpec("floats", "rad", None, -0.1, 0.1,
                                             doc="planet spacing errors added to ψ_i (N values)"),
-        "sun_eccentricity": FieldSpec("float", "m", 0.0, 0.0, 1e-3, doc="sun eccentricity"),
-        "carrier_eccentricity": FieldSpec("float", "m", 0.0, 0.0, 1e-3,
-                                          doc="carrier eccentricity"),
+        "sun_eccentricity": _reg("sun_eccentricity", 0.0),
+        "carrier_eccentricity": _reg("carrier_eccentricity", 0.0),
         "load_sharing": FieldSpec("floats", "1", None, 0.0, 3.0,
                                   doc="relative load share of each planet (N values, mean 1)"),
     },

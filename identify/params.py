@@ -11,17 +11,13 @@ transform:
 - ``none``:  ``x = x0 + s θ`` with ``s = max(|x0|, 1)``
 
 so every θ is of order one and the bounds can never be crossed (optimistix has no bounds for
-least squares, reference.md §6). :meth:`ParameterSet.apply` writes values into a `Twin`:
-
-- lumped fields (``k_sun_planet``, ``zeta_support``, ``J_sun`` …) with :func:`dtwin.lumped.replace`;
-- ties (``zeta_mesh`` → ``zeta_sun_planet`` and ``zeta_ring_planet``);
-- fault severities (``sun_fault``, ``planet_fault``, ``ring_fault``) into the `LocalFault` part
-  at that location (:func:`ensure_fault_parts` adds a zero-severity missing-tooth part when the
-  twin has none, before any compute: severity 0 is bit-identical to healthy);
-- ``te_amplitude`` into the `TransmissionError` part (added with amplitude 0 when missing);
-- ``load_torque`` into the load part;
-- ``sensor_gain`` is not a twin field: the residuals multiply the simulated signal by it
-  (:meth:`ParameterSet.gain`).
+least squares; docs/identification.md). :meth:`ParameterSet.apply` writes values into a
+`Twin` through each parameter's registry address (:mod:`dtwin.address`): lumped fields, ties
+(``zeta_mesh`` → ``zeta_sun_planet`` and ``zeta_ring_planet``), fields of parts (fault
+severities, ``te_amplitude``, ``sun_eccentricity``, ``load_torque``; :meth:`ParameterSet.prepare`
+adds a zero-valued part where the twin has none, before any compute: zero is bit-identical to
+healthy). ``sensor_gain`` is not a twin field: the residuals multiply the simulated signal by
+it (:meth:`ParameterSet.gain`).
 
 Unknown names raise :class:`~dtwin.errors.ParameterError` when the set is built, before any
 simulation.
@@ -39,121 +35,33 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from dtwin.address import SignalGain
 from dtwin.errors import ParameterError
-from dtwin.lumped import LumpedParameters, replace
-from dtwin.registry import ParameterInfo, lookup
+from dtwin.registry import ParameterInfo, ensure_parts, get_value, lookup, set_value
 
 __all__ = ["ParameterSet", "current_value", "ensure_fault_parts", "settable"]
 
-_FAULTS = {"sun_fault": "sun", "planet_fault": "planet", "ring_fault": "ring"}
-_LUMPED = set(LumpedParameters.__dataclass_fields__)
-_SPECIAL = {"load_torque", "te_amplitude", "sensor_gain"} | set(_FAULTS)
 #: Smallest distance (as a fraction of the range) an initial value keeps from a logit bound.
 _EDGE = 1e-3
 
 
 def settable(name: str) -> bool:
-    """Whether :meth:`ParameterSet.apply` can write the registry parameter `name` into a twin."""
-    info = lookup(name)
-    return bool(info.ties) or name in _LUMPED or name in _SPECIAL
-
-
-def _fault_index(twin, location: str) -> int | None:
-    from dtwin.parts.local_fault import LocalFault
-
-    for i, p in enumerate(twin.parts):
-        if isinstance(p, LocalFault) and p.fault.location == location:
-            return i
-    return None
-
-
-def _part_index(twin, cls) -> int | None:
-    for i, p in enumerate(twin.parts):
-        if isinstance(p, cls):
-            return i
-    return None
+    """Whether :meth:`ParameterSet.apply` can write the registry parameter `name` into a twin
+    (its registry entry has an address, :mod:`dtwin.address`)."""
+    return lookup(name).settable
 
 
 def ensure_fault_parts(twin, names: Sequence[str]):
-    """A twin holding every part the free `names` need: a zero-severity `MissingTooth` for a
-    free ``<location>_fault`` without a fault there, a zero-amplitude `TransmissionError` for a
-    free ``te_amplitude``. Severity/amplitude 0 leaves the dynamics bit-identical."""
-    from dtwin.faults import MissingTooth
-    from dtwin.parts.imperfections import TransmissionError
-    from dtwin.parts.local_fault import LocalFault
-
-    for n in names:
-        if n in _FAULTS and _fault_index(twin, _FAULTS[n]) is None:
-            twin = twin.with_parts(LocalFault(MissingTooth(0.0, location=_FAULTS[n])))
-        if n == "te_amplitude" and _part_index(twin, TransmissionError) is None:
-            twin = twin.with_parts(TransmissionError(jnp.zeros(())))
-    return twin
+    """A twin holding every part the free `names` live in (:func:`dtwin.registry.ensure_parts`:
+    e.g. a zero-severity `MissingTooth` for a free ``<location>_fault``, a zero-amplitude
+    `TransmissionError` for ``te_amplitude``). Zero leaves the dynamics bit-identical."""
+    return ensure_parts(twin, names)
 
 
 def current_value(twin, name: str) -> float:
-    """The value of registry parameter `name` in `twin` (a tie: the mean of its members)."""
-    from dtwin.parts.drive import LoadPart
-    from dtwin.parts.imperfections import TransmissionError
-
-    info = lookup(name)
-    if info.ties:
-        return float(np.mean([current_value(twin, t) for t in info.ties]))
-    if name in _LUMPED:
-        return float(getattr(twin.lp, name))
-    if name in _FAULTS:
-        i = _fault_index(twin, _FAULTS[name])
-        return 0.0 if i is None else float(twin.parts[i].fault.severity)
-    if name == "te_amplitude":
-        i = _part_index(twin, TransmissionError)
-        return 0.0 if i is None else float(twin.parts[i].amplitude)
-    if name == "load_torque":
-        i = _part_index(twin, LoadPart)
-        if i is None:
-            return 0.0
-        load = twin.parts[i].load
-        if not hasattr(load, "torque_value"):
-            raise ParameterError("load_torque: the twin's load is not a ConstantLoad")
-        return float(load.torque_value)
-    if name == "sensor_gain":
-        return 1.0
-    raise ParameterError(
-        f"parameter {name!r} is registered but identify cannot set it in a twin yet "
-        f"(settable: lumped fields, ties, fault severities, te_amplitude, load_torque, "
-        f"sensor_gain)"
-    )
-
-
-def _set(twin, name: str, value):
-    from dtwin.parts.drive import LoadPart
-    from dtwin.parts.imperfections import TransmissionError
-
-    info = lookup(name)
-    if info.ties:
-        for t in info.ties:
-            twin = _set(twin, t, value)
-        return twin
-    if name in _LUMPED:
-        return eqx.tree_at(lambda t: t.lp, twin, replace(twin.lp, **{name: value}))
-    if name in _FAULTS:
-        i = _fault_index(twin, _FAULTS[name])
-        if i is None:
-            raise ParameterError(f"{name}: the twin has no fault at the {_FAULTS[name]}; "
-                                 "call ensure_fault_parts first")
-        return eqx.tree_at(lambda t: t.parts[i].fault.severity, twin,
-                           jnp.asarray(value, dtype=jnp.float64))
-    if name == "te_amplitude":
-        i = _part_index(twin, TransmissionError)
-        return eqx.tree_at(lambda t: t.parts[i].amplitude, twin,
-                           jnp.asarray(value, dtype=jnp.float64))
-    if name == "load_torque":
-        i = _part_index(twin, LoadPart)
-        if i is None or not hasattr(twin.parts[i].load, "torque_value"):
-            raise ParameterError("load_torque: the twin's load has no constant torque to fit")
-        return eqx.tree_at(lambda t: t.parts[i].load.torque_value, twin,
-                           jnp.asarray(value, dtype=jnp.float64))
-    if name == "sensor_gain":
-        return twin
-    raise ParameterError(f"parameter {name!r} cannot be set in a twin by identify")
+    """The value of registry parameter `name` in `twin` (a tie: the mean of its members),
+    read through its address (:func:`dtwin.registry.get_value`)."""
+    return get_value(twin, name)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -337,7 +245,7 @@ class ParameterSet(eqx.Module):
         values written (call once, outside any jit)."""
         twin = ensure_fault_parts(twin, self.free + tuple(n for n, _ in self.fixed))
         for n, v in self.fixed:
-            twin = _set(twin, n, v)
+            twin = set_value(twin, n, v)
         return twin
 
     def apply(self, twin, values):
@@ -346,21 +254,24 @@ class ParameterSet(eqx.Module):
         if isinstance(values, Mapping):
             values = jnp.stack([jnp.asarray(values[n], dtype=jnp.float64) for n in self.free])
         for i, n in enumerate(self.free):
-            twin = _set(twin, n, values[i])
+            twin = set_value(twin, n, values[i])
         return twin
 
     @property
     def twin_indices(self) -> tuple[int, ...]:
-        """Positions in `free` of the parameters that change the twin (all but
-        ``sensor_gain``, which scales the simulated signal after the solve): only these need
-        tangents through the ODE (`dtwin.identify.fit._value_and_jacfwd`)."""
-        return tuple(i for i, n in enumerate(self.free) if n != "sensor_gain")
+        """Positions in `free` of the parameters that change the twin (all but signal gains
+        such as ``sensor_gain``, which scale the simulated signal after the solve): only these
+        need tangents through the ODE (`dtwin.identify.fit._value_and_jacfwd`)."""
+        return tuple(i for i, n in enumerate(self.free) if lookup(n).address.changes_twin)
 
     def gain(self, values) -> jax.Array:
-        """The sensor gain among `values` (1 when ``sensor_gain`` is not free)."""
-        if "sensor_gain" in self.free:
-            return values[self.free.index("sensor_gain")]
-        return jnp.ones((), dtype=jnp.float64)
+        """The product of the signal gains among `values` (``sensor_gain``; 1 when none is
+        free)."""
+        g = jnp.ones((), dtype=jnp.float64)
+        for i, n in enumerate(self.free):
+            if isinstance(lookup(n).address, SignalGain):
+                g = g * values[i]
+        return g
 
     def prior_residuals(self, values) -> jax.Array:
         """``(x - mean)/sd`` for every prior (empty without priors)."""

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.errors import SettingsError
+from dtwin.registry import RegistryView
 from dtwin.simulate import SolverOptions, simulate
 
 from ..lines import Kinematics
@@ -39,9 +40,8 @@ class ExtendedModel:
             raise SettingsError(f"response_mode must be 'fd' or 'jvp', got {response_mode!r}")
         self.response_mode = response_mode
         self.parameters = [e.parameters(base_twin) for e in self.effects]
-        for ps in self.parameters:
-            for p in ps:
-                p.register()
+        # the effects' parameters over the global registry, which stays unchanged
+        self.registry = RegistryView.of(p.info() for ps in self.parameters for p in ps)
         sizes = [len(ps) for ps in self.parameters]
         if max(sizes, default=0) > P_MAX:
             raise SettingsError(f"an effect has more than {P_MAX} parameters")

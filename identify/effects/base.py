@@ -4,8 +4,9 @@ An effect is a final subclass of :class:`AbstractEffect`. It names
 
 - the **part(s)** it adds (physics lives in ``dtwin/parts``): :meth:`AbstractEffect.parts`
   builds them from the effect's parameter vector ``theta`` (physical units);
-- its **parameters** (:meth:`AbstractEffect.parameters`): registry names (registered in
-  :mod:`dtwin.registry` on first use), units, the *scale* of one fitting unit and whether the
+- its **parameters** (:meth:`AbstractEffect.parameters`): names (declared by the effect and
+  overlaid on :mod:`dtwin.registry` by a :class:`dtwin.registry.RegistryView`; the global
+  registry is never changed), units, the *scale* of one fitting unit and whether the
   value is non-negative. ``theta = 0`` must give exactly the base model (nested models);
 - its **signature** (:meth:`AbstractEffect.signature`): the spectral lines it adds to an ideal
   gearbox, as a function of the kinematics (:class:`dtwin.identify.lines.Kinematics`);
@@ -42,7 +43,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from dtwin.registry import REGISTRY, ParameterInfo, register
+from dtwin.registry import ParameterInfo
 
 from ..lines import Kinematics, LineBounds
 
@@ -67,15 +68,15 @@ class EffectParameter:
     bounds: tuple[float, float] = (-float("inf"), float("inf"))
     nonnegative: bool = False
 
-    def register(self) -> None:
-        """Add to :mod:`dtwin.registry` (once)."""
-        if self.name in REGISTRY:
-            return
+    def info(self) -> ParameterInfo:
+        """Its registry entry, for a :class:`dtwin.registry.RegistryView` overlay (the global
+        registry is not changed: an effect's parameters belong to the search). It has no
+        twin address: the effect builds its parts from the values (:meth:`AbstractEffect.parts`)."""
         lo, hi = self.bounds
-        register(ParameterInfo(
+        return ParameterInfo(
             self.name, self.unit, self.description, f"effects.{self.name}",
             (lo if lo > -float("inf") else -1e12, hi if hi < float("inf") else 1e12),
-            "log" if self.nonnegative else "none", (lo, hi)))
+            "log" if self.nonnegative else "none", (lo, hi))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -18,10 +18,10 @@ import numpy as np
 from dtwin.build import build_twin
 from dtwin.errors import DtwinError
 from dtwin.io.readers import read_record
+from dtwin.registry import ensure_parts, set_value
 from dtwin.spec import load_spec
 
 from ..discover import DiscoverySettings, discover
-from ..params import ParameterSet
 from .settings import FAIL_ENV, SCHEMA, FleetSettings
 from .store import _now
 
@@ -193,12 +193,13 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
 
 
 def _fitted_twin(spec, settings: FleetSettings, values: Mapping[str, float], f_sun: float | None):
+    """The spec's twin with the fitted `values` written through the registry's addresses."""
     twin = build_twin(spec, kind=settings.kind, f_sun=f_sun)
-    names = [n for n in settings.free if n in values and n != "sensor_gain"]
-    if not names:
-        return twin
-    pset = ParameterSet.build(names, twin, initial={n: float(values[n]) for n in names})
-    return pset.apply(pset.prepare(twin), pset.values(np.zeros(len(names))))
+    names = [n for n in settings.free if n in values]
+    twin = ensure_parts(twin, names)
+    for n in names:
+        twin = set_value(twin, n, float(values[n]))
+    return twin
 
 
 def discover_task(job: Mapping[str, Any], spec_data: Mapping[str, Any], settings: FleetSettings,
