@@ -74,7 +74,15 @@ def _labels(result: FitResult, i: int, freqs, meas, n: int = 8):
     basis = FrequencyBasis(f_mesh=o["mesh"] * f_sun, f_carrier=o["carrier"] * f_sun,
                            f_sun_fault=o["sun_fault"] * f_sun,
                            f_planet_fault=o["planet_fault"] * f_sun, n_planets=p.twin.lp.n_planets)
-    idx = np.argsort(np.asarray(meas))[::-1][:n]
+    m = np.asarray(meas)
+    # the n highest local maxima, one per line (neighbouring bins of a peak are not new lines)
+    peak = np.flatnonzero((m[1:-1] >= m[:-2]) & (m[1:-1] >= m[2:])) + 1
+    idx = []
+    for k in peak[np.argsort(m[peak])[::-1]]:
+        if all(abs(int(k) - j) > 3 for j in idx):
+            idx.append(int(k))
+        if len(idx) == n:
+            break
     res = 1.0 / obs.duration
     out = []
     for k in sorted(idx, key=lambda j: freqs[j]):
