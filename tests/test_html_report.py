@@ -86,3 +86,43 @@ def test_report_in_staged_folder(tmp_path):
         write_html_report(folder, title="t", tables={"t": ([ "a", "b"], [[1, 2]])})
     assert (tmp_path / "run" / "report.html").exists()
     assert "report.html" in json.loads((tmp_path / "run" / "manifest.json").read_text())["files"]
+
+
+def test_fleet_trends_report_and_arrays(tmp_path):
+    # `dtwin fleet trends` writes report.html and trends.csv/.npz next to its figures
+    from dtwin.cli.cmd_fleet import _trend_extras
+    from dtwin.identify.plotting.fleet import plot_fleet_overview, plot_machine_trend
+    from dtwin.identify.trends import machine_trends
+
+    rows = [{"status": "ok", "machine": m, "record": f"{m}/d{d}",
+             "timestamp": f"2026-02-{1 + d:02d}T00:00:00+00:00", "names": ["sun_fault"],
+             "values": {"sun_fault": 0.1 + slope * d},
+             "intervals_95": {"sun_fault": [0.07 + slope * d, 0.13 + slope * d]}}
+            for m, slope in (("rising", 0.08), ("flat", 0.0)) for d in range(5)]
+    trends = machine_trends(rows, {"sun_fault": (0.4, "above")}, horizon_days=30)
+    folder = OutputFolder(tmp_path / "trends", command=["dtwin", "fleet", "trends"])
+    for m, t in trends.items():
+        folder.savefig(f"trend_{m}.png", plot_machine_trend(t))
+    folder.savefig("overview.png", plot_fleet_overview(trends))
+    _trend_extras(folder, tmp_path, trends, {"sun_fault": (0.4, "above")}, 30.0)
+    p = _Collect()
+    p.feed((tmp_path / "trends" / "report.html").read_text())
+    assert len(p.imgs) == 3 and all(
+        base64.b64decode(i["src"].split(",", 1)[1])[:8] == PNG_MAGIC for i in p.imgs)
+    assert "rising" in p.cells and "crossed" in p.cells
+    cols, units = read_columns_csv_text(tmp_path / "trends" / "trends.csv")
+    assert units["days"] == "d" and len(cols["value"]) == 10
+    np.testing.assert_allclose(sorted(cols["value"])[-1], 0.1 + 0.08 * 4)
+
+
+def read_columns_csv_text(path):
+    # trends.csv mixes text (machine, record, state) and numbers: read it with the csv module
+    import csv
+
+    with open(path) as f:
+        r = list(csv.reader(f))
+    names = [h.split(" [")[0] for h in r[0]]
+    units = {n: h.split(" [")[1].rstrip("]") for n, h in zip(names, r[0], strict=True)}
+    cols = {n: [row[i] for row in r[1:]] for i, n in enumerate(names)}
+    cols["value"] = [float(v) for v in cols["value"]]
+    return cols, units

@@ -20,6 +20,7 @@ manifest.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -27,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["columns_csv", "columns_dataframe", "read_columns_csv", "write_columns", "write_grid"]
+__all__ = ["Columns", "Grid", "columns_csv", "columns_dataframe", "read_columns_csv", "write_columns", "write_grid"]
 
 
 def _unit_text(unit: str | None) -> str:
@@ -120,3 +121,33 @@ def columns_dataframe(columns: Mapping[str, Any], units: Mapping[str, str | None
                        for k, v in columns.items()})
     df.attrs["units"] = {k: _unit_text((units or {}).get(k)) for k in columns}
     return df
+
+
+def _stem(name: str) -> str:
+    return name[: -len(".csv")] if name.endswith(".csv") else name
+
+
+@dataclasses.dataclass
+class Columns:
+    """1-D columns to write later into a run's folder: ``files["spectrum.csv"] =
+    Columns({...}, {...})`` writes ``spectrum.csv`` and ``spectrum.npz``
+    (:func:`write_columns`; :func:`dtwin.cli.options.emit` calls :meth:`write_into`)."""
+
+    columns: Mapping[str, Any]
+    units: Mapping[str, str | None]
+
+    def write_into(self, folder: Any, name: str) -> list[Path]:
+        return write_columns(folder, _stem(name), self.columns, self.units)
+
+
+@dataclasses.dataclass
+class Grid:
+    """A 2-D map to write later (:func:`write_grid`): `x`, `y`, `z` are ``(name, values,
+    unit)``."""
+
+    x: tuple[str, Any, str | None]
+    y: tuple[str, Any, str | None]
+    z: tuple[str, Any, str | None]
+
+    def write_into(self, folder: Any, name: str) -> list[Path]:
+        return write_grid(folder, _stem(name), self.x, self.y, self.z)

@@ -22,6 +22,7 @@ The page has no scripts and no external links; images are ``data:image/png;base6
 from __future__ import annotations
 
 import base64
+import dataclasses
 import datetime as _dt
 import html
 import io
@@ -30,7 +31,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["figure_png", "html_report", "write_html_report"]
+__all__ = ["HTMLReport", "figure_png", "html_report", "write_html_report"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;
@@ -220,3 +221,22 @@ def write_html_report(
                        manifest=folder.manifest if manifest is None else manifest,
                        folder_path=Path(folder.path))
     return folder.write_text(name, text)
+
+
+@dataclasses.dataclass
+class HTMLReport:
+    """A report to write later, into the folder of a run: ``files["report.html"] =
+    HTMLReport(...)`` in a command's output mapping (:func:`dtwin.cli.options.emit` calls
+    :meth:`write_into` after the files listed before it, so figures can be named by file).
+    Fields as :func:`write_html_report`."""
+
+    title: str
+    summary: str | Mapping[str, Any] | None = None
+    figures: Mapping[str, Any] | None = None
+    tables: Mapping[str, Any] | None = None
+    notes: Sequence[str] = ()
+
+    def write_into(self, folder: Any, name: str) -> Path:
+        return write_html_report(folder, title=self.title, summary=self.summary,
+                                 figures=self.figures, tables=self.tables, notes=self.notes,
+                                 name=name)

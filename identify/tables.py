@@ -1,0 +1,92 @@
+"""Identification results as rows (lists of dicts) and pandas DataFrames: what the HTML report
+shows and what a script analyses.
+
+    from dtwin.identify.tables import fit_dataframe, trends_dataframe
+
+    df = fit_dataframe(result)            # one row per parameter: initial, fitted, 95 %, unit
+    trends_dataframe(trends)              # one row per machine, record and parameter
+
+Units come from the parameter registry (``"1"`` for dimensionless). DataFrames need pandas
+(``pip install 'dtwin[fleet]'``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = ["discovery_rows", "fit_dataframe", "fit_rows", "trend_rows", "trends_dataframe"]
+
+
+def _unit(name: str) -> str:
+    from dtwin.registry import REGISTRY
+
+    info = REGISTRY.get(name)
+    return "?" if info is None else info.unit
+
+
+def fit_rows(result: Any) -> list[dict[str, Any]]:
+    """One row per fitted parameter of a :class:`dtwin.identify.fit.FitResult`: ``parameter``,
+    ``unit``, ``initial``, ``fitted``, ``lower_95``, ``upper_95``, ``status`` (ok,
+    unconverged, NOT DETERMINED)."""
+    rows = []
+    nd = result.not_determined
+    for i, n in enumerate(result.names):
+        lo = hi = None
+        if result.uncertainty is not None:
+            lo, hi = (float(v) for v in result.uncertainty.interval[i])
+        status = ("NOT DETERMINED" if n in nd else "ok" if result.converged else "unconverged")
+        rows.append({"parameter": n, "unit": _unit(n), "initial": float(result.initial[n]),
+                     "fitted": float(result.values[n]), "lower_95": lo, "upper_95": hi,
+                     "status": status})
+    return rows
+
+
+def _frame(rows: list[dict[str, Any]]):
+    try:
+        import pandas as pd
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError("DataFrames need pandas: pip install 'dtwin[fleet]'") from e
+    return pd.DataFrame(rows)
+
+
+def fit_dataframe(result: Any):
+    """:func:`fit_rows` as a pandas DataFrame."""
+    return _frame(fit_rows(result))
+
+
+def discovery_rows(result: Any) -> list[dict[str, Any]]:
+    """One row per step of a discovery (:class:`dtwin.identify.discover.DiscoveryResult`):
+    effect named, main parameter with its 99 % interval and unit, held-out gap before and
+    after (dB), p-value."""
+    rows = []
+    for s in result.steps:
+        unit = s.main.get("unit", "")
+        rows.append({"step": s.number, "effect": s.named, "parameter": s.main["name"],
+                     "value": float(s.main["value"]),
+                     "lower_99": float(s.main["interval"][0]),
+                     "upper_99": float(s.main["interval"][1]),
+                     "unit": "dimensionless" if unit == "1" else unit,
+                     "gap_before_db": float(s.gap_before.total),
+                     "gap_after_db": float(s.gap_after.total), "p_value": float(s.p_value)})
+    return rows
+
+
+def trend_rows(trends: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """One row per machine, record and parameter of :func:`dtwin.identify.trends.machine_trends`:
+    value with its 95 % interval, days since the first record, the machine's flag state."""
+    rows = []
+    for m, t in trends.items():
+        for n, p in t.parameters.items():
+            for k, rec in enumerate(t.records):
+                rows.append({"machine": m, "record": rec, "time": t.times[k],
+                             "days": float(t.days[k]), "parameter": n, "unit": _unit(n),
+                             "value": float(p.values[k]), "lower_95": float(p.lower[k]),
+                             "upper_95": float(p.upper[k]),
+                             "state": p.flag.state if p.flag is not None else "no threshold"})
+    return rows
+
+
+def trends_dataframe(trends: Mapping[str, Any]):
+    """:func:`trend_rows` as a pandas DataFrame."""
+    return _frame(trend_rows(trends))
