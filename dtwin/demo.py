@@ -46,7 +46,7 @@ def _md_table(rows: list[list], header: list[str]) -> str:
 
 
 def step_frequencies(folder: OutputFolder) -> str:
-    from .cli.cmd_freqs import freqs_report
+    from .reports import freqs_report
     from .spec import preset
 
     paper = {"paper-sim": (500.1, 30.0, 6.2, 71.4, 16.7), "paper-bench": (498.9, 29.7, 5.9, 71.3, 16.2)}
@@ -63,9 +63,9 @@ def step_frequencies(folder: OutputFolder) -> str:
 
 
 def step_modes(folder: OutputFolder) -> str:
-    from .cli.cmd_modes import modes_report
     from .gears import characteristic_frequencies
     from .plotting.modes import plot_modes
+    from .reports import modes_report
     from .spec import lumped_from_spec, preset
 
     spec = preset("paper-sim")
@@ -84,9 +84,9 @@ def step_modes(folder: OutputFolder) -> str:
 
 
 def step_stiffness(folder: OutputFolder) -> str:
-    from .cli.cmd_stiffness import stiffness_curves
     from .faults import parse_fault
     from .plotting.stiffness import plot_mesh_stiffness
+    from .reports import stiffness_curves
     from .spec import lumped_from_spec, preset
 
     lp = lumped_from_spec(preset("paper-sim"))
@@ -103,8 +103,8 @@ def step_stiffness(folder: OutputFolder) -> str:
 
 
 def _spectrum_figures(folder, record, spec, f_sun, name, title):
-    from .cli.cmd_spectrum import gear_frequencies, spectrum_report
     from .plotting.spectrum import plot_spectrum_peaks, plot_waveform
+    from .reports import gear_frequencies, spectrum_report
 
     freqs = gear_frequencies(spec, f_sun)
     rep, data = spectrum_report(record, frequencies=freqs, n_planets=spec["gears"]["n_planets"])
@@ -120,7 +120,7 @@ def _spectrum_figures(folder, record, spec, f_sun, name, title):
 
 
 def step_paper_cases(folder: OutputFolder, duration: float, kind: str | None = None) -> str:
-    from .cli.cmd_simulate import run_simulation
+    from .reports import run_simulation
     from .spec import preset
 
     spec = preset("paper-like")

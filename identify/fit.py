@@ -446,12 +446,15 @@ class FitResult:
             if self.uncertainty is not None:
                 lo, hi = self.uncertainty.interval[i]
                 iv = f"[{lo:.5g}, {hi:.5g}]"
-                st = "NOT DETERMINED" if n in self.uncertainty.not_determined else "ok"
+                st = ("NOT DETERMINED" if n in self.uncertainty.not_determined
+                      else "ok" if self.converged else "unconverged")
             else:
                 iv, st = "", ""
             rows.append(f"{n:<18} {self.initial[n]:>12.5g} {self.values[n]:>12.5g} {iv:>28}  {st}")
         rows.append(f"loss {self.loss:.5g}, {self.iterations} iterations, "
-                    f"{self.wall_time:.1f} s, {'converged' if self.converged else 'NOT converged'}"
+                    f"{self.wall_time:.1f} s, "
+                    + ("converged" if self.converged else f"NOT converged ({self.message})")
+
                     + (f"; at bound: {', '.join(self.at_bound)}" if self.at_bound else ""))
         for n, why in self.not_determined.items():
             rows.append(f"  {n}: not determined by these data ({why})")
@@ -714,9 +717,17 @@ def fit(
                       n_profiled_gains=problem.n_profiled_gains,
                       profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem, mode))
     at_bound = pset.at_bound(theta)
-    converged = bool(ok[best])
+    hit_limit = int(steps[best]) >= max_steps
+    converged = bool(ok[best]) and not hit_limit
+    history = list(_HISTORY.get(best, []))
+    if thetas.shape[0] == 1 and history:  # the loss at the one start: the solver's first call
+        losses = np.asarray([history[0]])
     msgs = []
-    if not converged:
+    if hit_limit:
+        msgs.append(f"stopped at the step limit ({int(steps[best])} of max_steps={max_steps}) "
+                    "before the stopping rule was met; raise max_steps (--max-steps), use more "
+                    "starts, or free fewer parameters")
+    elif not converged:
         msgs.append(f"not converged after {int(steps[best])} steps (max_steps={max_steps}); "
                     "raise max_steps, use more starts, or free fewer parameters")
     if at_bound:
@@ -726,7 +737,8 @@ def fit(
     res = FitResult(
         names=pset.free, values=pset.as_dict(theta), theta=theta,
         initial=pset.as_dict(np.zeros(p)), uncertainty=unc, loss=float(fl[best]),
-        loss_history=list(_HISTORY.get(best, [])) or [float(fl[best])],
+        loss_history=history or [float(fl[best])],
+
         start_losses=losses, starts=np.asarray(thetas), refined=refined, converged=converged,
         at_bound=at_bound, message=message, iterations=int(steps[best]),
         wall_time=time.perf_counter() - t0, operating_points=ops, problem=problem,
@@ -821,9 +833,14 @@ def fit_batch(
         out.append(FitResult(
             names=pset.free, values=pset.as_dict(th[i]), theta=th[i],
             initial=pset.as_dict(np.zeros(p)), uncertainty=unc, loss=float(fl[i]),
-            loss_history=[float(fl[i])], start_losses=np.asarray([np.nan]),
-            starts=np.zeros((1, p)), refined=[], converged=bool(ok[i]), at_bound=at_bound,
-            message="converged" if ok[i] else f"not converged after {int(steps[i])} steps",
+            loss_history=[float(fl[i])], start_losses=np.zeros(0),  # no start evaluated alone
+            starts=np.zeros((1, p)), refined=[],
+            converged=bool(ok[i]) and int(steps[i]) < max_steps, at_bound=at_bound,
+            message=("converged" if ok[i] and int(steps[i]) < max_steps else
+                     f"stopped at the step limit ({int(steps[i])} of max_steps={max_steps})"
+                     if int(steps[i]) >= max_steps else
+                     f"not converged after {int(steps[i])} steps"),
+
             iterations=int(steps[i]), wall_time=wall, operating_points=made[i][1], problem=prob,
             residuals=np.asarray(rs[i]),
         ))

@@ -105,7 +105,7 @@ NB01 = [
     """),
     code(SETUP),
     code("""
-    from dtwin.cli.cmd_spectrum import spectrum_report
+    from dtwin.reports import spectrum_report
     from dtwin.plotting.modes import plot_modes
     from dtwin.plotting.spectrum import plot_spectrum_peaks, plot_waveform
     """),
@@ -323,7 +323,7 @@ NB02 = [
     """),
     code(SETUP),
     code("""
-    from dtwin.cli.cmd_spectrum import spectrum_report
+    from dtwin.reports import spectrum_report
     from dtwin.plotting.spectrum import plot_spectrum_peaks, plot_waveform
     """),
     md("""
@@ -575,7 +575,7 @@ NB03 = [
 
     from dtwin.identify import (estimate_speed, fit, plot_fit, plot_severity_series,
                           severity_series)
-    from dtwin.cli.cmd_spectrum import spectrum_report
+    from dtwin.reports import spectrum_report
     from dtwin.identify.plotting.fit import plot_loss_history
     from dtwin.plotting.spectrum import plot_spectrum_peaks
 

@@ -58,7 +58,9 @@ def main(argv: list[str] | None = None) -> None:
         for sig in (signal.SIGINT, signal.SIGTERM):
             old[sig] = signal.signal(sig, _on_signal)
     try:
-        app(args=argv, standalone_mode=False)
+        # typer turns Ctrl-C into `Exit(130)` and, outside standalone mode, *returns* the code
+        rv = app(args=argv, standalone_mode=False)
+
     except DtwinError as e:
         print(f"error: {e}", file=sys.stderr)
         raise SystemExit(2) from None
@@ -87,8 +89,11 @@ def main(argv: list[str] | None = None) -> None:
               "it with the command line (DTWIN_DEBUG=1 shows the traceback)", file=sys.stderr)
         raise SystemExit(70) from None
     else:
-        if _SIGNALS:  # an interrupt swallowed on the way (a callback, a library): still report it
-            raise _interrupt_exit(_SIGNALS[0])
+        if _SIGNALS or rv == 130:  # an interrupt turned into a return code, or swallowed
+            raise _interrupt_exit(_SIGNALS[0] if _SIGNALS else signal.SIGINT)
+        if isinstance(rv, int) and rv != 0:
+            raise SystemExit(rv)
+
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)

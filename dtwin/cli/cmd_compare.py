@@ -22,7 +22,10 @@ from pathlib import Path
 import typer
 
 from ..errors import SpecError
+from . import options as opts
 from .app import app
+
+_QUANTITIES = ("acceleration", "velocity", "displacement", "ring_velocity")
 
 
 def _parse_list(text: str, name: str) -> list[float]:
@@ -37,9 +40,9 @@ def _parse_list(text: str, name: str) -> list[float]:
 
 @app.command("compare-drives")
 def compare_drives_cmd(
-    preset: str = typer.Option(None, "--preset", help="paper-sim | paper-bench | paper-like"),
-    spec_file: Path = typer.Option(None, "--spec", help="gearbox spec (TOML)", exists=True,
-                                   dir_okay=False, readable=True),
+    preset: str = opts.preset_option(),
+    spec_file: Path = opts.spec_option(),
+
     severities: str = typer.Option("0,0.25,0.5,0.75,1", "--severities",
                                    help="sun missing-tooth severities in [0, 1], comma-separated"),
     duration: float = typer.Option(0.5, help="steady window for the RMS (s)"),
@@ -60,22 +63,23 @@ def compare_drives_cmd(
     """RMS vs sun-fault severity: traditional model (ideal speed source) vs PMSM-coupled twin."""
     from ..build import daq_from_spec
     from ..coupling import MODELS, compare_drives, sensitivity_sweep
-    from .cmd_spectrum import load_gearbox
-
-    spec = load_gearbox(preset, spec_file)
-    if spec is None:
-        raise SpecError([("--preset/--spec", "give --preset NAME or --spec FILE")])
     sev = _parse_list(severities, "--severities")
+    for s in sev:
+        opts.in_range("--severities", s, 0.0, 1.0, "(a severity)")
+    opts.positive("--duration", duration, unit="s")
+    opts.positive("--discard", discard, allow_zero=True, unit="s")
+    opts.choice("--kind", kind, ("translational", "torsional"))
+    opts.choice("--quantity", quantity, _QUANTITIES)
+    opts.positive("--k-shaft", k_shaft, unit="N·m/rad")
+    opts.positive("--speed-bandwidth", speed_bandwidth, unit="Hz")
+    opts.check_out(out, force)  # refuse an existing result before minutes of simulation
+    gb = opts.load_gearbox(preset, spec_file)
+    spec = gb.spec
     daq = daq_from_spec(spec, **({"quantity": quantity} if quantity else {}))
-    folder = None
-    if out is not None:  # refuse an existing result before minutes of simulation
-        from ..io.output import OutputFolder
-        from ..spec import spec_to_dict
-
-        folder = OutputFolder(out, force=force, spec=spec_to_dict(spec), parameters={
-            "severities": sev, "duration_s": duration, "discard_s": discard, "kind": kind,
-            "quantity": daq.quantity, "k_shaft": k_shaft, "speed_bandwidth_hz": speed_bandwidth,
-            "sensitivity": not no_sensitivity, "sweep": sweep})
+    parameters = {
+        "severities": sev, "duration_s": duration, "discard_s": discard, "kind": kind,
+        "quantity": daq.quantity, "k_shaft": k_shaft, "speed_bandwidth_hz": speed_bandwidth,
+        "sensitivity": not no_sensitivity, "sweep": sweep}
     cmp = compare_drives(spec, sev, kind=kind, duration=duration, discard=discard, daq=daq,
                          sensitivity=not no_sensitivity, k_shaft=k_shaft,
                          speed_bandwidth=speed_bandwidth)
@@ -84,26 +88,29 @@ def compare_drives_cmd(
     if sweep:
         swp = sensitivity_sweep(spec, kind=kind, duration=duration, discard=discard, daq=daq)
         summary["sweep"] = swp.to_dict()
-    if folder is not None:
+    if out is not None:
+        from ..io.output import OutputFolder
         from ..plotting.coupling import (
             plot_drive_comparison,
             plot_sensitivity,
             plot_sensitivity_sweep,
         )
 
-        folder.set("settings", cmp.settings)
-        folder.savefig("comparison.png", plot_drive_comparison(cmp))
-        if cmp.slope is not None:
-            folder.savefig("sensitivity.png", plot_sensitivity(cmp))
-        if swp is not None:
-            folder.savefig("sweep.png", plot_sensitivity_sweep(swp))
-        folder.write_json("compare_drives.json", summary)
+        with OutputFolder(out, force=force, spec=gb.spec_dict(), staged=True,
+                          parameters=parameters) as folder:
+
+            folder.set("settings", cmp.settings)
+            folder.savefig("comparison.png", plot_drive_comparison(cmp))
+            if cmp.slope is not None:
+                folder.savefig("sensitivity.png", plot_sensitivity(cmp))
+            if swp is not None:
+                folder.savefig("sweep.png", plot_sensitivity_sweep(swp))
+            folder.write_json("compare_drives.json", summary)
     if as_json:
         from ..io.output import to_jsonable
 
         typer.echo(json.dumps(to_jsonable(summary), indent=2))
         return
-    from rich.console import Console
     from rich.table import Table
 
     table = Table(title=f"dtwin compare-drives — {spec.name}, {cmp.settings['kind']}, "
@@ -125,4 +132,4 @@ def compare_drives_cmd(
     table.caption = (f"secant slope traditional {d['secant_slope']['traditional']:.4g}, coupled "
                      f"{d['secant_slope']['coupled']:.4g} {cmp.unit}/severity (ratio "
                      f"{d['secant_slope_ratio']:.4f})" + (f"; written to {out}" if out else ""))
-    Console().print(table)
+    opts.print_table(table)

@@ -14,13 +14,12 @@ full band and the first mesh band) and ``manifest.json``.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import typer
 
+from . import options as opts
 from .app import app
-from .cmd_spectrum import channel_token, load_gearbox, open_output, read_input
 
 
 def _fmt_lines(lines, k=8) -> str:
@@ -99,49 +98,87 @@ def discover(
     from dtwin.identify.discover import DiscoverySettings
     from dtwin.identify.discover import discover as run
 
-    from ..errors import SpecError
     from ..io.output import to_jsonable
+    from ..reports import input_speed
 
-    gearbox = load_gearbox(preset, spec)
-    if gearbox is None:
-        raise SpecError([("--spec", "discover needs the gearbox: pass --spec FILE or --preset")])
+    opts.choice("--kind", kind, ("torsional", "translational"))
+    opts.at_least("--max-steps", max_steps, 0)
+    opts.finite("--alpha", alpha)
     if not 0 < alpha <= 0.01:
-        raise SpecError([("--alpha", f"must lie in (0, 0.01], got {alpha}")])
-    record = read_input(record_file, sample_rate)
-    ch = channel_token(channel)
+        raise opts.OptionError("--alpha", f"must lie in (0, 0.01], got {alpha:g}")
+    opts.at_least("--n-boot", n_boot, 20)
+    opts.at_least("--seed", seed, 0)
+    opts.check_out(out, force)
+    gb = opts.load_gearbox(preset, spec, why="discover needs the gearbox")
+    gearbox = gb.spec
+    record = opts.read_record(record_file, sample_rate)
+    ch = opts.channel_token(channel)
+    opts.check_channel(record, ch)
+    opts.checked_record(record, ch, gearbox, input_speed(record, gearbox, None)[0], fit=True)
+
     settings = DiscoverySettings(alpha=alpha, n_boot=n_boot, max_steps=max_steps, seed=seed)
     log = None if json_out else (lambda s: typer.echo(s, err=True))
     result = run(record.channel(ch), gearbox, sample_rate=record.sample_rate, kind=kind,
                  settings=settings, log=log)
     report = {"record": str(record_file), "channel": str(channel), **result.to_dict()}
-    if json_out:
-        typer.echo(json.dumps(to_jsonable(report), indent=2))
-    else:
+
+    def table() -> None:
         typer.echo(f"base model: held-out gap {result.initial_gap.total:.2f} dB")
         for s in result.steps:
             typer.echo(f"step {s.number}: {s.named:28s} gap {s.gap_before.total:6.2f} → "
                        f"{s.gap_after.total:6.2f} dB  p={s.p_value:.2g}  {s.main['name']} "
-                       f"{s.main['value']:.3g} {s.main['unit']} "
-                       f"[{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}]")
+                       f"{s.main['value']:.3g}"
+                       + ("" if s.main['unit'] in ("1", "", "-") else f" {s.main['unit']}")
+                       + f" [{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}]"
+                       + (" (dimensionless)" if s.main['unit'] == "1" else ""))
         typer.echo(f"stopped: {result.stop_reason}")
         for r in result.unexplained[:15]:
             typer.echo(f"unexplained: {r.frequency:9.2f} Hz  +{r.excess_db:5.1f} dB  {r.text}")
-    if out is not None:
+
+    def files() -> dict:
         from dtwin.identify.plotting.discover import plot_gap_bars, plot_step_spectra
 
         unit = record.units[record.index(ch)] or "-"
-        folder = open_output(out, force, [record_file, spec], gearbox,
-                             {"channel": str(channel), "kind": kind, "max_steps": max_steps,
-                              "alpha": alpha, "n_boot": n_boot, "seed": seed})
-        folder.write_json("discover.json", report)
-        folder.write_text("discover.md", markdown_report(result, record_file.name))
-        folder.savefig("gap.png", plot_gap_bars(result))
+        out_files = {"discover.json": report,
+                     "discover.md": markdown_report(result, record_file.name),
+                     "gap.png": plot_gap_bars(result)}
+        band = (result.kinematics.f_mesh - 12 * result.kinematics.f_carrier,
+                result.kinematics.f_mesh + 12 * result.kinematics.f_carrier)
         for k in range(len(result.models)):
-            folder.savefig(f"spectrum_step{k}.png", plot_step_spectra(result, k, unit=unit))
-            band = (result.kinematics.f_mesh - 12 * result.kinematics.f_carrier,
-                    result.kinematics.f_mesh + 12 * result.kinematics.f_carrier)
-            folder.savefig(f"spectrum_step{k}_mesh.png",
-                           plot_step_spectra(result, k, band=band, unit=unit))
-        if not json_out:
-            typer.echo(f"wrote {folder.path}/discover.json, discover.md, gap.png, "
-                       "spectrum_step*.png, manifest.json", err=True)
+            out_files[f"spectrum_step{k}.png"] = plot_step_spectra(result, k, unit=unit)
+            out_files[f"spectrum_step{k}_mesh.png"] = plot_step_spectra(result, k, band=band,
+                                                                        unit=unit)
+        from dtwin.identify.tables import discovery_rows
+
+        from ..io.export import Columns
+        from ..io.html_report import HTMLReport
+
+        cols = {"frequency": result.freqs, "measured": result.measured}
+        cols.update({f"model_step{k}": m for k, m in enumerate(result.models)})
+        out_files["spectra.csv"] = Columns(cols, {c: ("Hz" if c == "frequency" else unit)
+                                                  for c in cols})
+        figures = {"Held-out gap, step by step": "gap.png"}
+        for k in range(len(result.models)):
+            what = "base model" if k == 0 else f"after step {k}"
+            figures[f"Measured vs {what}, full band"] = f"spectrum_step{k}.png"
+            figures[f"Measured vs {what}, first mesh harmonic ± 12 fc"] = f"spectrum_step{k}_mesh.png"
+        out_files["report.html"] = HTMLReport(
+            title=f"dtwin discover: {record_file.name} [{channel}]",
+            summary={"record": str(record_file), "channel": str(channel),
+                     "input speed (Hz, from the data)": result.f_sun,
+                     "held-out gap of the base model (dB)": result.initial_gap.total,
+                     "final held-out gap (dB)": result.final_gap.total,
+                     "stopped": result.stop_reason},
+            figures=figures,
+            tables={"Effects added (99 % intervals)": discovery_rows(result),
+                    "Unexplained lines": [{"frequency (Hz)": r.frequency,
+                                           "excess (dB)": r.excess_db,
+                                           "over floor (dB)": r.above_floor_db,
+                                           "kinematic description": r.text}
+                                          for r in result.unexplained]})
+        return out_files
+
+    opts.emit(to_jsonable(report), json_out=json_out, table=table, out=out, force=force,
+              files=files, inputs=[record_file], gearbox=gb,
+              parameters={"channel": str(channel), "kind": kind, "max_steps": max_steps,
+                          "alpha": alpha, "n_boot": n_boot, "seed": seed})

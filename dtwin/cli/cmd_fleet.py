@@ -29,6 +29,7 @@ from pathlib import Path
 import typer
 
 from ..errors import SpecError
+from . import options as opts
 from .app import app
 
 fleet_app = typer.Typer(help="Fleet runs: many records in batch or on a Ray cluster, the "
@@ -83,20 +84,43 @@ def fleet_identify(
                                "overwrite the table."),
 ) -> None:
     """Identify every record of a fleet: Ray tasks, one result file per record, a table."""
-    from dtwin.identify.fit import check_free
     from dtwin.identify.fleet import FleetSettings, run_fleet
 
-    from .cmd_spectrum import channel_token, load_gearbox
+    names = opts.free_names("--free", free)
+    opts.choice("--model", model, ("torsional", "translational"))
+    opts.input_speed_option("--f-sun", f_sun)
+    opts.choice("--engine", engine, ("auto", "ray", "local"))
+    opts.at_least("--num-cpus", num_cpus, 1)
+    opts.at_least("--batch-size", batch_size, 1)
+    opts.at_least("--max-retries", max_retries, 0)
+    opts.at_least("--max-steps", max_steps, 1)
+    opts.finite("--tol", tol)
+    if not 0 < tol < 1:
+        raise opts.OptionError("--tol", f"a relative tolerance in (0, 1), got {tol:g}")
+    opts.at_least("--starts", starts, 1)
+    opts.at_least("--refine", refine, 1)
+    if refine > starts:
+        raise opts.OptionError("--refine", f"refines the best of the --starts: at most {starts}, "
+                               f"got {refine}")
+    opts.choice("--grid", grid, ("orders", "hz"))
+    opts.positive("--order-step", order_step)
+    opts.input_speed_option("--f-max", f_max)
+    opts.existing_file("--manifest", manifest)
+    opts.check_out(out, True)  # a results folder is re-used by a re-run: only where it goes
+    from dtwin.identify.fleet.identity import expand_records
 
-    names = check_free(free)
-    gearbox = load_gearbox(preset, spec)
-    if gearbox is None:
-        raise SpecError([("--spec/--preset", "fleet identification needs the gearbox: pass "
-                          "--spec FILE or --preset NAME")])
+    files = expand_records(records)  # nothing matching is refused before --out is created
+    missing = [str(p) for p in files if not p.is_file()]
+    if missing:
+        raise opts.OptionError("RECORDS", f"no such file: {', '.join(missing[:5])}"
+                               + (f" and {len(missing) - 5} more" if len(missing) > 5 else ""))
+
+    gearbox = opts.load_gearbox(preset, spec, why="fleet identification needs the gearbox").spec
     if ray_address is not None and engine == "local":
-        raise SpecError([("--engine", "--ray-address needs the ray engine (or auto)")])
+        raise opts.OptionError("--engine", "--ray-address needs the ray engine (or auto)")
     settings = FleetSettings(free=tuple(names), kind=model, f_sun=f_sun, starts=starts,
-                             refine=refine, max_steps=max_steps, tol=tol, channel=channel_token(channel),
+                             refine=refine, max_steps=max_steps, tol=tol,
+                             channel=opts.channel_token(channel),
                              grid=grid, order_step=order_step, f_max=f_max,
                              batch_size=batch_size,
                              max_retries=max_retries, discover=discover)
@@ -178,18 +202,25 @@ def fleet_trends(
         th = dict(parse_threshold(t) for t in threshold)
     except ValueError as e:
         raise SpecError([("--threshold", str(e))]) from None
+    opts.positive("--horizon", horizon, unit="days")
+    if not results.is_dir():
+        raise opts.OptionError("RESULTS", f"{results} is not a folder of fleet results")
+    opts.check_out(out or results / "trends", force)
     rows = load_results(results, failed=False)
+
     if not rows:
         raise SpecError([("RESULTS", f"{results} holds no fitted record")])
     trends = machine_trends(rows, th, horizon_days=horizon)
     report = {"results": str(results), "machines": {m: t.to_dict() for m, t in trends.items()}}
-    folder = OutputFolder(out or results / "trends", force=force,
-                          parameters={"thresholds": th, "horizon_days": horizon})
-    folder.write_json("trends.json", report)
-    for m, t in trends.items():
-        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in m)
-        folder.savefig(f"trend_{safe}.png", plot_machine_trend(t))
-    folder.savefig("overview.png", plot_fleet_overview(trends))
+    with OutputFolder(out or results / "trends", force=force, staged=True,
+                      parameters={"thresholds": th, "horizon_days": horizon}) as folder:
+        folder.write_json("trends.json", report)
+        for m, t in trends.items():
+            safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in m)
+            folder.savefig(f"trend_{safe}.png", plot_machine_trend(t))
+        folder.savefig("overview.png", plot_fleet_overview(trends))
+        _trend_extras(folder, results, trends, th, horizon)
+
     if json_out:
         _echo_json(report)
         return
@@ -199,3 +230,36 @@ def fleet_trends(
         typer.echo(f"{m:<16} {len(t.records):>7}  {t.state:<12} {flagged or '-'}")
     typer.echo(f"wrote {folder.path}/trends.json, trend_<machine>.png, overview.png",
                err=True)
+
+
+def _trend_extras(folder, results: Path, trends, thresholds, horizon: float) -> None:
+    """The arrays (``trends.csv``/``.npz``: one row per machine, record and parameter) and the
+    ``report.html`` of ``fleet trends``."""
+    from dtwin.identify.tables import trend_rows
+
+    from ..io.export import write_columns
+    from ..io.html_report import write_html_report
+
+    rows = trend_rows(trends)
+    if rows:
+        cols = {k: [r[k] for r in rows] for k in rows[0]}
+        cols["time"] = [t or "" for t in cols["time"]]
+        write_columns(folder, "trends", cols,
+                      {"days": "d", "value": "SI (see unit)", "lower_95": "SI (see unit)",
+                       "upper_95": "SI (see unit)"})
+    figures = {"Fleet overview: latest value of each machine, trajectories": "overview.png"}
+    for m in trends:
+        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in m)
+        figures[f"Machine {m}"] = f"trend_{safe}.png"
+    machines = [{"machine": m, "records": len(t.records), "state": t.state,
+                 "flagged": "; ".join(f"{n}: {t.parameters[n].flag.reason}" for n in t.flagged)
+                 or "-"} for m, t in trends.items()]
+    write_html_report(
+        folder, title=f"dtwin fleet trends: {results}",
+        summary={"results": str(results), "machines": len(trends),
+                 "thresholds": ", ".join(f"{k} {v[1]} {v[0]}" for k, v in thresholds.items())
+                 or "none",
+                 "horizon (days)": horizon},
+        notes=[f"{r['machine']}: {r['flagged']}" for r in machines if r["flagged"] != "-"],
+        figures=figures,
+        tables={"Machines": machines, "Every record (95 % intervals)": rows})

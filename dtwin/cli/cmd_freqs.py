@@ -18,7 +18,7 @@ from typing import Any
 
 import typer
 
-from ..errors import SpecError
+from ..reports import freqs_report
 from . import options as opts
 from .app import app
 
@@ -32,43 +32,6 @@ _MEANING = {
     "f_planet_pass": "planet pass, N f_carrier",
     "f_planet": "planet spin relative to the carrier",
 }
-
-
-def freqs_report(spec: Any, f_sun: float | None, planet_fault: str, source: str) -> dict:
-    """JSON-ready result of ``dtwin freqs`` for a loaded :class:`~dtwin.spec.Spec`.
-
-    **Arguments:** `spec`; `f_sun` (Hz) overriding ``operating.f_sun``; `planet_fault`
-    convention (``paper`` or ``both_flanks``); `source` label. **Returns:** dict with
-    ``source``, ``f_sun_hz``, ``planet_fault``, ``frequencies_hz`` (registry names),
-    ``orders`` (frequency / f_sun), ``f_planet_fault_both_flanks_hz`` and ``geometry``.
-    """
-    from ..gears import characteristic_frequencies, geometry_summary
-
-    if planet_fault not in ("paper", "both_flanks"):
-        raise SpecError([("--planet-fault", f"use paper or both_flanks, got {planet_fault!r}")])
-    if f_sun is None:
-        f_sun = spec["operating"]["f_sun"]
-        if f_sun is None:
-            raise SpecError([("--f-sun", f"{source} gives no operating.f_sun; pass --f-sun HZ "
-                              "(input speed in Hz, e.g. 30 for 1800 rpm)")])
-    elif not (0.0 < f_sun <= 500.0):
-        hint = f" (did you mean {f_sun:g} rpm = {f_sun / 60:g} Hz?)" if f_sun > 500 else ""
-        raise SpecError([("--f-sun", f"must be an input speed in Hz in (0, 500], got "
-                          f"{f_sun:g}{hint}")])
-    gs = spec.gear_set()
-    f = characteristic_frequencies(gs, f_sun, planet_fault=planet_fault)
-    both = characteristic_frequencies(gs, f_sun, planet_fault="both_flanks")["f_planet_fault"]
-    return {
-        "source": source,
-        "f_sun_hz": float(f_sun),
-        "planet_fault": planet_fault,
-        "gears": {"z_sun": gs.z_sun, "z_planet": gs.z_planet, "z_ring": gs.z_ring,
-                  "n_planets": gs.n_planets},
-        "frequencies_hz": f,
-        "orders": {k: v / f_sun for k, v in f.items()},
-        "f_planet_fault_both_flanks_hz": both,
-        "geometry": geometry_summary(gs),
-    }
 
 
 

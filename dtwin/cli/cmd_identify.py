@@ -25,52 +25,84 @@ vs fitted levels, peaks labelled; one per record), ``loss.png`` and ``manifest.j
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import typer
 
-from ..errors import SpecError
+from . import options as opts
 from .app import app
 
 
-def _gearbox(preset: str | None, spec_file: Path | None):
-    from .cmd_spectrum import load_gearbox
-
-    g = load_gearbox(preset, spec_file)
-    if g is None:
-        raise SpecError([("--spec/--preset", "identification needs the gearbox: pass --spec FILE "
-                          "or --preset NAME")])
-    return g
+def _check_common(model: str, f_sun: float | None, out: Path | None, force: bool) -> None:
+    opts.choice("--model", model, ("torsional", "translational"))
+    opts.input_speed_option("--f-sun", f_sun)
+    opts.check_out(out, force)
 
 
-def _records(paths: list[Path], sample_rate: float | None):
-    from .cmd_spectrum import read_input
+def _records(paths: list[Path], sample_rate: float | None, channel: str | int, spec,
+             f_sun: float | None):
+    """Read and check the records of a fit (refused if unusable or degraded)."""
+    recs = [opts.read_record(p, sample_rate) for p in paths]
+    for r in recs:
+        opts.check_channel(r, channel)
+        opts.checked_record(r, channel, spec, f_sun or _speed_hint(r, spec), fit=True)
+    return recs
 
-    return [read_input(p, sample_rate) for p in paths]
+
+def _speed_hint(record, spec) -> float | None:
+    from ..reports import input_speed
+
+    return input_speed(record, spec, None)[0]
 
 
-def _write(out, force, inputs, gearbox, params, result, name: str, extra: dict) -> Path:
-    from dtwin.identify.api import plot_fit
-    from dtwin.identify.plotting.fit import plot_loss_history
+def _files(result, name: str, report: dict):
+    """The files of a fit result: the report, one spectrum figure per record, the loss."""
+    def files() -> dict:
+        from dtwin.identify.api import plot_fit
+        from dtwin.identify.plotting.fit import plot_loss_history
+        from dtwin.identify.tables import fit_rows
 
-    from .cmd_spectrum import open_output
+        from ..io.export import Columns
+        from ..io.html_report import HTMLReport
 
-    folder = open_output(out, force, inputs, gearbox, params)
-    folder.write_json(name, extra)
-    for i in range(len(result.problem.observations)):
-        suffix = "" if len(result.problem.observations) == 1 else f"_{i}"
-        folder.savefig(f"spectrum_fit{suffix}.png", plot_fit(result, i))
-    folder.savefig("loss.png", plot_loss_history(result.loss_history))
-    return folder.path
+        n = len(result.problem.observations)
+        out = {name: report}
+        figures = {}
+        for i, (f, meas, fitted) in enumerate(result.spectra()):
+            stem = f"spectrum_fit{'' if n == 1 else f'_{i}'}"
+            out[f"{stem}.png"] = plot_fit(result, i)
+            out[f"{stem}.csv"] = Columns({"frequency": f, "measured": meas, "fitted": fitted},
+                                         {"frequency": "Hz", "measured": "m/s^2",
+                                          "fitted": "m/s^2"})
+            figures[f"Measured vs fitted spectrum, record {i}"] = f"{stem}.png"
+        out["loss.png"] = plot_loss_history(result.loss_history)
+        out["loss.csv"] = Columns({"evaluation": list(range(1, len(result.loss_history) + 1)),
+                                   "loss": result.loss_history},
+                                  {"evaluation": "1", "loss": "1"})
+        figures["Loss over the solver's evaluations"] = "loss.png"
+        records = report.get("records") or [report.get("record")]
+        out["report.html"] = HTMLReport(
+            title=f"dtwin {name.split('.')[0]}: {', '.join(Path(str(r)).name for r in records)}",
+            summary={"records": ", ".join(map(str, records)), "gearbox": report.get("gearbox"),
+                     "loss": result.loss, "iterations": result.iterations,
+                     "converged": result.converged, "wall time (s)": result.wall_time},
+            notes=[f"{k}: not determined by these data ({v})"
+                   for k, v in result.not_determined.items()]
+            + ([result.message] if not result.converged else []),
+            figures=figures,
+            tables={"Fitted parameters (95 % intervals)": fit_rows(result),
+                    "Operating points": result.operating_points})
+        return out
+
+    return files
 
 
 @app.command()
 def identify(
     records: list[Path] = typer.Argument(..., help="Record file(s), fitted jointly."),
     free: str = typer.Option(..., "--free", help="Comma-separated registry names to fit."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
-    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset."),
+    spec: Path | None = opts.spec_option(),
+    preset: str | None = opts.preset_option(),
     model: str = typer.Option("torsional", "--model", help="torsional or translational twin."),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz); default: "
                                        "estimated from each record."),
@@ -81,80 +113,126 @@ def identify(
     refine: int = typer.Option(1, "--refine", help="Best starts refined by the solver."),
     jac: str = typer.Option("fwd", "--jac", help="fwd (forward mode) or rev (reverse)."),
     max_steps: int = typer.Option(40, "--max-steps", help="Solver steps."),
-    channel: str = typer.Option("0", "--channel", help="Channel name or index."),
-    sample_rate: float | None = typer.Option(None, "--sample-rate", help="Rate (Hz) if the "
-                                             "file states none."),
-    json_out: bool = typer.Option(False, "--json", help="Print the result as JSON on stdout."),
-    out: Path | None = typer.Option(None, "--out", help="Write JSON, PNGs and a manifest."),
-    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
-    progress: bool = typer.Option(False, "--progress", help="Print the stages and losses."),
+    channel: str = opts.channel_option(),
+    sample_rate: float | None = opts.sample_rate_option(),
+    json_out: bool = opts.json_option(),
+    out: Path | None = opts.out_option("identify.json, spectrum_fit.png, loss.png"),
+    force: bool = opts.force_option(),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Print the stages "
+                                  "and losses on stderr (default; `dtwin --quiet` silences it)."),
 ) -> None:
     """Fit twin parameters (registry names) to measured spectra, with 95 % intervals."""
-    from dtwin.identify.fit import check_free, fit
+    from dtwin.identify.fit import SOLVERS, fit
 
-    from .cmd_spectrum import channel_token
-
-    names = check_free(free)  # unknown names fail before anything is read or simulated
-    gearbox = _gearbox(preset, spec)
-    recs = _records(records, sample_rate)
-    res = fit(recs, gearbox, names, kind=model, f_sun=f_sun,
+    names = opts.free_names("--free", free)  # before anything is read or simulated
+    _check_common(model, f_sun, out, force)
+    opts.choice("--solver", solver, SOLVERS)
+    opts.choice("--jac", jac, ("fwd", "rev"))
+    opts.at_least("--starts", starts, 1)
+    opts.at_least("--refine", refine, 1)
+    if refine > starts:
+        raise opts.OptionError("--refine", f"refines the best of the --starts: at most {starts}, "
+                               f"got {refine}")
+    opts.at_least("--max-steps", max_steps, 1)
+    if runup is not None:
+        opts.band("--runup", runup)
+        if runup[0] <= 0:
+            raise opts.OptionError("--runup", f"LOW must be > 0 Hz, got {runup[0]:g}")
+        opts.input_speed_option("--runup", runup[1])
+    gb = opts.load_gearbox(preset, spec, why="identification needs the gearbox")
+    ch = opts.channel_token(channel)
+    recs = _records(records, sample_rate, ch, gb.spec, f_sun)
+    if f_sun is not None and runup is None:
+        for p, r in zip(records, recs, strict=True):
+            _check_given_speed(r, gb.spec, f_sun, ch, p)
+    res = fit(recs, gb.spec, names, kind=model, f_sun=f_sun,
               runup=tuple(runup) if runup else None, solver=solver, starts=starts,
-              refine=refine, jac=jac, max_steps=max_steps, channel=channel_token(channel),
-              progress=progress)
-    report = {"records": [str(p) for p in records], "gearbox": preset or str(spec),
+              refine=refine, jac=jac, max_steps=max_steps, channel=ch,
+              progress=progress and not _quiet())
+    report = {"records": [str(p) for p in records], "gearbox": gb.source,
               "model": model, **res.to_dict()}
-    if json_out:
-        from ..io.output import to_jsonable
+    opts.emit(report, json_out=json_out, table=lambda: typer.echo(res.table()), out=out,
+              force=force, files=_files(res, "identify.json", report), inputs=records,
+              gearbox=gb, parameters={"free": names, "solver": solver, "starts": starts,
+                                      "refine": refine, "jac": jac, "model": model})
 
-        typer.echo(json.dumps(to_jsonable(report), indent=2))
-    else:
-        typer.echo(res.table())
-    if out is not None:
-        path = _write(out, force, list(records) + [spec], gearbox,
-                      {"free": names, "solver": solver, "starts": starts, "refine": refine,
-                       "jac": jac, "model": model}, res, "identify.json", report)
-        if not json_out:
-            typer.echo(f"wrote {path}/identify.json, spectrum_fit.png, loss.png, manifest.json",
-                       err=True)
+
+def _quiet() -> bool:
+    from .logs import is_quiet
+
+    return is_quiet()
+
+
+def _check_given_speed(record, spec, f_sun: float, channel, path) -> None:
+    """Refuse a ``--f-sun`` that the record's mesh lines (or tacho) contradict."""
+    from dtwin.identify.operating_point import estimate_speed
+
+    from ..build import build_twin
+    from ..errors import RecordError
+
+    twin = build_twin(spec, kind="torsional")
+    try:
+        op = estimate_speed(record, twin, f_sun, channel=channel, search=0.05)
+    except RecordError:
+        op = None
+    if op is not None and (op.method == "tacho" or op.harmonics) \
+            and abs(op.f_sun - f_sun) <= 0.01 * f_sun:
+        return
+    nominal = spec["operating"].get("f_sun")
+    seen = None
+    if nominal and abs(float(nominal) - f_sun) > 0.05 * f_sun:
+        try:
+            alt = estimate_speed(record, twin, float(nominal), channel=channel)
+            seen = alt.f_sun if (alt.harmonics or alt.method == "tacho") else None
+        except RecordError:
+            seen = None
+    if op is not None and op.method == "tacho":
+        seen = op.f_sun
+    where = (f"the record's {'tachometer' if op is not None and op.method == 'tacho' else 'mesh lines'}"
+             f" put the input speed at {seen:.2f} Hz" if seen is not None else
+             f"the record shows no mesh line near {f_sun:g} Hz × the mesh order")
+    raise RecordError(f"--f-sun {f_sun:g} Hz disagrees with {path}: {where}; drop --f-sun (the "
+                      "speed is then estimated from the record) or correct it")
 
 
 @app.command()
 def severity(
     record: Path = typer.Argument(..., help="Record file."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
-    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset."),
+    spec: Path | None = opts.spec_option(),
+    preset: str | None = opts.preset_option(),
     location: str = typer.Option("sun", "--location", help="sun, planet or ring."),
     free: str = typer.Option("", "--free", help="Further registry names fitted with it."),
     model: str = typer.Option("torsional", "--model", help="torsional or translational twin."),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz)."),
-    channel: str = typer.Option("0", "--channel", help="Channel name or index."),
-    sample_rate: float | None = typer.Option(None, "--sample-rate", help="Rate (Hz)."),
-    json_out: bool = typer.Option(False, "--json", help="Print the result as JSON on stdout."),
-    out: Path | None = typer.Option(None, "--out", help="Write JSON, PNG and a manifest."),
-    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
+    channel: str = opts.channel_option(),
+    sample_rate: float | None = opts.sample_rate_option(),
+    json_out: bool = opts.json_option(),
+    out: Path | None = opts.out_option("severity.json, spectrum_fit.png, loss.png"),
+    force: bool = opts.force_option(),
 ) -> None:
     """Severity of the fault at a location, with its 95 % interval."""
     from dtwin.identify.fit import check_free
     from dtwin.identify.severity import estimate_severity
 
-    from .cmd_spectrum import channel_token
+    opts.choice("--location", location, ("sun", "planet", "ring"))
+    extra = opts.free_names("--free", free) if free.strip() else []
+    check_free([f"{location}_fault"])
+    _check_common(model, f_sun, out, force)
+    gb = opts.load_gearbox(preset, spec, why="severity estimation needs the gearbox")
+    ch = opts.channel_token(channel)
+    (rec,) = _records([record], sample_rate, ch, gb.spec, f_sun)
+    if f_sun is not None:
+        _check_given_speed(rec, gb.spec, f_sun, ch, record)
+    est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
+                            channel=ch)
+    report = {"record": str(record), "gearbox": gb.source, **est.to_dict()}
 
-    extra = check_free(free) if free.strip() else []
-    check_free([f"{location}_fault"]) if location in ("sun", "planet", "ring") else None
-    gearbox = _gearbox(preset, spec)
-    (rec,) = _records([record], sample_rate)
-    est = estimate_severity(rec, gearbox, location, free=extra, kind=model, f_sun=f_sun,
-                            channel=channel_token(channel))
-    report = {"record": str(record), "gearbox": preset or str(spec), **est.to_dict()}
-    if json_out:
-        from ..io.output import to_jsonable
-
-        typer.echo(json.dumps(to_jsonable(report), indent=2))
-    else:
+    def table() -> None:
         lo, hi = est.interval
         typer.echo(f"{location} fault severity {est.severity:.3f}  95 % [{lo:.3f}, {hi:.3f}] "
                    f"({est.method})" + ("" if est.determined else "  NOT DETERMINED"))
         typer.echo(est.fit.table())
-    if out is not None:
-        _write(out, force, [record, spec], gearbox, {"location": location, "free": extra},
-               est.fit, "severity.json", report)
+
+    opts.emit(report, json_out=json_out, table=table, out=out, force=force,
+              files=_files(est.fit, "severity.json", report), inputs=[record], gearbox=gb,
+              parameters={"location": location, "free": extra})

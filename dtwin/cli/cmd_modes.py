@@ -14,55 +14,14 @@ planets (equally spaced), e.g. Lin & Parker's N = 4 and 5 cases.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
 import typer
 
+from ..reports import modes_report, operating_mesh_frequency
 from . import options as opts
 from .app import app
-
-
-def _mesh_frequency(spec: Any, lp: Any) -> float | None:
-    """f_mesh = f_sun Zs Zr / (Zs + Zr) (Hz) at the spec's operating speed, if it gives one."""
-    f_sun = spec["operating"].get("f_sun")
-    if f_sun is None or not math.isfinite(float(f_sun)) or float(f_sun) <= 0:
-        return None
-    return float(f_sun) * lp.z_sun * lp.z_ring / (lp.z_sun + lp.z_ring)
-
-
-def modes_report(lp, model: str, f_mesh: float | None) -> dict[str, Any]:
-    """JSON-ready summary: distinct modes with type, multiplicity, sensitivities, mesh order."""
-    import numpy as np
-
-    from ..modal import frequency_sensitivities, modal_analysis
-
-    res = modal_analysis(lp, model)
-    sens = frequency_sensitivities(lp, ("k_sun_planet", "k_ring_planet"), model)
-    s_sp, s_rp = np.asarray(sens["k_sun_planet"]), np.asarray(sens["k_ring_planet"])
-    rows = []
-    for g in res.groups():
-        j = g["modes"]
-        row = {
-            "frequency_hz": g["frequency"],
-            "type": g["type"],
-            "multiplicity": g["multiplicity"],
-            "sensitivity_k_sun_planet": float(np.mean(s_sp[j])),
-            "sensitivity_k_ring_planet": float(np.mean(s_rp[j])),
-        }
-        if f_mesh:
-            row["mesh_order"] = g["frequency"] / f_mesh
-        rows.append(row)
-    return {
-        "model": model,
-        "n_planets": lp.n_planets,
-        "f_mesh_hz": f_mesh,
-        "modes": rows,
-        "frequencies_hz": np.asarray(res.frequencies).tolist(),
-        "mode_types": list(res.mode_types),
-        "coordinates": list(res.coordinates),
-    }, res
 
 
 @app.command()
@@ -88,7 +47,7 @@ def modes(
     opts.check_out(out, force)
     gb = opts.load_gearbox(preset, spec, planets=planets)
     lp, spec_obj, source = gb.lumped(), gb.spec, gb.source
-    f_mesh = _mesh_frequency(spec_obj, lp)
+    f_mesh = operating_mesh_frequency(spec_obj, lp)
     sample_rate = spec_obj["sensor"].get("sample_rate")
     report, res = modes_report(lp, model, f_mesh)
     report["source"] = source

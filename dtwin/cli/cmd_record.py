@@ -20,15 +20,15 @@ writes ``record_info.json`` and ``manifest.json``.
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import typer
 
 from ..errors import RecordError, SpecError
+from ..reports import record_report
+from . import options as opts
 from .app import app
 
 record_app = typer.Typer(help="Recorded vibration files: inspect, check, convert.",
@@ -88,17 +88,13 @@ def parse_sensitivity(items: list[str] | None) -> dict[str | int, tuple] | None:
     return out
 
 
-def _frequencies(preset: str | None, spec_file: Path | None, f_sun: float | None,
-                 f_mesh: float | None, f_carrier: float | None) -> tuple[dict[str, float], Any]:
+def _frequencies(gb: opts.Gearbox | None, f_sun: float | None,
+                 f_mesh: float | None, f_carrier: float | None) -> dict[str, float]:
     freqs: dict[str, float] = {}
-    spec_obj = None
-    if preset is not None and spec_file is not None:
-        raise SpecError([("--preset/--spec", "give at most one of --preset NAME or --spec FILE")])
-    if preset is not None or spec_file is not None:
-        from .. import spec as spec_mod
+    if gb is not None:
         from ..gears import characteristic_frequencies
 
-        spec_obj = spec_mod.preset(preset) if preset is not None else spec_mod.load_spec(spec_file)
+        spec_obj = gb.spec
         fs_in = f_sun if f_sun is not None else spec_obj["operating"].get("f_sun")
         if fs_in is None:
             raise SpecError([("operating.f_sun", "the spec states no input speed; pass --f-sun HZ")])
@@ -111,43 +107,28 @@ def _frequencies(preset: str | None, spec_file: Path | None, f_sun: float | None
         freqs["f_mesh"] = float(f_mesh)
     if f_carrier is not None:
         freqs["f_carrier"] = float(f_carrier)
-    return freqs, spec_obj
+    return freqs
 
-
-def record_report(rec: Any, problems: list[Any], freqs: dict[str, float]) -> dict[str, Any]:
-    """JSON-ready summary of a record: channels with statistics, rate, duration, problems."""
-    chans = []
-    for i, name in enumerate(rec.channels):
-        x = rec.data[i]
-        finite = x[np.isfinite(x)]
-        stats = ({"min": float(finite.min()), "max": float(finite.max()),
-                  "mean": float(finite.mean()), "rms": float(np.sqrt(np.mean(finite**2)))}
-                 if finite.size else {"min": None, "max": None, "mean": None, "rms": None})
-        chans.append({"name": name, "unit": rec.units[i], **stats,
-                      "problems": [p.kind for p in problems if p.channel == name]})
-    return {
-        "file": rec.metadata.get("source"),
-        "format": rec.metadata.get("format"),
-        "sample_rate_hz": float(rec.sample_rate),
-        "n_samples": rec.n_samples,
-        "duration_s": rec.duration,
-        "channels": chans,
-        "groups": {k: list(v) for k, v in rec.groups.items()},
-        "tacho": None if rec.tacho is None else {
-            "channel": rec.metadata.get("tacho_channel"), "ppr": rec.tacho_ppr,
-            "shaft": rec.tacho_shaft},
-        "frequencies_hz": freqs,
-        "problems": [{"kind": p.kind, "channel": p.channel, "sample": p.sample,
-                      "value": p.value, "message": p.message} for p in problems],
-        "metadata": rec.metadata,
-    }
 
 
 def _read(file: Path, channels, sample_rate, time_column, units, sensitivity, tacho, tacho_ppr,
           tacho_shaft, group, fmt):
+    from ..errors import ChannelError
     from ..io.readers import read_record
 
+    try:
+        return _read_record(read_record, file, channels, sample_rate, time_column, units,
+                            sensitivity, tacho, tacho_ppr, tacho_shaft, group, fmt)
+    except ChannelError as e:
+        if tacho is not None and repr(_channel_token(tacho)) in str(e):
+            raise ChannelError(f"--tacho: {e}") from None
+        raise
+
+
+def _read_record(read_record, file, channels, sample_rate, time_column, units, sensitivity,
+                 tacho, tacho_ppr, tacho_shaft, group, fmt):
     return read_record(
+
         file, channels=parse_channels(channels), sample_rate=sample_rate,
         time_column=_channel_token(time_column) if time_column is not None else None,
         units=parse_units(units), sensitivity=parse_sensitivity(sensitivity),
@@ -198,30 +179,50 @@ def info(
     force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
 ) -> None:
     """Channels, rate, duration and the problems found in a recorded vibration file."""
-    from ..io.output import OutputFolder, to_jsonable
+    from ..io.output import to_jsonable
     from ..io.validate import check_record
 
-    freqs, spec_obj = _frequencies(preset, spec, f_sun, f_mesh, f_carrier)
+    _check_reading(sample_rate, units, tacho_ppr, tacho_shaft, fmt)
+    opts.input_speed_option("--f-sun", f_sun)
+    opts.positive("--f-mesh", f_mesh, unit="Hz")
+    opts.positive("--f-carrier", f_carrier, unit="Hz")
+    opts.check_out(out, force)
+    gb = opts.load_gearbox(preset, spec, required=False)
+    if gb is None and f_sun is not None:
+        raise opts.OptionError("--f-sun", "needs a gearbox: add --preset NAME or --spec FILE, or "
+                               "give --f-mesh and --f-carrier directly")
+    freqs = _frequencies(gb, f_sun, f_mesh, f_carrier)
+    opts.existing_file("FILE", file)
     rec = _read(file, channels, sample_rate, time_column, units, sensitivity, tacho, tacho_ppr,
                 tacho_shaft, group, fmt)
     problems = check_record(rec, f_mesh=freqs.get("f_mesh"), f_carrier=freqs.get("f_carrier"))
     report = to_jsonable(record_report(rec, problems, freqs))
-    if json_out:
-        typer.echo(json.dumps(report, indent=2))
-    else:
-        _print_report(report)
-    if out is not None:
-        from ..spec import spec_to_dict
-
-        folder = OutputFolder(
-            out, force=force, inputs=[file] + ([spec] if spec is not None else []),
-            spec=spec_to_dict(spec_obj) if spec_obj is not None else None,
-            parameters={"preset": preset, **freqs})
-        folder.write_json("record_info.json", report)
-        if not json_out:
-            typer.echo(f"wrote {folder.path}/record_info.json, manifest.json", err=True)
+    opts.emit(report, json_out=json_out, table=lambda: _print_report(report), out=out,
+              force=force, files={"record_info.json": report}, inputs=[file], gearbox=gb,
+              parameters={"preset": preset, **freqs})
     if strict and problems:
         raise SystemExit(2)
+
+
+#: Units a record channel may be given in (``--units``): the vibration units of
+#: :mod:`dtwin.units`, volts, pressure, force and current.
+KNOWN_UNITS = ("m/s^2", "mm/s^2", "g", "m/s", "mm/s", "in/s", "m", "mm", "um", "µm", "V", "mV",
+               "Pa", "N", "A", "rad/s", "rpm", "-")
+
+
+def _check_reading(sample_rate, units, tacho_ppr, tacho_shaft, fmt) -> None:
+    """The reading options, checked before the file is opened."""
+    from ..io.readers import EXTENSIONS, normalise_unit
+
+    opts.positive("--sample-rate", sample_rate, unit="Hz")
+    opts.at_least("--tacho-ppr", tacho_ppr, 1)
+    opts.choice("--tacho-shaft", tacho_shaft, ("sun", "carrier"))
+    opts.choice("--format", fmt, tuple(sorted(set(EXTENSIONS.values()))))
+    parsed = parse_units(units)
+    for u in ([parsed] if isinstance(parsed, str) else list((parsed or {}).values())):
+        if normalise_unit(u) not in KNOWN_UNITS:
+            raise opts.OptionError("--units", f"unknown unit {u!r}; use one of "
+                                   f"{', '.join(KNOWN_UNITS)}")
 
 
 @record_app.command("convert")
@@ -241,9 +242,19 @@ def convert(
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output file."),
 ) -> None:
     """Convert a record to dtwin's own format (*.dtwin.h5), with units and sensitivity applied."""
+    from ..errors import OutputExistsError
     from ..io.output import sha256_file
     from ..io.readers import write_record
 
+    _check_reading(sample_rate, units, tacho_ppr, tacho_shaft, fmt)
+    opts.existing_file("FILE", file)
+    if not str(target).endswith(".dtwin.h5"):
+        raise opts.OptionError("TARGET", f"name the output *.dtwin.h5, got {target}")
+    if target.is_dir():
+        raise opts.OptionError("TARGET", f"{target} is a folder; give a file name *.dtwin.h5")
+    if target.exists() and not force:
+        raise OutputExistsError(f"{target} already exists; pass --force to overwrite")
+    opts.check_out(target.parent if str(target.parent) else Path("."), True, option="TARGET")
     rec = _read(file, channels, sample_rate, time_column, units, sensitivity, tacho, tacho_ppr,
                 tacho_shaft, group, fmt)
     rec.metadata["source_sha256"] = sha256_file(file)
@@ -253,11 +264,10 @@ def convert(
 
 
 def _print_report(report: dict[str, Any]) -> None:
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
-    console = Console()
+    console = opts.console()
     fr = report["frequencies_hz"]
     title = (f"{report['file']} ({report['format']}): {report['sample_rate_hz']:g} Hz, "
              f"{report['n_samples']} samples, {report['duration_s']:.4g} s")
@@ -273,7 +283,7 @@ def _print_report(report: dict[str, Any]) -> None:
     for c in report["channels"]:
         table.add_row(escape(c["name"]), escape(c["unit"] or "-"), num(c["min"]), num(c["max"]),
                       num(c["rms"]), ", ".join(c["problems"]) or "ok")
-    console.print(table)
+    opts.print_table(table)
     if report["tacho"]:
         t = report["tacho"]
         console.print(f"tacho: {escape(str(t['channel']))}, {t['ppr']} pulse(s)/rev, "

@@ -22,89 +22,9 @@ from typing import Any
 import typer
 
 from ..errors import SpecError
+from ..reports import stiffness_curves, stiffness_report
 from . import options as opts
 from .app import app
-
-
-def _fault_label(f: Any) -> str:
-    kind = {"MissingTooth": "missing tooth", "Pitting": "pitting", "RootCrack": "root crack"}
-    where = f"planet {f.planet}" if f.location == "planet" else f.location
-    return f"{where} tooth {f.tooth} {kind.get(type(f).__name__, type(f).__name__)} {float(f.severity):g}"
-
-
-def stiffness_curves(
-    lp: Any,
-    faults: Any = (),
-    *,
-    n_cycles: float | None = None,
-    samples_per_cycle: int = 40,
-    n_harmonics: int = 12,
-    planet: int = 0,
-) -> dict[str, Any]:
-    """Planet `planet`'s mesh stiffness under rigid kinematics, healthy and with `faults`.
-
-    The carrier turns from ``-2`` to ``n_cycles + 2`` mesh cycles (``Zr theta_c / 2 pi``), the
-    sun at ``theta_c (1 + Zr/Zs)``, the planets at ``theta_c (1 - Zr/Zp)``, the ring fixed.
-    `n_cycles` defaults to the tooth count of the faulty gear (``Zs`` without faults).
-
-    **Returns:** dict with ``mesh_cycles`` (T,), ``k_sun_planet``, ``k_ring_planet`` (healthy,
-    N/m) and, with faults, ``k_sun_planet_faulty``, ``k_ring_planet_faulty`` (N/m), all numpy.
-    """
-    import jax
-    import jax.numpy as jnp
-    import numpy as np
-
-    from ..faults import mesh_stiffnesses
-
-    if n_cycles is None:
-        z = {"sun": lp.z_sun, "planet": lp.z_planet, "ring": lp.z_ring}
-        n_cycles = max([lp.z_sun] + [z[f.location] for f in faults])
-    x = np.arange(-2.0, n_cycles + 2.0, 1.0 / samples_per_cycle)
-    tc = jnp.asarray(x * 2 * np.pi / lp.z_ring, dtype=jnp.float64)
-    ts = tc * (1.0 + lp.z_ring / lp.z_sun)
-    tp = jnp.broadcast_to((tc * (1.0 - lp.z_ring / lp.z_planet))[:, None],
-                          (tc.shape[0], lp.n_planets))
-    tr = jnp.zeros_like(tc)
-
-    def run(fs):
-        f = jax.vmap(lambda a, b, c, d: mesh_stiffnesses(lp, a, b, c, d, fs,
-                                                         n_harmonics=n_harmonics))
-        k_sp, k_rp = f(ts, tc, tr, tp)
-        return np.asarray(k_sp[:, planet]), np.asarray(k_rp[:, planet])
-
-    out: dict[str, Any] = {"mesh_cycles": x}
-    out["k_sun_planet"], out["k_ring_planet"] = run(())
-    if faults:
-        out["k_sun_planet_faulty"], out["k_ring_planet_faulty"] = run(tuple(faults))
-    return out
-
-
-def stiffness_report(lp: Any, faults: Any, curves: dict[str, Any]) -> dict[str, Any]:
-    """JSON-ready summary: per mesh k_mean, c', 1.75 c', eps and the faulty extremes (N/m)."""
-    import numpy as np
-
-    from ..stiffness import DOUBLE_CONTACT_FACTOR, single_pair_from_mean
-
-    meshes = {}
-    for name, k, eps, key in (("sun_planet", lp.k_sun_planet, lp.eps_sp, "k_sun_planet"),
-                              ("ring_planet", lp.k_ring_planet, lp.eps_rp, "k_ring_planet")):
-        c1 = float(single_pair_from_mean(k, eps))
-        row = {"k_mean": float(k), "c_single": c1, "c_double": DOUBLE_CONTACT_FACTOR * c1,
-               "eps": float(eps), "k_min_healthy": float(np.min(curves[key])),
-               "k_max_healthy": float(np.max(curves[key]))}
-        if faults:
-            kf = curves[key + "_faulty"]
-            row["k_min_faulty"] = float(np.min(kf))
-            row["max_loss"] = float(np.max(curves[key] - kf))
-        meshes[name] = row
-    return {
-        "z_sun": lp.z_sun, "z_planet": lp.z_planet, "z_ring": lp.z_ring,
-        "n_planets": lp.n_planets, "meshes": meshes,
-        "faults": [{"label": _fault_label(f), "type": type(f).__name__, "location": f.location,
-                    "tooth": f.tooth, "planet": f.planet, "flank": f.flank,
-                    "severity": float(f.severity), "meaning": f.severity_meaning}
-                   for f in faults],
-    }
 
 
 @app.command()

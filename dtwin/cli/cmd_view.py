@@ -28,7 +28,6 @@ Terminal: a short summary table; ``--json``: the report on stdout; ``--out DIR``
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -36,16 +35,10 @@ import numpy as np
 import typer
 
 from ..errors import RecordError, SpecError
+from ..reports import channel_unit, gear_frequencies, input_speed
+from . import options as opts
 from .app import app
-from .cmd_spectrum import (
-    channel_token,
-    channel_unit,
-    gear_frequencies,
-    input_speed,
-    load_gearbox,
-    open_output,
-    read_input,
-)
+from .options import channel_token
 
 KINDS = ("order", "tsa", "envelope", "kurtogram", "cepstrum", "waterfall", "psd")
 
@@ -275,10 +268,9 @@ def view(
     record_file: Path = typer.Argument(..., help="Record file (any supported format)."),
     kind: str = typer.Option(..., "--kind", help="order, tsa, envelope, kurtogram, cepstrum, "
                              "waterfall or psd."),
-    channel: str = typer.Option("0", "--channel", help="Channel name or index."),
-    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset (paper-sim, "
-                                      "paper-bench, lin-parker)."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    channel: str = opts.channel_option(),
+    preset: str | None = opts.preset_option(),
+    spec: Path | None = opts.spec_option(),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input (sun) speed in Hz."),
     band: tuple[float, float] | None = typer.Option(None, "--band",
                                                     help="Band LOW HIGH (Hz): envelope, psd."),
@@ -287,23 +279,32 @@ def view(
     segment: int = typer.Option(1024, "--segment", help="Segment length (samples): waterfall, psd."),
     nat: list[float] | None = typer.Option(None, "--nat", help="Natural frequency (Hz) to overlay "
                                            "on the Campbell diagram (repeatable)."),
-    sample_rate: float | None = typer.Option(None, "--sample-rate",
-                                             help="Sampling rate (Hz) if the file states none."),
-    json_out: bool = typer.Option(False, "--json", help="Print the report as JSON on stdout."),
-    out: Path | None = typer.Option(None, "--out", help="Write PNGs, view_KIND.json, manifest."),
-    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
+    sample_rate: float | None = opts.sample_rate_option(),
+    json_out: bool = opts.json_option(),
+    out: Path | None = opts.out_option("KIND.png (and further PNGs), view_KIND.json"),
+    force: bool = opts.force_option(),
 ) -> None:
     """Order, TSA, envelope, kurtogram, cepstrum, waterfall or PSD view of a record."""
-    if kind not in KINDS:
-        raise RecordError(f"unknown --kind {kind!r}; choose one of {', '.join(KINDS)}")
-    gearbox = load_gearbox(preset, spec)
-    record = read_input(record_file, sample_rate)
+    opts.choice("--kind", kind, KINDS)
+    opts.input_speed_option("--f-sun", f_sun)
+    opts.band("--band", band)
+    opts.band("--speed-range", speed_range)
+    if speed_range is not None and speed_range[0] <= 0:
+        raise opts.OptionError("--speed-range", f"LOW must be > 0 Hz, got {speed_range[0]:g}")
+    opts.at_least("--segment", segment, 16)
+    for v in nat or []:
+        opts.positive("--nat", v, unit="Hz")
+    opts.check_out(out, force)
+    gb = opts.load_gearbox(preset, spec, required=False)
+    gearbox = gb.spec if gb is not None else None
+    record = opts.read_record(record_file, sample_rate)
     ch = channel_token(channel)
     name, unit = channel_unit(record, ch)
-    x = np.asarray(record.channel(ch), dtype=np.float64)
-    if not np.all(np.isfinite(x)):
-        raise RecordError(f"channel {name!r} holds NaN or inf samples; clean the record first")
     fsun, fsun_source = input_speed(record, gearbox, f_sun)
+    opts.checked_record(record, ch, gearbox, fsun)
+    if band is not None:
+        opts.band("--band", band, nyquist=record.sample_rate / 2)
+    x = np.asarray(record.channel(ch), dtype=np.float64)
     freqs = gear_frequencies(gearbox, fsun, "paper") if gearbox is not None else None
     if kind == "order":
         rep, figs = _order_view(record, x, unit, gearbox, freqs, fsun, speed_range)
@@ -324,20 +325,16 @@ def view(
 
     report = to_jsonable({"record": str(record_file), "kind": kind, "channel": name,
                           "unit": unit, "f_sun_hz": fsun, "f_sun_source": fsun_source, **rep})
-    if json_out:
-        typer.echo(json.dumps(report, indent=2))
-    else:
-        _print_summary(report)
-    if out is not None:
-        folder = open_output(out, force, [record_file, spec], gearbox,
-                             {"kind": kind, "channel": name, "f_sun": fsun,
-                              "band": list(band) if band else None})
-        for fname, fig in figs.items():
-            folder.savefig(fname, fig)
-        folder.write_json(f"view_{kind}.json", report)
-        if not json_out:
-            typer.echo(f"wrote {folder.path}: {', '.join(figs)}, view_{kind}.json, manifest.json",
-                       err=True)
+    opts.emit(report, json_out=json_out, table=lambda: _print_summary(report), out=out,
+              force=force, files={**figs, f"view_{kind}.json": report}, inputs=[record_file],
+              gearbox=gb, parameters={"kind": kind, "channel": name, "f_sun": fsun,
+                                      "band": list(band) if band else None})
+    if out is None:
+        import matplotlib.pyplot as plt
+
+        for fig in figs.values():
+            plt.close(fig)
+
 
 
 def _flatten(d: dict, prefix: str = "") -> list[tuple[str, str]]:
@@ -356,7 +353,6 @@ def _flatten(d: dict, prefix: str = "") -> list[tuple[str, str]]:
 
 
 def _print_summary(report: dict) -> None:
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
@@ -366,4 +362,4 @@ def _print_summary(report: dict) -> None:
     table.add_column("value", justify="right")
     for k, v in _flatten({k: v for k, v in report.items() if k not in ("record", "kind")}):
         table.add_row(escape(k), escape(v))
-    Console().print(table)
+    opts.print_table(table)

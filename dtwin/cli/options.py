@@ -141,7 +141,7 @@ def band(option: str, value: tuple[float, float] | None,
         raise OptionError(option, f"needs 0 <= LOW < HIGH (Hz), got {lo:g} {hi:g}")
     if nyquist is not None and hi > nyquist:
         raise OptionError(option, f"HIGH = {hi:g} Hz lies above Nyquist ({nyquist:g} Hz, half "
-                          "the sampling rate); lower it")
+                          "the record's sampling rate); lower it")
     return (float(lo), float(hi))
 
 
@@ -212,7 +212,21 @@ def _writable(folder: Path) -> bool:
     return True
 
 
+def free_names(option: str, text: str) -> list[str]:
+    """Registry names of a ``--free`` list (:func:`dtwin.identify.fit.check_free`); an unknown
+    name is a :class:`~dtwin.errors.ParameterError` that names the option."""
+    from dtwin.identify.fit import check_free
+
+    from ..errors import ParameterError
+
+    try:
+        return check_free(text)
+    except ParameterError as e:
+        raise ParameterError(f"{option}: {e}") from None
+
+
 # --- the gearbox --------------------------------------------------------------------------------
+
 
 
 @dataclasses.dataclass(frozen=True)
@@ -281,7 +295,10 @@ def load_gearbox(preset: str | None, spec_file: Path | None, *, required: bool =
 def channel_token(channel: str) -> str | int:
     """``"2"`` → 2 (an index), anything else stays a name."""
     channel = channel.strip()
+    if not channel:
+        raise OptionError("--channel", "is empty; give a channel name or index (0 is the first)")
     return int(channel) if channel.lstrip("-").isdigit() else channel
+
 
 
 def read_record(path: Path, sample_rate: float | None = None, **kwargs: Any) -> Any:
@@ -298,12 +315,89 @@ def check_channel(record: Any, channel: str | int) -> None:
     try:
         record.index(channel)
     except (KeyError, IndexError, ValueError):
-        raise RecordError(f"--channel: the record has no channel {channel!r}; it has "
+        raise RecordError(f"--channel: unknown channel {channel!r}; the record has "
+
                           f"{list(record.channels)} (names or indices 0.."
                           f"{len(record.channels) - 1})") from None
 
 
+def checked_record(record: Any, channel: str | int | Sequence[str | int] | None, spec: Any = None,
+                   f_sun: float | None = None, *, fit: bool = False) -> Any:
+    """The shared check of a record before an analysis (:func:`dtwin.io.validate.usable_record`):
+    refuse what no analysis can use (and, for fits, what degrades one), warn with figures
+    otherwise. `spec` and `f_sun` (Hz) give the mesh and carrier frequencies of the checks.
+
+    **Returns:** the record, unchanged.
+    """
+    from ..io.validate import usable_record
+    from .logs import warn
+
+    f_mesh = f_carrier = None
+    if spec is not None and f_sun is not None:
+        from ..gears import characteristic_frequencies
+
+        fr = characteristic_frequencies(spec.gear_set(), float(f_sun))
+        f_mesh, f_carrier = float(fr["f_mesh"]), float(fr["f_carrier"])
+    chans = None if channel is None else (
+        [channel] if isinstance(channel, (str, int)) else list(channel))
+    if chans is not None:
+        for c in chans:
+            check_channel(record, c)
+    for p in usable_record(record, channels=chans, f_mesh=f_mesh, f_carrier=f_carrier, fit=fit):
+        warn(p.message)
+    return record
+
+
+class progress_line:
+    """Show the progress a library prints on stdout (diffrax's ``12.34%`` lines) as one
+    updating line on stderr, ``LABEL: 12.3 %``; stdout stays clean for tables and JSON.
+
+    ``with progress_line("simulating", enabled=...) as shown:`` gives `shown` (pass it on as
+    the library's ``progress`` flag): False when disabled or under ``--quiet``.
+    """
+
+    def __init__(self, label: str, *, enabled: bool = True):
+        from .logs import is_quiet
+
+        self.label = label
+        self.enabled = enabled and not is_quiet()
+        self._buf = ""
+        self._shown = False
+
+    def __enter__(self) -> bool:
+        import contextlib
+        import sys
+
+        self._stack = contextlib.ExitStack()
+        if self.enabled:
+            self._err = sys.stderr
+            self._stack.enter_context(contextlib.redirect_stdout(self))  # type: ignore[arg-type]
+        return self.enabled
+
+    def write(self, text: str) -> int:
+        self._buf += text
+        *lines, self._buf = self._buf.split("\n")
+        for line in lines:
+            line = line.strip()
+            if line:
+                self._err.write(f"\r{self.label}: {line.replace('%', ' %')}   ")
+                self._err.flush()
+                self._shown = True
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+    def __exit__(self, *exc: Any) -> None:
+        self._stack.close()
+        if self.enabled and self._shown:
+            self._err.write("\n")
+            self._err.flush()
+
+
 # --- the output tail ----------------------------------------------------------------------------
+
+
 
 
 def emit(
@@ -322,7 +416,10 @@ def emit(
     """The tail of every command: the table (or ``--json``), then the files in ``--out``.
 
     `files` maps a file name to what goes in it: a mapping (JSON), a matplotlib figure (PNG or
-    the suffix's format), ``str``/``bytes``, or a callable ``writer(tmp_path)``; a callable
+    the suffix's format), ``str``/``bytes``, a callable ``writer(tmp_path)``, or an object with
+    ``write_into(folder, name)`` (arrays: :class:`dtwin.io.export.Columns`/``Grid`` write
+    ``NAME.csv`` and ``.npz``; :class:`dtwin.io.html_report.HTMLReport` writes ``report.html``
+    from the files before it); a callable
     giving that mapping defers building figures until they are needed. The files appear together with
     ``manifest.json``, or not at all (interrupt, failure: see :class:`dtwin.io.output.OutputFolder`).
 
@@ -372,7 +469,9 @@ def write_outputs(out: Path, *, force: bool = False,
 
 
 def _write_one(folder: Any, name: str, value: Any) -> None:
-    if isinstance(value, (bytes, bytearray)):
+    if hasattr(value, "write_into"):  # dtwin.io.export.Columns/Grid, dtwin.io.html_report.HTMLReport
+        value.write_into(folder, name)
+    elif isinstance(value, (bytes, bytearray)):
         folder.write_bytes(name, bytes(value))
     elif isinstance(value, str):
         folder.write_text(name, value)

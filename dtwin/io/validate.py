@@ -230,3 +230,46 @@ def validate_record(record: Record, **kwargs) -> Record:
         err.problems = problems  # type: ignore[attr-defined]
         raise err
     return record
+
+
+#: Problems no analysis can use: the record is refused whatever the command.
+UNUSABLE = ("empty", "nan", "constant", "time_column", "unknown_channel", "truncated")
+
+
+def usable_record(
+    record: Record,
+    *,
+    channels: Sequence[str | int] | None = None,
+    f_mesh: float | None = None,
+    f_carrier: float | None = None,
+    fit: bool = False,
+) -> list[Problem]:
+    """The one check of a record before an analysis (every command that reads one calls it).
+
+    Refuses (:class:`~dtwin.errors.RecordError` listing them) what no analysis can use:
+    :data:`UNUSABLE` problems of the channels used (`channels`, default all) or of the whole
+    record. Returns the problems where the analysis degrades (clipping, a rate too low for the
+    mesh, a record shorter than :data:`MIN_CARRIER_PERIODS` carrier periods, a bad tacho), for
+    the caller to show as warnings; with `fit` (parameter fits), those are refused too.
+    """
+    problems = check_record(record, f_mesh=f_mesh, f_carrier=f_carrier, channels=channels)
+    used = None
+    if channels is not None:
+        used = set()
+        for c in channels:
+            try:
+                used.add(record.channels[record.index(c)])
+            except Exception:
+                pass
+    mine = [p for p in problems if p.channel is None or used is None or p.channel in used
+            or p.kind == "unknown_channel"]
+    refuse = [p for p in mine if p.kind in UNUSABLE or fit]
+    if refuse:
+        src = record.metadata.get("source")
+        head = f"record {src} cannot be used" if src else "the record cannot be used"
+        if fit and not any(p.kind in UNUSABLE for p in refuse):
+            head += " for a fit"
+        err = RecordError(head + ":\n  " + "\n  ".join(p.message for p in refuse))
+        err.problems = refuse  # type: ignore[attr-defined]
+        raise err
+    return mine

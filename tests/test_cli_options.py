@@ -1,0 +1,316 @@
+"""Every command of the CLI with bad values of every option: one ``error:`` line naming the
+option, exit code 2, no traceback, and nothing computed (issue #20, item 2).
+
+The table :data:`BAD` holds, per command, bad values of each option. A completeness test walks
+the typer application and fails for any option of any command that has no row here (flags and
+the options listed in :data:`NO_BAD_VALUE` aside), so a new option joins the table or the
+suite fails. The expensive steps (simulation, fits, discovery, fleet runs, drive comparisons)
+are replaced by functions that fail the test if called: each case is refused before any work,
+so the whole table runs in a few seconds.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from dtwin.cli import main
+
+FS = 5000.0
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """A 2 s CSV record (a 500 Hz tone in noise), a plain file, and a finished result folder."""
+    d = tmp_path_factory.mktemp("cli_options")
+    t = np.arange(int(2 * FS)) / FS
+    rng = np.random.default_rng(0)
+    x = np.sin(2 * np.pi * 499.0 * t) + 0.1 * rng.standard_normal(t.size)
+    rec = d / "rec.csv"
+    np.savetxt(rec, np.column_stack([t, x]), delimiter=",", header="time [s],acc [m/s^2]",
+               comments="")
+    plain = d / "plain.txt"
+    plain.write_text("not a folder\n")
+    done = d / "done"
+    done.mkdir()
+    (done / "manifest.json").write_text(json.dumps({"files": []}))
+    return {"rec": str(rec), "file": str(plain), "done": str(done),
+            "under_file": str(plain / "sub"), "missing": str(d / "no-such-file.csv")}
+
+
+def _boom(*a, **k):
+    raise AssertionError("work started before the options were checked")
+
+
+@pytest.fixture()
+def no_work(monkeypatch):
+    """The expensive steps fail the test if they run."""
+    from importlib import import_module
+
+    from dtwin.cli import cmd_simulate
+
+    monkeypatch.setattr(cmd_simulate, "run_simulation", _boom)
+    for module, name in (("dtwin.identify.fit", "fit"),
+                         ("dtwin.identify.severity", "estimate_severity"),
+                         ("dtwin.identify.fleet", "run_fleet"),
+                         ("dtwin.identify.discover", "discover"),
+                         ("dtwin.coupling", "compare_drives")):
+        monkeypatch.setattr(import_module(module), name, _boom)
+
+
+
+S = ["--preset", "paper-sim"]
+R = "{rec}"
+OUT_BAD = [("--out", "{file}"), ("--out", "{under_file}")]
+
+#: command words -> (base arguments that are valid, [(option, bad value), ...]).
+#: A bad value is one value (or a tuple for options with several); ``{rec}`` etc. are filled
+#: from the `files` fixture.
+BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
+    ("freqs",): (S, [
+        ("--preset", "paper-bex"), ("--spec", "{missing}"), ("--f-sun", "0"),
+        ("--f-sun", "nan"), ("--f-sun", "1800"), ("--planet-fault", "left"), *OUT_BAD]),
+    ("modes",): (S, [
+        ("--preset", "nope"), ("--spec", "{file}"), ("--model", "rotational"),
+        ("--planets", "0"), *OUT_BAD]),
+    ("stiffness",): (S, [
+        ("--preset", "nope"), ("--spec", "{missing}"), ("--fault", "sun:melted:0.5"),
+        ("--planet", "7"), ("--cycles", "0"), ("--cycles", "-1"), *OUT_BAD]),
+    ("simulate",): (S, [
+        ("--preset", "nope"), ("--spec", "{missing}"), ("--fault", "sun:melted:0.5"),
+        ("--f-sun", "-3"), ("--duration", "0"), ("--duration", "-1"), ("--discard", "-1"),
+        ("--start", "flying"), ("--ramp-to", "0"), ("--kind", "quantum"),
+        ("--sample-rate", "-5000"), ("--sample-rate", "200"), ("--quantity", "jerk"),
+        ("--snr-db", "nan"), ("--seed", "-1"), ("--tacho-ppr", "0"), ("--band", ("550", "450")),
+        *OUT_BAD]),
+    ("spectrum", R): ([], [
+        ("RECORD", "{missing}"), ("--channel", "nope"), ("--band", ("3000", "4000")),
+        ("--window", "triangle"), ("--preset", "nope"), ("--spec", "{missing}"),
+        ("--f-sun", "0"), ("--planet-fault", "x"), ("--threshold-db", "nan"),
+        ("--min-spacing", "-1"), ("--max-peaks", "-3"), ("--floor-width", "1"),
+        ("--sample-rate", "-1"), *OUT_BAD]),
+    ("view", R): (["--kind", "psd"], [
+        ("RECORD", "{missing}"), ("--kind", "spectrogram"), ("--channel", "nope"),
+        ("--preset", "nope"), ("--spec", "{missing}"), ("--f-sun", "0"),
+        ("--band", ("-1", "5")), ("--speed-range", ("0", "5")), ("--segment", "2"),
+        ("--nat", "-1"), ("--sample-rate", "0"), *OUT_BAD]),
+    ("identify", R): (["--preset", "paper-sim", "--free", "sun_fault"], [
+        ("RECORD", "{missing}"), ("--free", "sun_faul"), ("--spec", "{missing}"),
+        ("--preset", "nope"), ("--model", "quantum"), ("--f-sun", "0"),
+        ("--runup", ("50", "10")), ("--solver", "bfgs"), ("--starts", "0"), ("--refine", "0"),
+        ("--jac", "central"), ("--max-steps", "0"), ("--channel", "nope"),
+        ("--sample-rate", "-1"), ("--out", "{done}"), *OUT_BAD]),
+    ("severity", R): (["--preset", "paper-sim"], [
+        ("RECORD", "{missing}"), ("--spec", "{missing}"), ("--preset", "nope"),
+        ("--location", "carrier"), ("--free", "nope"), ("--model", "quantum"),
+        ("--f-sun", "0"), ("--channel", "nope"), ("--sample-rate", "-1"), ("--out", "{done}"),
+        *OUT_BAD]),
+    ("fleet", "identify", R): (["--preset", "paper-sim", "--out", "{done}_fleet"], [
+        ("--out", "{file}"), ("--spec", "{missing}"), ("--preset", "nope"),
+        ("--free", "nope"), ("--model", "quantum"), ("--f-sun", "0"),
+        ("--ray-address", "auto --engine local"), ("--engine", "spark"), ("--num-cpus", "0"),
+        ("--batch-size", "0"), ("--max-retries", "-1"), ("--manifest", "{missing}"),
+        ("--max-steps", "0"), ("--tol", "nan"), ("--tol", "2"), ("--starts", "0"),
+        ("--refine", "0"), ("--grid", "bins"), ("--order-step", "0"), ("--f-max", "0"),
+        ("--channel", ""), ("RECORDS", "{missing}")]),
+    ("fleet", "table"): ([], [("RESULTS", "{missing}")]),
+    ("fleet", "trends"): (["{done}"], [
+        ("RESULTS", "{missing}"), ("--threshold", "sun_fault>>1"), ("--horizon", "0"),
+        *OUT_BAD]),
+    ("discover", R): (["--preset", "paper-sim"], [
+        ("RECORD", "{missing}"), ("--spec", "{missing}"), ("--preset", "nope"),
+        ("--kind", "quantum"), ("--channel", "nope"), ("--sample-rate", "-1"),
+        ("--max-steps", "-1"), ("--alpha", "0.5"), ("--alpha", "nan"), ("--n-boot", "0"),
+        ("--seed", "-1"), *OUT_BAD]),
+    ("compare-drives",): (S, [
+        ("--preset", "nope"), ("--spec", "{missing}"), ("--severities", "0,2"),
+        ("--severities", "a,b"), ("--duration", "0"), ("--discard", "-1"),
+        ("--kind", "quantum"), ("--quantity", "jerk"), ("--k-shaft", "0"),
+        ("--speed-bandwidth", "-1"), *OUT_BAD]),
+    ("record", "info", R): ([], [
+        ("FILE", "{missing}"), ("--channels", ","), ("--sample-rate", "-1"),
+        ("--time-column", "nope"), ("--units", "furlongs"), ("--sensitivity", "acc=lots"),
+        ("--tacho", "nope"), ("--tacho-ppr", "0"), ("--tacho-shaft", "planet"),
+        ("--group", "nope"), ("--format", "xls"), ("--preset", "nope"), ("--spec", "{missing}"),
+        ("--f-sun", "0"), ("--f-mesh", "-1"), ("--f-carrier", "0"), *OUT_BAD]),
+    ("record", "convert", R, "{done}/x.dtwin.h5"): ([], [
+        ("FILE", "{missing}"), ("TARGET", "{done}/x.csv"), ("TARGET", "{under_file}.dtwin.h5"),
+        ("--channels", ","), ("--sample-rate", "-1"), ("--time-column", "nope"),
+        ("--units", "furlongs"), ("--sensitivity", "acc=lots"), ("--tacho", "nope"),
+        ("--tacho-ppr", "0"), ("--tacho-shaft", "planet"), ("--group", "nope"),
+        ("--format", "xls")]),
+    ("spec", "check"): ([], [("FILE", "{missing}")]),
+}
+
+#: Options without a bad value: switches and options that take any text.
+NO_BAD_VALUE = {"--json", "--force", "--help", "--quiet", "--progress", "--no-progress", "--csv",
+                "--strict", "--discover", "--no-sensitivity", "--sweep", "--version"}
+
+POSITIONAL = {"RECORD", "RECORDS", "RESULTS", "FILE", "TARGET"}
+
+
+def _cases():
+    for words, (base, rows) in BAD.items():
+        for opt, value in rows:
+            yield pytest.param(words, base, opt, value,
+                               id=f"{' '.join(w for w in words if '{' not in w)} {opt}={value}")
+
+
+def _fill(items, files):
+    return [str(a).format(**files) for a in items]
+
+
+def _args(words, base, opt, value, files):
+    words = list(words)
+    if opt in POSITIONAL:  # replace the positional argument
+        if opt == "TARGET":
+            words[-1] = value
+        elif opt in ("RESULTS",) and base:
+            base = [value]
+        elif opt == "RESULTS":
+            words.append(value)
+        else:
+            idx = next((i for i, w in enumerate(words) if w == R), None)
+            if idx is None:
+                words.append(value)
+            else:
+                words[idx] = value
+        extra = []
+    elif isinstance(value, tuple):
+        extra = [opt, *value]
+    elif opt == "--ray-address":
+        extra = [opt, *str(value).split()]
+    else:
+        extra = [opt, value]
+    # an option repeated in `base` is replaced (the bad value wins)
+    base = list(base)
+    if opt in base and opt not in POSITIONAL:
+        i = base.index(opt)
+        del base[i:i + 2]
+    return _fill(words + base + extra, files)
+
+
+@pytest.mark.parametrize("words,base,opt,value", list(_cases()))
+def test_bad_value_refused_before_work(words, base, opt, value, files, no_work, capsys):
+    args = _args(words, base, opt, value, files)
+    t0 = time.perf_counter()
+    with pytest.raises(SystemExit) as e:
+        main(args)
+    elapsed = time.perf_counter() - t0
+    cap = capsys.readouterr()
+    err = cap.err + cap.out  # `spec check` prints its problems as its report
+    assert e.value.code == 2, (args, err)
+    assert "Traceback" not in err and "internal error" not in err, err
+    assert "error" in err.lower() or "problem" in err.lower(), err
+    name = opt.lstrip("-").lower()
+    assert opt in err or any(n in err.lower() for n in (name, name.replace("-", " "),
+                                                          name.replace("-", "_"))) \
+        or opt in POSITIONAL, (opt, err)
+
+    assert elapsed < 20, elapsed  # generous: only reading, no simulation or fit
+
+
+def test_every_option_has_a_bad_value():
+    """New options join :data:`BAD` (or :data:`NO_BAD_VALUE` when no value is bad)."""
+    import typer.main
+
+    from dtwin.cli import _load_commands
+    from dtwin.cli.app import app
+
+    _load_commands()
+    covered: dict[str, set[str]] = {}
+    for words, (_, rows) in BAD.items():
+        key = " ".join(w for w in words if not w.startswith("{"))
+        covered[key] = {opt for opt, _ in rows}
+    missing = []
+
+    def walk(cmd, path):
+        if hasattr(cmd, "commands"):
+            for name, sub in cmd.commands.items():
+                walk(sub, path + [name])
+            return
+        key = " ".join(path)
+        if key == "spec schema":
+            return
+        for p in cmd.params:
+            if p.param_type_name == "argument":
+                continue
+            opt = max(p.opts, key=len)
+            if opt in NO_BAD_VALUE or getattr(p, "is_flag", False):
+                continue
+            if opt not in covered.get(key, set()):
+                missing.append(f"{key} {opt}")
+
+    walk(typer.main.get_command(app), [])
+    assert not missing, f"options without a bad-value case in BAD: {missing}"
+
+
+def test_version_and_quiet(capsys, files):
+    main(["--version"])  # returns: exit code 0
+    assert capsys.readouterr().out.startswith("dtwin ")
+
+    main(["freqs", "--preset", "paper-bench"])
+    err = capsys.readouterr().err
+    # the bench's profile-shift note: one warning line, no source file or line
+    assert err.count("warning:") == 1 and "spec.py" not in err and "\n" == err[-1]
+    main(["--quiet", "freqs", "--preset", "paper-bench"])
+    assert capsys.readouterr().err == ""
+
+
+def test_out_holds_nothing_after_a_failure_and_a_rerun_starts_cleanly(tmp_path, monkeypatch,
+                                                                      capsys):
+    """Files and manifest appear together: a failure while writing leaves neither, and the
+    same command afterwards is not refused ('already holds a result')."""
+    from dtwin.io import output
+
+    out = tmp_path / "res"
+    real = output.OutputFolder.savefig
+
+    def fail(self, name, fig, **kw):
+        raise KeyboardInterrupt  # as if Ctrl-C arrived while the figure was written
+
+    monkeypatch.setattr(output.OutputFolder, "savefig", fail)
+    with pytest.raises(SystemExit) as e:
+        main(["stiffness", "--preset", "paper-sim", "--out", str(out)])
+    assert e.value.code == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert not out.exists() or not any(p for p in out.iterdir())
+    monkeypatch.setattr(output.OutputFolder, "savefig", real)
+    main(["stiffness", "--preset", "paper-sim", "--out", str(out)])
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert sorted(manifest["files"]) == ["stiffness.json", "stiffness.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "stiffness.json",
+                                                     "stiffness.png"]
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_signals_give_130_and_143(tmp_path, sig, code):
+    """A real process: the signal arrives during work; exit code and one line, --out empty."""
+    out = tmp_path / "o"
+    script = (
+        "import sys, time\n"
+        "import dtwin.cli.cmd_freqs as m\n"
+        "def slow(*a, **k):\n"
+        "    print('ready', flush=True); time.sleep(60)\n"
+        "m.freqs_report = slow\n"
+        "from dtwin.cli import main\n"
+        f"main(['freqs', '--preset', 'paper-sim', '--out', {str(out)!r}])\n"
+    )
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "ready"
+        p.send_signal(sig)
+        _, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == code, err
+    assert "interrupted" in err and "Traceback" not in err, err
+    assert not (out / "manifest.json").exists()
