@@ -41,6 +41,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from .errors import GeometryError
+from .kinematics import Kinematics
 
 STEEL_DENSITY = 7850.0
 """Density of steel (kg/m³) used for masses from geometry unless a spec gives another."""
@@ -533,26 +534,10 @@ def characteristic_frequencies(
     - ``f_planet_pass = N f_carrier``;
     - ``f_planet = f_mesh / z_p``: planet spin relative to the carrier (magnitude).
 
-    Reference: the paper, Eqs. (1)–(4); reference.md §1.
+    Computed by :class:`dtwin.kinematics.Kinematics` (the one place of these closed forms).
+    Reference: Zhu, Li & Hu (2022), Eqs. (1)–(4); McFadden & Smith (1985); docs/references.md.
     """
-    if planet_fault not in ("paper", "both_flanks"):
-        raise ValueError(f"planet_fault must be 'paper' or 'both_flanks', got {planet_fault!r}")
-    if not (np.isfinite(f_sun) and f_sun > 0):
-        raise ValueError(f"f_sun must be a positive frequency in Hz, got {f_sun!r}")
-    zs, zp, zr, n = gs.z_sun, gs.z_planet, gs.z_ring, gs.n_planets
-    f_sun = float(f_sun)
-    fc = f_sun * zs / (zs + zr)
-    fm = fc * zr
-    return {
-        "f_sun": f_sun,
-        "f_carrier": fc,
-        "f_mesh": fm,
-        "f_sun_fault": fm * n / zs,
-        "f_planet_fault": fm / zp * (2.0 if planet_fault == "both_flanks" else 1.0),
-        "f_ring_fault": fm * n / zr,
-        "f_planet_pass": n * fc,
-        "f_planet": fm / zp,
-    }
+    return Kinematics.from_gear_set(gs, f_sun, planet_fault=planet_fault).as_dict()
 
 
 # --- masses and inertias ------------------------------------------------------------------------

@@ -24,13 +24,16 @@ Peak labels: every peak frequency is matched to the combinations ::
 
     f = m f_mesh + a f_carrier + b f_sun_fault / N + c f_planet_fault
 
-with ``0 <= m <= 4``, ``|a| <= 8``, ``|b| <= 3``, ``|c| <= 3`` (:class:`LabelBounds`) lying within
+with ``0 <= m <= 4``, ``|a| <= 8``, ``|b| <= 3``, ``|c| <= 3`` (:class:`dtwin.kinematics.OrderBounds`:
+`mesh`, `carrier`, `fault`) lying within
 the frequency resolution of the peak. Candidates are ranked by parsimony: first by the number of
 frequency families used (nonzero m, a, b, c), then by the total order ``m + |a| + |b| + |c|``,
 then by the frequency error; all candidates sharing the best (families, order) are reported
 (ties). Without the family count a high carrier sideband such as fm − 7fc would lose to
 accidental four-family combinations like fm − 2fs/3 + fp − 2fc (order 6). Labels are written like
-the paper's figures ("fm − 7fc", "fm + fs/3 + fc"; ``fs`` = f_sun_fault, ``fp`` = f_planet_fault).
+the paper's figures ("fm − 7fc", "fm + fs/3 + fc"; ``fs`` = f_sun_fault, ``fp`` = f_planet_fault)
+by :func:`dtwin.kinematics.combination_text`. The frequencies are a
+:class:`dtwin.kinematics.Kinematics` (``FrequencyBasis`` is its name here).
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from jaxtyping import Array, Float
 
 from .errors import RecordError
 from .indicators import TimeStats, time_stats
+from .kinematics import Kinematics, OrderBounds, combination_text
 
 __all__ = [
     "WINDOWS",
@@ -344,29 +348,13 @@ def find_peaks(
     return peaks
 
 
-@dataclasses.dataclass(frozen=True)
-class FrequencyBasis:
-    """The gear frequencies peaks are labelled with (Hz); faults left None are not used.
-
-    ``f_sun_fault`` enters divided by `n_planets` (the paper's "fs/3").
-    """
-
-    f_mesh: float
-    f_carrier: float
-    f_sun_fault: float | None = None
-    f_planet_fault: float | None = None
-    n_planets: int = 3
-
-
-@dataclasses.dataclass(frozen=True)
-class LabelBounds:
-    """Order bounds of the label search: ``0 <= m <= mesh``, ``|a| <= carrier``,
-    ``|b| <= sun``, ``|c| <= planet``."""
-
-    mesh: int = 4
-    carrier: int = 8
-    sun: int = 3
-    planet: int = 3
+#: The gear frequencies peaks are labelled with: a :class:`dtwin.kinematics.Kinematics`
+#: (``FrequencyBasis(f_mesh, f_carrier, f_sun_fault, f_planet_fault, n_planets)``; fault
+#: frequencies left None are not used; ``f_sun_fault`` enters divided by `n_planets`).
+FrequencyBasis = Kinematics
+#: Order bounds of the label search (``0 <= m <= mesh``, ``|a| <= carrier``, ``|b|, |c| <=
+#: fault``): :class:`dtwin.kinematics.OrderBounds`.
+LabelBounds = OrderBounds
 
 
 @dataclasses.dataclass(frozen=True)
@@ -394,29 +382,15 @@ class Label:
         return (self.families, self.order)
 
 
-def _term(coef: int, sym: str, first: bool) -> str:
-    mag = abs(coef)
-    body = sym if mag == 1 else f"{mag}{sym}"
-    if first:
-        return body if coef > 0 else f"−{body}"
-    return f" + {body}" if coef > 0 else f" − {body}"
-
-
 def _label_text(m: int, a: int, b: int, c: int, n_planets: int) -> str:
-    parts = []
-    for coef, sym in ((m, "fm"), (b, f"fs/{n_planets}"), (c, "fp"), (a, "fc")):
-        if coef != 0:
-            parts.append(_term(coef, sym, not parts))
-    if not parts:
-        return "DC"
-    return "".join(parts)
+    return combination_text((("fm", m), (f"fs/{n_planets}", b), ("fp", c), ("fc", a)))
 
 
-def _combinations(basis: FrequencyBasis, bounds: LabelBounds):
+def _combinations(basis: Kinematics, bounds: OrderBounds):
     ms = range(0, bounds.mesh + 1)
     as_ = range(-bounds.carrier, bounds.carrier + 1)
-    bs = range(-bounds.sun, bounds.sun + 1) if basis.f_sun_fault is not None else (0,)
-    cs = range(-bounds.planet, bounds.planet + 1) if basis.f_planet_fault is not None else (0,)
+    bs = range(-bounds.fault, bounds.fault + 1) if basis.f_sun_fault is not None else (0,)
+    cs = range(-bounds.fault, bounds.fault + 1) if basis.f_planet_fault is not None else (0,)
     combos = np.array(list(itertools.product(ms, as_, bs, cs)), dtype=np.int64)
     fs_n = (basis.f_sun_fault or 0.0) / basis.n_planets
     fp = basis.f_planet_fault or 0.0

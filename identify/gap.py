@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from dtwin.spectrum import noise_floor
@@ -78,8 +80,12 @@ def named_bands(kin, f_max: float, half_width_carrier: float = 10.0) -> dict[str
     return bands
 
 
-def levels(a: np.ndarray, floor: np.ndarray) -> np.ndarray:
-    """``20 log10(A + F)`` (dB)."""
+def levels(a, floor):
+    """``20 log10(A + F)`` (dB): the level of an amplitude `A` over a noise floor `F` (the
+    one level formula of the gap and of discovery's fits). numpy in, numpy out; JAX arrays
+    (also traced, under ``jit``) in, JAX out."""
+    if isinstance(a, jax.Array) or isinstance(floor, jax.Array):
+        return (20.0 / np.log(10.0)) * jnp.log(a + floor)
     return 20.0 * np.log10(np.asarray(a) + floor)
 
 

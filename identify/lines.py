@@ -1,13 +1,13 @@
 """Residual line analysis: which spectral lines the measurement has and the model lacks (and the
 reverse), each described by the kinematic combinations that explain it.
 
-**Kinematic basis** (:class:`Kinematics`, Hz, speed taken from the data first with
+**Kinematic basis** (:class:`dtwin.kinematics.Kinematics`, Hz, speed taken from the data first with
 :func:`estimate_speed`): ``fm`` (mesh), ``fc`` (carrier), ``fsr`` (absolute sun rotation),
 ``fs/N`` (sun-fault repetition over the number of planets, = fsr − fc), ``fp`` (planet fault,
 fm/Zp), ``fr`` (ring fault, fm N/Zr = N fc), ``fe`` (the motor's electrical frequency, pole pairs
 × sun speed).
 
-**Search space and order bound** (:class:`LineBounds`, documented once here)::
+**Search space and order bound** (:class:`dtwin.kinematics.OrderBounds`, here ``LineBounds``)::
 
     f = m fm + n fc                        0 <= m <= 4, |n| <= 8          (carrier family)
     f = m fm + j g + n fc                  g in {fsr, fs/N, fp}, 1 <= |j| <= 3, |n| <= 2
@@ -29,10 +29,10 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-from collections.abc import Sequence
 
 import numpy as np
 
+from dtwin.kinematics import Kinematics, OrderBounds, combination_text
 from dtwin.spectrum import noise_floor
 
 __all__ = [
@@ -41,72 +41,8 @@ __all__ = [
 ]
 
 
-@dataclasses.dataclass(frozen=True)
-class Kinematics:
-    """Characteristic frequencies (Hz) at one operating point, ring fixed, sun input.
-
-    Build with :meth:`from_gears` (tooth counts, planets, sun speed, motor pole pairs).
-    """
-
-    f_sun: float
-    f_carrier: float
-    f_mesh: float
-    f_sun_fault: float
-    f_planet_fault: float
-    f_ring_fault: float
-    f_electrical: float | None
-    n_planets: int
-    z_sun: int
-    z_planet: int
-    z_ring: int
-
-    @classmethod
-    def from_gears(cls, z_sun: int, z_planet: int, z_ring: int, n_planets: int, f_sun: float,
-                   pole_pairs: int | None = None) -> Kinematics:
-        fc = f_sun * z_sun / (z_sun + z_ring)
-        fm = fc * z_ring
-        fe = None if pole_pairs is None else pole_pairs * f_sun
-        return cls(f_sun, fc, fm, fm * n_planets / z_sun, fm / z_planet, fm * n_planets / z_ring,
-                   fe, n_planets, z_sun, z_planet, z_ring)
-
-    @classmethod
-    def from_spec(cls, spec, f_sun: float | None = None) -> Kinematics:
-        """From a `dtwin.spec.Spec`; `f_sun` (Hz) overrides `operating.f_sun`; the motor's pole
-        pairs from ``[motor.pmsm] pole_pairs`` (default 4, dtwin's PMSM default, also for the
-        ideal drive, whose electrical frequency is then nominal)."""
-        g = spec["gears"]
-        f = float(spec["operating"]["f_sun"] if f_sun is None else f_sun)
-        motor = spec["motor"] or {}
-        pp = int((motor.get("pmsm") or {}).get("pole_pairs", 4))
-        return cls.from_gears(g["z_sun"], g["z_planet"], g["z_ring"], g["n_planets"], f, pp)
-
-    @property
-    def f_sun_fault_per_planet(self) -> float:
-        return self.f_sun_fault / self.n_planets
-
-    def basis(self) -> dict[str, float]:
-        """Symbol → frequency (Hz) of the secondary families (fe only when known)."""
-        b = {"fsr": self.f_sun, f"fs/{self.n_planets}": self.f_sun_fault_per_planet,
-             "fp": self.f_planet_fault}
-        if self.f_electrical is not None:
-            b["fe"] = self.f_electrical
-        return b
-
-    def allowed_by_sideband_rule(self, m: int, n: int) -> bool:
-        """Whether an ideal gearbox (identical, equally spaced planets) can show ``m fm + n fc``:
-        ``(m Zr + n) mod N == 0`` (reference.md §2)."""
-        return (m * self.z_ring + n) % self.n_planets == 0
-
-
-@dataclasses.dataclass(frozen=True)
-class LineBounds:
-    """Order bounds of the kinematic description (module docstring)."""
-
-    mesh: int = 4
-    carrier: int = 8
-    fault: int = 3
-    fault_carrier: int = 2
-    motor: int = 6
+#: The order bounds of the descriptions (module docstring): :class:`dtwin.kinematics.OrderBounds`.
+LineBounds = OrderBounds
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,20 +59,6 @@ class Description:
 
     def coefficient(self, symbol: str) -> int:
         return dict(self.coefficients).get(symbol, 0)
-
-
-def _text(coefs: Sequence[tuple[str, int]]) -> str:
-    out = ""
-    for sym, c in coefs:
-        if c == 0:
-            continue
-        mag = abs(c)
-        body = sym if mag == 1 else f"{mag}{sym}"
-        if not out:
-            out = body if c > 0 else f"−{body}"
-        else:
-            out += f" + {body}" if c > 0 else f" − {body}"
-    return out or "DC"
 
 
 def _table(kin: Kinematics, bounds: LineBounds):
@@ -188,7 +110,7 @@ def describe(f: float, kin: Kinematics, tolerance: float, bounds: LineBounds = L
             continue
         seen.add(c)
         out.append(Description(c, float(freq[i]), float(err[i]), int(order[i]), int(fam[i]),
-                               _text(c)))
+                               combination_text(c)))
     return out
 
 

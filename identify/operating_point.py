@@ -25,6 +25,7 @@ import dataclasses
 import numpy as np
 
 from dtwin.errors import RecordError
+from dtwin.kinematics import Kinematics
 
 __all__ = ["OperatingPoint", "SpeedProfileEstimate", "estimate_speed", "estimate_speed_profile",
            "gear_orders"]
@@ -32,12 +33,7 @@ __all__ = ["OperatingPoint", "SpeedProfileEstimate", "estimate_speed", "estimate
 
 def gear_orders(twin) -> dict[str, float]:
     """Orders of the input (sun) speed: ``mesh``, ``carrier``, ``sun_fault`` (f / f_sun)."""
-    lp = twin.lp
-    zs, zr, n = lp.z_sun, lp.z_ring, lp.n_planets
-    carrier = zs / (zs + zr)
-    mesh = carrier * zr
-    return {"mesh": mesh, "carrier": carrier, "sun_fault": mesh * n / zs,
-            "planet_fault": mesh / lp.z_planet}
+    return Kinematics.from_gear_set(twin.lp, 1.0).orders()
 
 
 @dataclasses.dataclass(frozen=True)

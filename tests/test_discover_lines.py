@@ -53,9 +53,9 @@ def test_describe_reports_ties(kin):
 
 def test_no_match_far_from_every_combination(kin):
     # scan for a frequency at least 3 bins (0.5 Hz bins) away from every combination
-    from dtwin.identify.lines import _table
+    from dtwin.identify.lines import LineBounds, _table
 
-    _, freq, _, _ = _table(kin, __import__("dtwin.identify.lines").lines.LineBounds())
+    _, freq, _, _ = _table(kin, LineBounds())
     grid = np.arange(300.0, 2400.0, 0.05)
     dist = np.min(np.abs(grid[:, None] - np.sort(freq)[None, :]), axis=1)
     f = float(grid[np.argmax(dist)])

@@ -17,7 +17,7 @@ import optimistix as optx
 from dtwin.errors import SettingsError
 from dtwin.spectrum import noise_floor
 
-from ..gap import FLOOR_BINS
+from ..gap import FLOOR_BINS, levels
 
 #: Largest number of parameters of one effect (padded with inert parameters).
 P_MAX = 4
@@ -50,10 +50,6 @@ class FitInputs(eqx.Module):
 
 def _theta(u, nonneg, active):
     return jnp.where(active > 0, jnp.where(nonneg > 0, jnp.exp(u), u), 0.0)
-
-
-def _levels(a, floor):
-    return _LN10_20 * jnp.log(a + floor)
 
 
 def _model_amp(Z0, J, theta, log_g):
@@ -109,7 +105,7 @@ def _residual_fold(params, args):
     u, log_g = params[:-1], params[-1]
     th = _theta(u, nonneg, active)
     a = _with_noise(_model_amp(Z0, J, th, log_g), floor)
-    return (_levels(a, floor) - _levels(Y, floor)) * fit
+    return (levels(a, floor) - levels(Y, floor)) * fit
 
 
 def _starts(Z0, J, Y, floor, sig, nonneg, active, log_g0):
@@ -157,9 +153,9 @@ def _stat_fold(params, Z0, J, Y, floor, sig, nonneg, active, log_g0):
     squared level error (dB², levels with the expected noise) over the signature bins."""
     u, log_g = params[:-1], params[-1]
     th = _theta(u, nonneg, active)
-    lm = _levels(Y, floor)
-    l0 = _levels(_with_noise(jnp.exp(log_g0) * jnp.abs(Z0), floor), floor)
-    l1 = _levels(_with_noise(_model_amp(Z0, J, th, log_g), floor), floor)
+    lm = levels(Y, floor)
+    l0 = levels(_with_noise(jnp.exp(log_g0) * jnp.abs(Z0), floor), floor)
+    l1 = levels(_with_noise(_model_amp(Z0, J, th, log_g), floor), floor)
     return jnp.sum(sig * ((lm - l0) ** 2 - (lm - l1) ** 2))
 
 
@@ -235,7 +231,7 @@ def _residual_joint(params, args):
     u, log_g = params[:P], params[P:]
     th = _theta(u, nonneg, active)
     a = jnp.exp(log_g)[:, None] * jnp.abs(Z0 + jnp.einsum("fkp,p->fk", J, th.astype(J.dtype)))
-    return ((expected_level(a, floor) - _levels(Y, floor)) * fit).reshape(-1)
+    return ((expected_level(a, floor) - levels(Y, floor)) * fit).reshape(-1)
 
 
 @eqx.filter_jit

@@ -43,9 +43,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from dtwin.kinematics import Kinematics, OrderBounds, combination_text
 from dtwin.registry import ParameterInfo
-
-from ..lines import Kinematics, LineBounds
 
 __all__ = ["AbstractEffect", "EffectContext", "EffectParameter", "SignatureLine", "carrier_grid",
            "register_effect", "registered_effects", "unregister_effect"]
@@ -167,7 +166,7 @@ def registered_effects() -> list[AbstractEffect]:
 
 
 def carrier_grid(kin: Kinematics, f_max: float, *, forbidden_only: bool = True,
-                 mesh_orders: Sequence[int] = range(0, 5), bounds: LineBounds = LineBounds()
+                 mesh_orders: Sequence[int] = range(0, 5), bounds: OrderBounds = OrderBounds()
                  ) -> list[SignatureLine]:
     """Lines ``m fm + n fc`` (|n| ≤ carrier bound) up to `f_max`; with `forbidden_only` only
     those the ideal gearbox's sideband rule cancels (reference.md §2)."""
@@ -179,7 +178,7 @@ def carrier_grid(kin: Kinematics, f_max: float, *, forbidden_only: bool = True,
                 continue
             if forbidden_only and kin.allowed_by_sideband_rule(m, n):
                 continue
-            out.append(SignatureLine(f, _fmt(((f"{m}fm" if m > 1 else "fm", m and 1), ("fc", n)))))
+            out.append(SignatureLine(f, combination_text((("fm", m), ("fc", n)))))
     return out
 
 
@@ -192,19 +191,9 @@ def family_grid(kin: Kinematics, f_max: float, symbol: str, g: float, orders: Se
             for n in range(-carrier, carrier + 1):
                 f = m * kin.f_mesh + j * g + n * kin.f_carrier
                 if 0 < f < f_max:
-                    out.append(SignatureLine(f, _fmt(((f"{m}fm" if m > 1 else "fm", m and 1),
-                                                      (symbol, j), ("fc", n)))))
+                    out.append(SignatureLine(f, combination_text((("fm", m), (symbol, j),
+                                                                  ("fc", n)))))
     return out
-
-
-def _fmt(terms) -> str:
-    s = ""
-    for sym, c in terms:
-        if not c:
-            continue
-        body = sym if abs(c) == 1 else f"{abs(c)}{sym}"
-        s += (body if c > 0 else f"−{body}") if not s else (f" + {body}" if c > 0 else f" − {body}")
-    return s
 
 
 def rms(theta: Float[Array, " p"]) -> Float[Array, ""]:

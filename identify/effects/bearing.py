@@ -7,9 +7,10 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
+from dtwin.kinematics import combination_text
 from dtwin.parts.bearing_defect import BEARING_DEFECTS, PlanetBearingDefect, bearing_frequencies
 
-from .base import AbstractEffect, EffectParameter, SignatureLine, _fmt
+from .base import AbstractEffect, EffectParameter, SignatureLine
 
 _SYMBOL = {"outer": "BPFO", "inner": "BPFI", "ball": "BSF"}
 #: multiples of the symbol per impact (a rolling-element defect strikes at 2 BSF: labels count
@@ -98,8 +99,8 @@ class PlanetBearingEffect(AbstractEffect):
                     for n in range(-3, 4):
                         f = mm * kin.f_mesh + j * fd + ll * fmod + n * kin.f_carrier
                         if 0 < f < f_max:
-                            out.append(SignatureLine(f, _fmt(
-                                ((f"{mm}fm" if mm > 1 else "fm", mm and 1),
+                            out.append(SignatureLine(f, combination_text(
+                                (("fm", mm),
                                  (sym, _PER_IMPACT[self.race] * j),
                                  (msym, ll), ("fc", n)))))
         return out

@@ -9,10 +9,11 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from dtwin.kinematics import combination_text
 from dtwin.parts.housing_resonance import HousingResonance
 from dtwin.parts.transfer_path import PlanetPassTransferPath
 
-from .base import AbstractEffect, EffectParameter, SignatureLine, _fmt
+from .base import AbstractEffect, EffectParameter, SignatureLine
 
 #: Damping ratios tried when the resonance is located from the data.
 ZETAS = (0.02, 0.035, 0.05, 0.07, 0.1)
@@ -35,8 +36,7 @@ def _grid_lines(kin, f_max, keep, carrier: int = 8):
         for n in range(-carrier, carrier + 1):
             f = m * kin.f_mesh + n * kin.f_carrier
             if 0 < f < f_max and keep(m, n, f):
-                out.append(SignatureLine(f, _fmt(((f"{m}fm" if m > 1 else "fm", m and 1),
-                                                  ("fc", n)))))
+                out.append(SignatureLine(f, combination_text((("fm", m), ("fc", n)))))
     return out
 
 
