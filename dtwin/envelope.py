@@ -11,10 +11,19 @@ transient faults", MSSP 21:108): the band in which the complex envelope is most 
 Kurtogram bands follow Antoni's 1/3-binary tree: level ``L = log2(n_bands)`` with
 ``n_bands = 1, 2, 3, 4, 6, 8, 12, 16, …`` bands of equal width ``fs / (2 n_bands)`` tiling
 0 … fs/2 (levels 0, 1, 1.6, 2, 2.6, 3, …). In each band the complex envelope ``c`` is obtained by
-an ideal band-pass in the frequency domain (the positive-frequency FFT bins of the band, inverse
-FFT); Antoni's decimating quasi-analytic filter bank computes nearly the same envelopes faster,
-which a few hundred FFTs of a short record do not need. The spectral kurtosis of a complex
-envelope is ``K = mean|c|^4 / mean(|c|^2)^2 - 2`` (0 for Gaussian noise, large for impulses).
+an ideal band-pass in the frequency domain: the ``m`` positive-frequency bins of the band (one
+FFT of the whole record, shared by every band) shifted to baseband and inverse-transformed on
+``2m`` points, a decimated branch per band. Decimating loses nothing here: ``|c|^2`` has
+frequencies ``|k| < m`` and ``|c|^4`` ``|k| <= 2m - 2``, so on ``2m`` points their means (the
+DC terms) equal those of the full-length envelope exactly. A row of ``n_b`` bands then costs
+``n_b`` inverse FFTs of ``N/n_b`` points, ``O(N log N)`` per row and ``O(L N log N)`` for the
+``L ≈ log2 N - 7`` levels (a full-length inverse FFT per band, as before, cost
+``O(n_b N log N)`` per row: more than 15 min for 60 s at 25.6 kHz, 4 s now). Antoni's
+decimating quasi-analytic filter bank reaches ``O(N)`` per level with FIR filters instead of
+the ideal band-pass. The
+
+spectral kurtosis of a complex envelope is ``K = mean|c|^4 / mean(|c|^2)^2 - 2`` (0 for
+Gaussian noise, large for impulses).
 """
 
 from __future__ import annotations
@@ -141,26 +150,34 @@ def fast_kurtogram(
     top = int(max_level) if max_level is not None else max(1, int(np.floor(np.log2(n))) - 7)
     if top < 1 or 2**top > n // 8:
         raise RecordError(f"max_level must lie between 1 and {int(np.log2(n // 8))}, got {max_level}")
-    spec = np.fft.fft(sig - sig.mean())
-    freqs = np.fft.fftfreq(n, 1.0 / fs)
+    # positive-frequency bins 0 .. ceil(n/2) - 1 (for even n the Nyquist bin counts as negative)
+    kmax = (n - 1) // 2
+    spec = np.fft.rfft(sig - sig.mean())[: kmax + 1]
+    freqs = np.fft.fftfreq(n, 1.0 / fs)[: kmax + 1]
     counts = _band_counts(top)
     kurt = np.full((len(counts), max(counts)), np.nan)
     best = (-np.inf, 0.0, (0.0, fs / 2))
     for r, nb in enumerate(counts):
         width = fs / 2 / nb
+        lo_edges = np.arange(nb) * width
+        hi_edges = (np.arange(nb) + 1) * width
+        i0 = np.searchsorted(freqs, lo_edges, side="left")
+        i1 = np.searchsorted(freqs, hi_edges, side="left")
+        i1[-1] = np.searchsorted(freqs, hi_edges[-1], side="right")
         for b in range(nb):
-            lo, hi = b * width, (b + 1) * width
-            sel = (freqs >= lo) & (freqs < hi) if b < nb - 1 else (freqs >= lo) & (freqs <= hi)
-            if np.count_nonzero(sel) < 2:
+            m = int(i1[b] - i0[b])
+            if m < 2:
                 continue
-            c = np.fft.ifft(np.where(sel, spec, 0.0))
-            p = np.abs(c) ** 2
+            # the band's complex envelope, decimated: its m bins moved to baseband, twice
+            # oversampled (module docstring: the moments equal the full-length ones)
+            c = np.fft.ifft(spec[i0[b]:i1[b]], n=2 * m)
+            p = c.real * c.real + c.imag * c.imag
             m2 = p.mean()
             if m2 <= 0:
                 continue
             k = float(np.mean(p * p) / (m2 * m2) - 2.0)
             kurt[r, b] = k
             if k > best[0]:
-                best = (k, float(np.log2(nb)), (lo, hi))
+                best = (k, float(np.log2(nb)), (float(lo_edges[b]), float(hi_edges[b])))
     return Kurtogram(np.log2(np.asarray(counts, dtype=np.float64)), np.asarray(counts), kurt,
                      fs, best[1], best[2], best[0])
