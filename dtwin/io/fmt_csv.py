@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ChannelError, RecordError, UnreadableFileError
-from .readers import is_time_name, rate_from_time, resolve_rate, split_name_unit, time_to_seconds
 from .record import Record
+from .values import is_time_name, rate_from_time, resolve_rate, split_name_unit, time_to_seconds
 
 
 def _delimiter(line: str, suffix: str) -> str | None:

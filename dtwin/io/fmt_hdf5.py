@@ -21,7 +21,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import RecordError, UnreadableFileError
-from .readers import (
+from . import fmt_matlab, fmt_native
+from .record import Record
+from .values import (
     NAME_KEYS,
     RATE_NAMES,
     UNIT_KEYS,
@@ -30,7 +32,6 @@ from .readers import (
     str_list,
     to_str,
 )
-from .record import Record
 
 #: Exceptions h5py raises on corrupt, truncated or unexpected files.
 H5_ERRORS = (OSError, KeyError, ValueError, RuntimeError, TypeError, IndexError)
@@ -81,9 +82,7 @@ def read(
     path: Path, *, sample_rate: float | None, time_column: str | int | None, group: str | None
 ) -> Record:
     """Read an HDF5 file. **Returns:** a record (units from dataset attributes)."""
-    import h5py
-
-    from . import fmt_matlab, fmt_native
+    import h5py  # at read time: h5py loads HDF5's C library
 
     where = str(path)
     try:

@@ -24,8 +24,8 @@ import scipy.io
 from scipy.io.matlab import MatReadError
 
 from ..errors import RecordError, UnreadableFileError
-from .readers import records_from_arrays
 from .record import Record
+from .values import records_from_arrays
 
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _NUMERIC = {"double", "single", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32",

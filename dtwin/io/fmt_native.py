@@ -27,9 +27,9 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import OutputExistsError, RecordError, UnreadableFileError
-from .output import publish, to_jsonable
-from .readers import resolve_rate, str_list, to_str
+from .files import publish, to_jsonable
 from .record import Record
+from .values import resolve_rate, str_list, to_str
 
 FORMAT_NAME = "dtwin-record"
 FORMAT_VERSION = 1

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RecordError, UnreadableFileError
-from .readers import records_from_arrays
 from .record import Record
+from .values import records_from_arrays
 
 #: Exceptions numpy raises on corrupt files (the .npy header is parsed as a Python literal,
 #: hence SyntaxError and tokenize errors; .npz is a zip archive).

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RecordError, UnreadableFileError
-from .readers import as_signal, resolve_rate
 from .record import Record
+from .values import as_signal, resolve_rate
 
 #: Exceptions npTDMS raises on corrupt or truncated files (it also raises plain ``Exception``
 #: for a few unsupported layouts, converted in :func:`_is_nptdms_failure`).

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RecordError, UnreadableFileError
-from .readers import as_signal, normalise_unit, resolve_rate
 from .record import Record
+from .values import as_signal, normalise_unit, resolve_rate
 
 _DIRS = {1: "+x", 2: "+y", 3: "+z", -1: "-x", -2: "-y", -3: "-z", 0: ""}
 

@@ -19,8 +19,8 @@ import numpy as np
 from scipy.io import wavfile
 
 from ..errors import RecordError, UnreadableFileError
-from .readers import resolve_rate
 from .record import Record
+from .values import resolve_rate
 
 _FULL_SCALE = {"int16": 2.0**15, "int32": 2.0**31, "int64": 2.0**63}
 

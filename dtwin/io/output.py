@@ -21,7 +21,6 @@ Inputs are only ever opened for reading.
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import json
 import os
 import platform
@@ -34,20 +33,19 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from ..errors import OutputExistsError
+from ..errors import OutputExistsError, RecordError
+
+# the file-level helpers live one level lower (dtwin.io.files: no import circle with the
+# record writer); re-exported here, where callers have always found them
+from .files import atomic_write_bytes as atomic_write_bytes
+from .files import publish as publish
+from .files import sha256_file as sha256_file
+from .files import to_jsonable as to_jsonable
+from .fmt_native import write_into
 
 _MAIN_PACKAGES = (
     "dtwin", "jax", "jaxlib", "diffrax", "optimistix", "equinox", "lineax", "numpy", "scipy",
 )
-
-
-def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
-    """SHA-256 hex digest of a file, read in chunks (read-only)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        while block := f.read(chunk):
-            h.update(block)
-    return h.hexdigest()
 
 
 def versions() -> dict[str, str]:
@@ -59,45 +57,6 @@ def versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             out[name] = "not installed"
     return out
-
-
-def to_jsonable(obj: Any) -> Any:
-    """Convert numpy/JAX arrays and scalars, paths and dataclasses to JSON-compatible values."""
-    import dataclasses
-
-    import numpy as np
-
-    if isinstance(obj, Mapping):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (str, bool)) or obj is None:
-        return obj
-    if isinstance(obj, int):
-        return obj
-    if isinstance(obj, float):
-        return obj if np.isfinite(obj) else str(obj)
-    if isinstance(obj, Path):
-        return str(obj)
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return to_jsonable(dataclasses.asdict(obj))
-    if hasattr(obj, "__array__") or isinstance(obj, np.generic):
-        arr = np.asarray(obj)
-        if arr.dtype.kind in "fc":
-            arr = np.where(np.isfinite(arr), arr, np.nan) if arr.dtype.kind == "f" else arr
-        val = arr.tolist()
-        return _nan_to_str(val)
-    if isinstance(obj, Iterable):
-        return [to_jsonable(v) for v in obj]
-    return str(obj)
-
-
-def _nan_to_str(val: Any) -> Any:
-    if isinstance(val, float):
-        return val if val == val and abs(val) != float("inf") else str(val)
-    if isinstance(val, list):
-        return [_nan_to_str(v) for v in val]
-    if isinstance(val, complex):
-        return [val.real, val.imag]
-    return val
 
 
 class _signals_deferred:
@@ -118,46 +77,6 @@ class _signals_deferred:
             signal.signal(sig, old)
         for sig in self._held[:1]:
             signal.raise_signal(sig)
-
-
-def _default_mode() -> int:
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
-def publish(tmp: str | os.PathLike, path: str | os.PathLike) -> None:
-    """Give a finished temporary file the usual permissions (``mkstemp`` makes it 0600) and
-    rename it onto `path` atomically."""
-    os.chmod(tmp, _default_mode())
-    os.replace(tmp, path)
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, force: bool = False) -> Path:
-    """Write `data` to `path` atomically (temporary file in the same folder, then rename).
-
-    Raises `OutputExistsError` if `path` exists and `force` is false.
-    """
-    path = Path(path)
-    if path.exists() and not force:
-        raise OutputExistsError(
-            f"{path} already exists; choose another output folder or pass --force to overwrite"
-        )
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        publish(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return path
 
 
 class OutputFolder:
@@ -323,9 +242,6 @@ class OutputFolder:
     def write_record(self, name: str, record: Any) -> Path:
         """Write a :class:`~dtwin.io.record.Record` in dtwin's own format (``*.dtwin.h5``),
         atomically, and list it in the manifest (see :mod:`dtwin.io.fmt_native`)."""
-        from ..errors import RecordError
-        from .fmt_native import write_into
-
         if not name.endswith(".dtwin.h5"):
             raise RecordError(f"record files are named '*.dtwin.h5', got {name!r}; rename it")
         return self.write_with(name, lambda tmp: write_into(record, tmp))
