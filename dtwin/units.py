@@ -269,16 +269,18 @@ def broadband_velocity_rms(
 ) -> float:
     """Broadband RMS velocity (mm/s) of a vibration signal in ISO 20816-1's band: `band` (Hz),
     default 10–1000 Hz (2–1000 Hz is the band for 120–600 r/min), capped at the Nyquist
-    frequency. Acceleration is integrated (module docstring); the band is applied as a
-    rectangular window on the spectrum (Parseval)."""
+    frequency. The velocity spectrum (acceleration divided by ``j 2 pi f``, displacement
+    multiplied by it) is summed over the bins inside the band (Parseval), i.e. ideal band
+    edges."""
     lo, hi = band or (10.0, 1000.0)
-    v = convert_signal(x, sample_rate, unit, "mm/s", highpass_hz=lo, highpass_order=4)
-    n = v.shape[-1]
+    u = _check(unit, "input")
+    q = UNITS[u][0]
+    x = np.asarray(x, dtype=np.float64) * UNITS[u][1]
+    n = x.shape[-1]
     f = np.fft.rfftfreq(n, 1.0 / float(sample_rate))
-    spec = np.fft.rfft(v, axis=-1)
-    if quantity(unit) != "acceleration":  # integration applied the high-pass already
-        spec = spec * _highpass_gain(f, lo, 4)
-    w = np.where((f <= hi) & (f > 0), 2.0, 0.0)
-    if n % 2 == 0 and w[-1] > 0:
-        w[-1] = 1.0
-    return float(np.sqrt(np.sum(w * np.abs(spec) ** 2, axis=-1) / n**2))
+    keep = (f >= lo) & (f <= hi) & (f > 0)
+    spec = np.fft.rfft(x, axis=-1)[..., keep]
+    w = 2 * np.pi * f[keep]
+    v = spec / (1j * w) if q == "acceleration" else spec * (1j * w) if q == "displacement" else spec
+    weight = np.where(f[keep] == float(sample_rate) / 2, 1.0, 2.0)
+    return float(1e3 * np.sqrt(np.sum(weight * np.abs(v) ** 2, axis=-1) / n**2))

@@ -79,27 +79,42 @@ def set_level_limits(ax, y: np.ndarray, scale: str, *, dynamic_range_db: float =
 def place_labels(ax, xs: Sequence[float], ys: Sequence[float], texts: Sequence[str], *,
                  color: str = "C3", fontsize: float = 8, min_sep: float = 0.025,
                  rotation: float = 0.0) -> None:
-    """Annotate points (data coordinates) with texts that do not overlap: labels closer than
-    `min_sep` (fraction of the axis width) to a neighbour are lifted by one more text row each.
-    Call after the limits are set."""
+    """Annotate points (data coordinates) with texts that do not overlap.
+
+    Points closer than `min_sep` (fraction of the axis width, scaled by the text length) form
+    a cluster; a cluster's texts sit side by side, `min_sep` apart and centred on the cluster,
+    on one line just above its highest point, each joined to its point by a thin leader line
+    when it had to move sideways. Call after the limits are set."""
     if not len(xs):
         return
     x0, x1 = ax.get_xlim()
-    width = (x1 - x0) or 1.0
-    order = np.argsort(np.asarray(xs, dtype=float), kind="stable")
-    rows: list[float] = []  # last x (axis fraction) used on each row
+    y0, y1 = ax.get_ylim()
+    width, height = (x1 - x0) or 1.0, (y1 - y0) or 1.0
+    longest = max(len(t) for t in texts)
+    sep = min_sep * max(1.0, 0.6 * longest) * width
+    order = list(np.argsort(np.asarray(xs, dtype=float), kind="stable"))
+    clusters: list[list[int]] = []
     for i in order:
-        fx = (float(xs[i]) - x0) / width
-        row = 0
-        while row < len(rows) and fx - rows[row] < min_sep * max(1, len(texts[i]) * 0.6):
-            row += 1
-        if row == len(rows):
-            rows.append(fx)
+        if clusters and float(xs[i]) - float(xs[clusters[-1][-1]]) < sep:
+            clusters[-1].append(i)
         else:
-            rows[row] = fx
-        ax.annotate(texts[i], (float(xs[i]), float(ys[i])), textcoords="offset points",
-                    xytext=(0, 6 + row * (fontsize + 2)), ha="center", va="bottom",
-                    fontsize=fontsize, color=color, rotation=rotation, annotation_clip=True)
+            clusters.append([i])
+    last = -np.inf
+    for c in clusters:
+        n = len(c)
+        centre = float(np.mean([float(xs[i]) for i in c]))
+        first = max(centre - 0.5 * (n - 1) * sep, last + sep)
+        first = min(first, x1 - (n - 0.5) * sep) if n > 1 else first
+        base = max(float(ys[i]) for i in c) + 0.05 * height
+        for k, i in enumerate(c):
+            xl = first + k * sep if n > 1 else float(xs[i])
+            moved = abs(xl - float(xs[i])) > 0.2 * sep
+            ax.annotate(texts[i], (float(xs[i]), float(ys[i])), xytext=(xl, base),
+                        textcoords="data", ha="center", va="bottom", fontsize=fontsize,
+                        color=color, rotation=rotation, annotation_clip=True,
+                        arrowprops=dict(arrowstyle="-", lw=0.5, color=color, alpha=0.6,
+                                        shrinkA=0, shrinkB=2) if moved else None)
+        last = first + (n - 1) * sep if n > 1 else float(xs[c[0]])
 
 
 def mesh_band(f_mesh: float, f_carrier: float, nyquist: float, *, harmonics: int = 3,

@@ -361,8 +361,11 @@ def plot_iso20816(
     fig = Figure(figsize=(max(5.5, 1.2 * len(names) + 3.5), 3.8))
     ax = fig.add_subplot(1, 1, 1)
     vals = np.array([float(rms_mm_s[n]) for n in names])
-    top = max(1.25 * zones.cd, 1.15 * float(np.max(vals, initial=0.0)))
-    edges = [0.0, zones.ab, zones.bc, zones.cd, top]
+    vmax = float(np.max(vals, initial=0.0))
+    log = vmax > 3 * zones.cd  # far beyond zone D: a log axis keeps the boundaries readable
+    top = 2.0 * vmax if log else max(1.25 * zones.cd, 1.15 * vmax)
+    bottom = min(0.1, 0.5 * float(np.min(vals, initial=1.0))) if log else 0.0
+    edges = [bottom, zones.ab, zones.bc, zones.cd, top]
     cols = ["#cfe8cf", "#fff2b3", "#ffd0a8", "#f5b5b5"]
     for z, (lo, hi) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
         ax.axhspan(lo, hi, color=cols[z], zorder=0, label=f"zone {'ABCD'[z]}")
@@ -371,11 +374,13 @@ def plot_iso20816(
         ax.text(1.0, b, f" {name} {b:g}", transform=ax.get_yaxis_transform(), va="center",
                 fontsize=8)
     x = np.arange(len(names))
-    ax.bar(x, vals, 0.5, color="tab:blue", zorder=2)
+    ax.bar(x, vals - bottom, 0.5, bottom=bottom, color="tab:blue", zorder=2)
     for xi, v in zip(x, vals, strict=True):
         ax.text(xi, v, f"{v:.2f}", ha="center", va="bottom", fontsize=8, zorder=3)
     ax.set_xticks(x, names)
-    ax.set_ylim(0, top)
+    if log:
+        ax.set_yscale("log")
+    ax.set_ylim(bottom, top)
     ax.set_ylabel(f"velocity RMS, {band[0]:g}–{band[1]:g} Hz (mm/s)")
     ax.set_title(title, fontsize=10)
     ax.text(0.0, -0.2, zones.description + "; an orientation for a gearbox (ISO 20816-9 covers "
