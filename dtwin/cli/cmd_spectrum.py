@@ -1,6 +1,8 @@
 """``dtwin spectrum``: amplitude spectrum of a record with numbered, labelled peaks.
 
-    dtwin spectrum RECORD [--channel C] [--band 450 550] [--window hann]
+    dtwin spectrum RECORD [--channel C|all|GROUP|C1,C2] [--band LOW HIGH] [--window hann]
+                   [--scale db|linear] [--units m/s^2|g|mm/s|um] [--highpass 10]
+                   [--welch --segment 4096 --overlap 0.5] [--iso-group 2 --iso-support rigid]
                    [--preset paper-sim|paper-bench | --spec FILE] [--f-sun HZ]
                    [--planet-fault paper|both_flanks] [--threshold-db 10] [--min-spacing HZ]
                    [--max-peaks 15] [--floor-width 31] [--sample-rate HZ]
@@ -13,198 +15,34 @@ as ``m fm + a fc + b fs/N + c fp`` within one frequency bin (:mod:`dtwin.spectru
 speed is ``--f-sun``, else the record's tachometer (mean speed), else the record's
 ``metadata["f_sun"]``, else the spec's ``operating.f_sun``; the report names the source.
 
-Terminal: a table of the peaks and their labels. ``--json``: the report on stdout. ``--out DIR``:
-``spectrum.png`` (zoomed spectrum with numbered peaks and the label table), ``waveform.png``,
-``spectrum.json`` and ``manifest.json``.
+The band defaults to the gearbox's mesh harmonics (``fm − 12 fc … 3 fm + 12 fc``, capped at
+Nyquist), or the whole spectrum without a gearbox. ``--units`` converts (g: 9.80665 m/s²;
+velocity and displacement by integration behind the ``--highpass``, :mod:`dtwin.units`); every
+vibration channel also gets its broadband velocity RMS (``--highpass`` … 1000 Hz) and its ISO
+20816-3 zone (``--iso-group``, ``--iso-support``). Several channels (``all``, a group such as a
+triaxial sensor, or a comma list) give one figure and one table each.
+
+Terminal: a table of the peaks and their labels. ``--json``: the report on stdout (one channel:
+as before; several: ``channels``, one report each). ``--out DIR``: ``spectrum.png`` (spectrum
+over the band in dB re 1 µm/s² or linear, ``--scale``, numbered peaks and the label table),
+``waveform.png``, ``iso20816.png``, the arrays ``spectrum.csv``/``.npz`` (frequency, amplitude,
+noise floor with units) and ``waveform.csv``/``.npz``, ``spectrum.json``, ``report.html`` and
+``manifest.json`` (with several channels the per-channel files end in ``_<channel>``).
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
-from typing import Any
 
-import numpy as np
 import typer
 
-from ..errors import RecordError, SpecError
+from ..reports import gear_frequencies, input_speed, spectrum_report
+from . import options as opts
 from .app import app
 
-# --- helpers shared with cmd_view ---------------------------------------------------------------
-
-
-def load_gearbox(preset: str | None, spec_file: Path | None):
-    """The :class:`dtwin.spec.Spec` of ``--preset`` or ``--spec`` (None if neither)."""
-    if preset is not None and spec_file is not None:
-        raise SpecError([("--preset/--spec", "give at most one of --preset NAME or --spec FILE")])
-    if preset is None and spec_file is None:
-        return None
-    from .. import spec as spec_mod
-
-    return spec_mod.preset(preset) if preset is not None else spec_mod.load_spec(spec_file)
-
-
-def read_input(path: Path, sample_rate: float | None):
-    """Read a record file (read-only) with :func:`dtwin.io.readers.read_record`."""
-    from ..io.readers import read_record
-
-    return read_record(path, sample_rate=sample_rate)
-
-
-def _tacho_speed(record) -> tuple[float, str] | None:
-    if record.tacho is None or not record.tacho_ppr:
-        return None
-    from ..order import tacho_angle
-
-    ang = tacho_angle(record.tacho, record.sample_rate, int(record.tacho_ppr))
-    return (ang[-1] - ang[0]) / (2 * np.pi * record.duration), record.tacho_shaft or "sun"
-
-
-def input_speed(record, spec, f_sun: float | None) -> tuple[float | None, str | None]:
-    """Input (sun) speed in Hz and where it came from (module docstring); (None, None) if none."""
-    if f_sun is not None:
-        if not 0 < f_sun <= 500:
-            hint = f" (did you mean {f_sun / 60:g} Hz = {f_sun:g} rpm?)" if f_sun > 500 else ""
-            raise SpecError([("--f-sun", f"must be the input speed in Hz in (0, 500]{hint}")])
-        return float(f_sun), "--f-sun"
-    tacho = _tacho_speed(record)
-    if tacho is not None:
-        speed, shaft = tacho
-        if shaft == "sun":
-            return float(speed), "tachometer (sun)"
-        if spec is not None:
-            gs = spec.gear_set()
-            return float(speed * (gs.z_sun + gs.z_ring) / gs.z_sun), "tachometer (carrier)"
-    meta = record.metadata.get("f_sun") if isinstance(record.metadata, dict) else None
-    if isinstance(meta, (int, float)) and meta > 0:
-        return float(meta), "record metadata f_sun"
-    if spec is not None and spec["operating"].get("f_sun"):
-        return float(spec["operating"]["f_sun"]), "spec operating.f_sun"
-    return None, None
-
-
-def gear_frequencies(spec, f_sun: float | None, planet_fault: str = "paper") -> dict | None:
-    """Characteristic frequencies (Hz) from :func:`dtwin.gears.characteristic_frequencies`."""
-    if spec is None:
-        return None
-    if f_sun is None:
-        raise SpecError([("--f-sun", "the input speed is unknown: pass --f-sun HZ, give the "
-                          "record a tachometer, or use a spec with operating.f_sun")])
-    from ..gears import characteristic_frequencies
-
-    return characteristic_frequencies(spec.gear_set(), f_sun, planet_fault=planet_fault)
-
-
-def channel_unit(record, channel: str | int) -> tuple[str, str]:
-    i = record.index(channel)
-    return record.channels[i], record.units[i] or "-"
-
-
-def open_output(out: Path, force: bool, inputs: list, spec, parameters: dict):
-    from ..io.output import OutputFolder
-
-    spec_dict = None
-    if spec is not None:
-        from ..spec import spec_to_dict
-
-        spec_dict = spec_to_dict(spec)
-    return OutputFolder(out, force=force, inputs=[p for p in inputs if p is not None],
-                        spec=spec_dict, parameters=parameters)
-
-
-def channel_token(channel: str) -> str | int:
-    return int(channel) if channel.lstrip("-").isdigit() else channel
-
-
-# --- the report ---------------------------------------------------------------------------------
-
-
-def spectrum_report(
-    record,
-    *,
-    channel: str | int = 0,
-    band: tuple[float, float] = (450.0, 550.0),
-    window: str = "hann",
-    frequencies: dict | None = None,
-    n_planets: int = 3,
-    threshold_db: float = 10.0,
-    min_spacing_hz: float | None = None,
-    max_peaks: int | None = 15,
-    floor_width: int = 31,
-) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Spectrum, peaks and labels of one channel of a :class:`dtwin.io.Record`.
-
-    **Arguments:** `frequencies`: characteristic frequencies (Hz, registry names) to label with,
-    or None (peaks unlabelled); `n_planets` for the "fs/N" labels; the rest as
-    :func:`dtwin.spectrum.find_peaks`.
-
-    **Returns:** ``(report, data)``: the JSON-ready report and the arrays for the figures
-    (``freqs``, ``spec``, ``floor``, ``labelled``, ``t``, ``x``, ``unit``).
-    """
-    from ..spectrum import (
-        FrequencyBasis,
-        amplitude_spectrum,
-        find_peaks,
-        label_peaks,
-        noise_floor,
-        time_stats,
-    )
-
-    name, unit = channel_unit(record, channel)
-    nyq = record.sample_rate / 2
-    if not 0 <= band[0] < band[1] <= nyq:
-        raise RecordError(f"--band {band[0]:g} {band[1]:g} must satisfy 0 <= low < high <= "
-                          f"{nyq:g} Hz (half the record's sampling rate)")
-    x = record.channel(channel)
-    if not np.all(np.isfinite(x)):
-        raise RecordError(f"channel {name!r} holds NaN or inf samples; clean the record first")
-    freqs, spec = amplitude_spectrum(x, record.sample_rate, window)
-    floor = noise_floor(spec, floor_width)
-    peaks = find_peaks(freqs, spec, threshold_db=threshold_db, min_spacing_hz=min_spacing_hz,
-                       band=band, floor=floor, max_peaks=max_peaks)
-    df = float(freqs[1] - freqs[0])
-    if frequencies is not None:
-        basis = FrequencyBasis(frequencies["f_mesh"], frequencies["f_carrier"],
-                               frequencies.get("f_sun_fault"), frequencies.get("f_planet_fault"),
-                               n_planets)
-        labelled = label_peaks(peaks, basis, df)
-    else:
-        from ..spectrum import LabelledPeak
-
-        labelled = [LabelledPeak(k, p, ()) for k, p in enumerate(peaks, start=1)]
-    stats = time_stats(x)
-    sel = (freqs >= band[0]) & (freqs <= band[1])
-    report = {
-        "channel": name,
-        "unit": unit,
-        "sample_rate_hz": float(record.sample_rate),
-        "duration_s": float(record.duration),
-        "window": window,
-        "band_hz": [float(band[0]), float(band[1])],
-        "resolution_hz": df,
-        "noise_floor_median": float(np.median(floor[sel])) if sel.any() else None,
-        "threshold_db": threshold_db,
-        "time_stats": {"rms": float(stats.rms), "kurtosis": float(stats.kurtosis),
-                       "crest_factor": float(stats.crest_factor)},
-        "frequencies_hz": frequencies,
-        "peaks": [
-            {"number": lp.number, "frequency_hz": lp.peak.frequency,
-             "amplitude": lp.peak.amplitude, "above_floor_db": lp.peak.above_floor_db,
-             "labels": [lab.text for lab in lp.labels],
-             "label_coefficients": [[lab.m, lab.a, lab.b, lab.c] for lab in lp.labels],
-             "label_error_hz": [lab.error for lab in lp.labels],
-             "alternatives": [lab.text for lab in lp.alternatives[:5]],
-             "n_alternatives": lp.n_alternatives}
-            for lp in labelled
-        ],
-    }
-    data = {"freqs": freqs, "spec": spec, "floor": floor, "labelled": labelled,
-            "t": record.time, "x": x, "unit": unit}
-    return report, data
-
+_PRESET_HELP = ("Gearbox for the peak labels: " + ", ".join(opts.PRESETS) + ".")
 
 def _print_table(report: dict, title: str) -> None:
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
@@ -219,8 +57,8 @@ def _print_table(report: dict, title: str) -> None:
                       (p["alternatives"][0] + (f" (+{p['n_alternatives'] - 1})"
                                                if p["n_alternatives"] > 1 else ""))
                       if p["alternatives"] else "")
-    console = Console()
-    console.print(table)
+    console = opts.console()
+    opts.print_table(table)
     s = report["time_stats"]
     console.print(f"RMS {s['rms']:.4g} {report['unit']}, kurtosis {s['kurtosis']:.3f}, crest "
                   f"factor {s['crest_factor']:.3f}; resolution {report['resolution_hz']:.4g} Hz")
@@ -229,14 +67,33 @@ def _print_table(report: dict, title: str) -> None:
 @app.command()
 def spectrum(
     record_file: Path = typer.Argument(..., help="Record file (any supported format)."),
-    channel: str = typer.Option("0", "--channel", help="Channel name or index."),
-    band: tuple[float, float] = typer.Option((450.0, 550.0), "--band",
-                                             help="Frequency band LOW HIGH (Hz)."),
+    channel: str = typer.Option("0", "--channel", help="Channel name or index, a comma list, a "
+                                "group (a triaxial sensor's name) or 'all': one figure each."),
+    band: tuple[float, float] | None = typer.Option(
+        None, "--band", help="Frequency band LOW HIGH (Hz) of the peaks and the figure; default "
+        "the gearbox's mesh harmonics (fm − 12 fc … 3 fm + 12 fc, capped at Nyquist), or the "
+        "whole spectrum without a gearbox."),
+    scale: str = typer.Option("db", "--scale", help="Figure levels: db (dB re the unit's ISO "
+                              "1683 reference: 1 µm/s², 1 nm/s, 1 pm; 1 g) or linear."),
+    units: str | None = typer.Option(None, "--units", help="Output unit: m/s^2, g, mm/s, um "
+                                     "(acceleration integrated behind --highpass); default as "
+                                     "recorded."),
+    highpass: float = typer.Option(10.0, "--highpass", help="High-pass (Hz, 4th-order "
+                                   "Butterworth, zero phase) of the integration to mm/s or um "
+                                   "and the lower edge of the ISO 20816 band."),
+    welch: bool = typer.Option(False, "--welch", help="Welch-averaged amplitude spectrum "
+                               "(segments of --segment samples overlapping by --overlap)."),
+    segment: int = typer.Option(4096, "--segment", help="Welch segment (samples; resolution "
+                                "sample rate / segment)."),
+    overlap: float = typer.Option(0.5, "--overlap", help="Welch overlap (fraction in [0, 1))."),
+    iso_group: int = typer.Option(2, "--iso-group", help="ISO 20816-3 machine group of the "
+                                  "zone lines: 1 (300 kW–50 MW) or 2 (15–300 kW)."),
+    iso_support: str = typer.Option("rigid", "--iso-support", help="ISO 20816-3 support: rigid "
+                                    "or flexible."),
     window: str = typer.Option("hann", "--window",
                                help="rect, hann, hamming, blackman, blackmanharris, flattop."),
-    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset (paper-sim, "
-                                      "paper-bench, lin-parker) for the peak labels."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    preset: str | None = opts.preset_option(_PRESET_HELP),
+    spec: Path | None = opts.spec_option(),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input (sun) speed in Hz."),
     planet_fault: str = typer.Option("paper", "--planet-fault",
                                      help="paper (f_mesh/Zp) or both_flanks (2 f_mesh/Zp)."),
@@ -247,50 +104,162 @@ def spectrum(
     max_peaks: int = typer.Option(15, "--max-peaks", help="Keep the highest N peaks."),
     floor_width: int = typer.Option(31, "--floor-width",
                                     help="Running-median window of the noise floor (bins)."),
-    sample_rate: float | None = typer.Option(None, "--sample-rate",
-                                             help="Sampling rate (Hz) if the file states none."),
-    json_out: bool = typer.Option(False, "--json", help="Print the report as JSON on stdout."),
-    out: Path | None = typer.Option(None, "--out", help="Write PNGs, spectrum.json, manifest."),
-    force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
+    sample_rate: float | None = opts.sample_rate_option(),
+    json_out: bool = opts.json_option(),
+    out: Path | None = opts.out_option("spectrum.png, waveform.png, iso20816.png, spectrum.json, "
+                                       "spectrum.csv/.npz, waveform.csv/.npz, report.html"),
+    force: bool = opts.force_option(),
 ) -> None:
     """Amplitude spectrum of a record with numbered peaks labelled by gear frequencies."""
-    gearbox = load_gearbox(preset, spec)
-    record = read_input(record_file, sample_rate)
-    ch = channel_token(channel)
+    from .. import units as units_mod
+    from ..spectrum import WINDOWS
+
+    opts.band("--band", band)
+    opts.choice("--window", window, tuple(WINDOWS))
+    opts.choice("--scale", scale, ("db", "linear"))
+    if units is not None and units_mod.normalise_unit(units) is None:
+        raise opts.OptionError("--units", f"unknown unit {units!r}; use one of "
+                               f"{', '.join(units_mod.UNITS)}")
+    opts.positive("--highpass", highpass, unit="Hz")
+    opts.at_least("--segment", segment, 16)
+    opts.in_range("--overlap", overlap, 0.0, 0.95)
+    opts.choice("--iso-support", iso_support, ("rigid", "flexible"))
+    opts.choice("--iso-group", str(iso_group), ("1", "2"))
+    opts.input_speed_option("--f-sun", f_sun)
+    opts.choice("--planet-fault", planet_fault, ("paper", "both_flanks"))
+    opts.in_range("--threshold-db", threshold_db, 0.0, 200.0, "dB")
+    opts.positive("--min-spacing", min_spacing, unit="Hz")
+    opts.at_least("--max-peaks", max_peaks, 1)
+    opts.at_least("--floor-width", floor_width, 3)
+    opts.check_out(out, force)
+    gb = opts.load_gearbox(preset, spec, required=False)
+    gearbox = gb.spec if gb is not None else None
+    record = opts.read_record(record_file, sample_rate)
+    try:
+        rows = record.channel_list(opts.channel_token(channel))
+    except Exception:  # noqa: BLE001 - one message listing the channels
+        opts.check_channel(record, opts.channel_token(channel))
+        raise
     fsun, fsun_source = input_speed(record, gearbox, f_sun)
+    opts.checked_record(record, rows, gearbox, fsun)
+    nyq = record.sample_rate / 2
+    opts.band("--band", band, nyquist=nyq)
     freqs = gear_frequencies(gearbox, fsun, planet_fault)
     n_planets = gearbox.gear_set().n_planets if gearbox is not None else 3
-    report, data = spectrum_report(
-        record, channel=ch, band=band, window=window, frequencies=freqs, n_planets=n_planets,
-        threshold_db=threshold_db, min_spacing_hz=min_spacing, max_peaks=max_peaks,
-        floor_width=floor_width)
-    report = {"record": str(record_file), "f_sun_hz": fsun, "f_sun_source": fsun_source,
-              "gearbox": preset or (str(spec) if spec else None), **report}
-    if json_out:
-        typer.echo(json.dumps(_jsonable(report), indent=2))
-    else:
-        _print_table(report, f"{record_file.name}, channel {report['channel']}, "
-                     f"{band[0]:g}–{band[1]:g} Hz" + ("" if freqs else " (no gearbox: unlabelled)"))
-    if out is not None:
+    if band is None:
+        from ..plotting.levels import mesh_band
+
+        band = (mesh_band(freqs["f_mesh"], freqs["f_carrier"], nyq) if freqs
+                else (0.0, nyq))
+    if welch and segment > record.n_samples:
+        raise opts.OptionError("--segment", f"{segment} samples exceed the record "
+                               f"({record.n_samples}); lower it")
+    zones = units_mod.iso20816_zones(iso_group, iso_support)
+    iso_band = (highpass, min(1000.0, nyq))
+    reports, datas = [], []
+    for i in rows:
+        one = _channel_record(record, i, units, highpass, units_mod)
+        rep, data = spectrum_report(
+            one, channel=0, band=band, window=window, frequencies=freqs, n_planets=n_planets,
+            threshold_db=threshold_db, min_spacing_hz=min_spacing, max_peaks=max_peaks,
+            floor_width=floor_width, welch=(segment, overlap) if welch else None)
+        if units is not None and units_mod.quantity(units) != units_mod.quantity(record.units[i]):
+            rep["integration"] = {"highpass_hz": highpass, "highpass_order": 4,
+                                  "method": "frequency domain, zero phase (dtwin.units)"}
+        if units_mod.quantity(one.units[0]) is not None:
+            v = units_mod.broadband_velocity_rms(one.channel(0), one.sample_rate, one.units[0],
+                                                 band=iso_band)
+            rep["iso20816"] = {"velocity_rms_mm_s": v, "band_hz": list(iso_band),
+                               "zone": units_mod.iso20816_zone(v, zones),
+                               "zones_mm_s": zones.boundaries, "classification": zones.description}
+        reports.append(rep)
+        datas.append(data)
+    head = {"record": str(record_file), "f_sun_hz": fsun, "f_sun_source": fsun_source,
+            "gearbox": gb.source if gb is not None else None}
+    report = ({**head, **reports[0]} if len(reports) == 1
+              else {**head, "channels": reports})
+
+    def files() -> dict:
+        from ..io.export import Columns
+        from ..io.html_report import HTMLReport
         from ..plotting.spectrum import plot_spectrum_peaks, plot_waveform
+        from ..plotting.views import plot_iso20816
 
-        folder = open_output(out, force, [record_file, spec], gearbox,
-                             {"channel": report["channel"], "band": list(band), "window": window,
-                              "f_sun": fsun, "threshold_db": threshold_db})
-        title = f"{record_file.name} [{report['channel']}]"
-        fig = plot_spectrum_peaks(data["freqs"], data["spec"], data["labelled"], band=band,
-                                  unit=data["unit"], floor=data["floor"],
-                                  title=f"Amplitude spectrum ({window} window), {title}")
-        folder.savefig("spectrum.png", fig)
-        folder.savefig("waveform.png", plot_waveform(data["t"], data["x"], unit=data["unit"],
-                                                     title=f"Time waveform, {title}"))
-        folder.write_json("spectrum.json", report)
-        if not json_out:
-            typer.echo(f"wrote {folder.path}/spectrum.png, waveform.png, spectrum.json, "
-                       "manifest.json", err=True)
+        out_files: dict = {"spectrum.json": report}
+        figures: dict = {}
+        for rep, data in zip(reports, datas, strict=True):
+            sfx = "" if len(reports) == 1 else f"_{_safe(rep['channel'])}"
+            title = f"{record_file.name} [{rep['channel']}]"
+            how = f"Welch, {segment}-sample segments" if welch else f"{window} window"
+            out_files[f"spectrum{sfx}.png"] = plot_spectrum_peaks(
+                data["freqs"], data["spec"], data["labelled"], band=band, unit=data["unit"],
+                floor=data["floor"], scale=scale, title=f"Amplitude spectrum ({how}), {title}")
+            out_files[f"waveform{sfx}.png"] = plot_waveform(
+                data["t"], data["x"], unit=data["unit"], title=f"Time waveform, {title}")
+            out_files[f"spectrum{sfx}.csv"] = Columns(
+                {"frequency": data["freqs"], "amplitude": data["spec"],
+                 "noise_floor": data["floor"]},
+                {"frequency": "Hz", "amplitude": data["unit"], "noise_floor": data["unit"]})
+            out_files[f"waveform{sfx}.csv"] = Columns(
+                {"time": data["t"], rep["channel"]: data["x"]},
+                {"time": "s", rep["channel"]: data["unit"]})
+            figures[f"Amplitude spectrum, {title}"] = f"spectrum{sfx}.png"
+            figures[f"Time waveform, {title}"] = f"waveform{sfx}.png"
+        iso = {r["channel"]: r["iso20816"]["velocity_rms_mm_s"] for r in reports
+               if "iso20816" in r}
+        if iso:
+            out_files["iso20816.png"] = plot_iso20816(iso, zones, band=iso_band)
+            figures["Broadband velocity RMS against ISO 20816 zones"] = "iso20816.png"
+        out_files["report.html"] = HTMLReport(
+            title=f"dtwin spectrum: {record_file.name}",
+            summary={k: v for k, v in head.items()} | {"band (Hz)": list(band)},
+            figures=figures,
+            tables={f"Peaks, {r['channel']} ({r['unit']})": [
+                {"No.": p["number"], "f (Hz)": p["frequency_hz"], "amplitude": p["amplitude"],
+                 "dB over floor": p["above_floor_db"], "label": " | ".join(p["labels"]) or "?"}
+                for p in r["peaks"]] for r in reports}
+            | ({"ISO 20816 evaluation": [{"channel": c, "velocity RMS (mm/s)": v,
+                                          "zone": next(r["iso20816"]["zone"] for r in reports
+                                                       if r["channel"] == c)}
+                                         for c, v in iso.items()]} if iso else {}),
+            notes=[zones.description] if iso else [])
+        return out_files
+
+    def table() -> None:
+        for rep in reports:
+            _print_table({**head, **rep}, f"{record_file.name}, channel {rep['channel']}, "
+                         f"{band[0]:g}–{band[1]:g} Hz"
+                         + ("" if freqs else " (no gearbox: unlabelled)"))
+            if "iso20816" in rep:
+                z = rep["iso20816"]
+                opts.console().print(f"velocity RMS {z['velocity_rms_mm_s']:.3g} mm/s "
+                                     f"({z['band_hz'][0]:g}–{z['band_hz'][1]:g} Hz): ISO 20816 "
+                                     f"zone {z['zone']} ({zones.description})")
+
+    opts.emit(report, json_out=json_out, out=out, force=force, files=files, table=table,
+              inputs=[record_file], gearbox=gb,
+              parameters={"channels": [r["channel"] for r in reports], "band": list(band),
+                          "window": window, "f_sun": fsun, "threshold_db": threshold_db,
+                          "scale": scale, "units": units, "highpass_hz": highpass,
+                          "welch": {"segment": segment, "overlap": overlap} if welch else None})
 
 
-def _jsonable(obj):
-    from ..io.output import to_jsonable
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in str(name))
 
-    return to_jsonable(obj)
+
+def _channel_record(record, i: int, units: str | None, highpass: float, units_mod):
+    """Channel `i` of `record` as a one-channel record, converted to `units` (if given)."""
+    import dataclasses
+
+    sub = record.select([i])
+    if units is None:
+        return sub
+    unit = sub.units[0]
+    if units_mod.quantity(unit) is None:
+        raise opts.OptionError("--units", f"channel {sub.channels[0]!r} is in {unit or 'no unit'}"
+                               ", not a vibration unit; give the sensitivity when reading it "
+                               "(dtwin record convert) or drop --units")
+    x = units_mod.convert_signal(sub.channel(0), sub.sample_rate, unit, units,
+                                 highpass_hz=highpass)
+    return dataclasses.replace(sub, data=x[None, :], units=(units_mod.normalise_unit(units),))
