@@ -1,14 +1,20 @@
 """``dtwin view``: the classic signal-processing views of a record.
 
-    dtwin view RECORD --kind order|tsa|envelope|kurtogram|cepstrum|waterfall|psd
+    dtwin view RECORD --kind order|ordermap|tsa|envelope|kurtogram|cepstrum|waterfall|psd
                [--channel C] [--preset P | --spec FILE] [--f-sun HZ] [--band LOW HIGH]
-               [--speed-range LOW HIGH] [--segment N] [--nat HZ ...] [--sample-rate HZ]
+               [--speed-range LOW HIGH] [--segment N] [--nat HZ ...] [--revs 4]
+               [--scale db|linear] [--sample-rate HZ]
                [--json] [--out DIR] [--force]
 
 - ``order``: order spectrum of the input (sun) shaft after angular resampling; the angle comes
   from the record's tachometer, else (with a gearbox) from the mesh phase
   (:func:`dtwin.order.mesh_angle`, speed searched in ``--speed-range``, default ±20 % of the
   input speed). Peaks are labelled in orders like ``dtwin spectrum`` labels frequencies.
+- ``ordermap`` (run-ups): order spectra of successive stretches of ``--revs`` revolutions
+  against the input speed (rpm), as a colour map (order vs rpm, ``ordermap.png``), and the
+  order cuts (``ordercuts.png``: fm, fm ± N fc, 2 fm against rpm, read by Parseval over each
+  order's main lobe, :func:`dtwin.order.order_cuts`); the angle from the tachometer or, without
+  one, from the mesh phase (the estimated speed).
 - ``tsa`` (gearbox needed): TSA on the carrier (indicators RMS, kurtosis, crest factor, FM0, FM4
   with mesh order Zr), TSA of the sun relative to the carrier (mesh order Zs) and McFadden's
   planet separation (FM4 per planet). Planet numbers are absolute only with a carrier tacho
@@ -22,8 +28,12 @@
   diagram with the mesh orders and the natural frequencies given by ``--nat``.
 - ``psd``: Welch PSD (``--segment`` samples per segment), total RMS and the RMS of ``--band``.
 
+Spectrum-like views are in dB re the unit's ISO 1683 reference (1 µm/s² for acceleration) or
+linear (``--scale``).
+
 Terminal: a short summary table; ``--json``: the report on stdout; ``--out DIR``: ``KIND.png``
-(and further PNGs), ``view_KIND.json``, ``manifest.json``.
+(and further PNGs), the arrays behind them as ``KIND.csv``/``.npz`` (named columns with units;
+maps in long form in the CSV, as a grid in the NPZ), ``view_KIND.json``, ``manifest.json``.
 """
 
 from __future__ import annotations
@@ -35,12 +45,13 @@ import numpy as np
 import typer
 
 from ..errors import RecordError, SpecError
+from ..io.export import Columns, Grid
 from ..reports import channel_unit, gear_frequencies, input_speed
 from . import options as opts
 from .app import app
 from .options import channel_token
 
-KINDS = ("order", "tsa", "envelope", "kurtogram", "cepstrum", "waterfall", "psd")
+KINDS = ("order", "ordermap", "tsa", "envelope", "kurtogram", "cepstrum", "waterfall", "psd")
 
 
 def _pow2(v: float) -> int:
@@ -78,7 +89,7 @@ def shaft_angles(record, x: np.ndarray, gearbox, f_sun: float | None,
             "absolute_carrier": False}
 
 
-def _order_view(record, x, unit, gearbox, freqs, f_sun, speed_range):
+def _order_view(record, x, unit, gearbox, freqs, f_sun, speed_range, scale="db"):
     from ..order import order_spectrum, resample_to_angle, shaft_speed
     from ..plotting.views import plot_order_spectrum
     from ..spectrum import FrequencyBasis, find_peaks, label_peaks
@@ -121,9 +132,51 @@ def _order_view(record, x, unit, gearbox, freqs, f_sun, speed_range):
                   for i, p in enumerate(peaks)],
     }
     fig = plot_order_spectrum(orders, amp, marks=marks, unit=unit, max_order=max_order,
-                              shaft="input (sun) shaft",
+                              shaft="input (sun) shaft", scale=scale,
                               title=f"Order spectrum ({ang['source']})")
-    return report, {"order.png": fig}
+    return report, {"order.png": fig, "order.csv": Columns(
+        {"order": orders, "amplitude": amp}, {"order": "1/rev", "amplitude": unit})}
+
+
+def _ordermap_view(record, x, unit, gearbox, freqs, f_sun, speed_range, revs, scale="db"):
+    """Order map (order vs rpm) and order cuts of a run-up, from the tachometer or the
+    estimated speed (mesh phase)."""
+    from ..order import order_cuts, order_map
+    from ..plotting.views import plot_order_cuts, plot_order_map
+
+    ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
+    if ang["sun"] is None:
+        raise SpecError([("--preset/--spec", "the tachometer is on the carrier: give the gearbox "
+                          "to convert its angle to the input shaft")])
+    if freqs is not None:
+        o = {k: v / freqs["f_sun"] for k, v in freqs.items()}
+        mo, pp = o["f_mesh"], o["f_planet_pass"]
+        orders = {"fm": mo, "fm − N fc": mo - pp, "fm + N fc": mo + pp, "2fm": 2 * mo}
+        max_order = 2.5 * mo
+        if revs is None:  # the sidebands fm ± N fc five order bins apart: cuts do not mix
+            revs = int(np.ceil(5.0 / pp))
+    else:
+        orders, max_order = {"1×": 1.0, "2×": 2.0}, 40.0
+        revs = revs or 4
+    om = order_map(x, record.sample_rate, ang["sun"], max_order=max_order,
+                   revs_per_segment=revs)
+    cuts = order_cuts(om, orders)
+    report = {"angle_source": ang["source"], "revs_per_segment": revs,
+              "order_resolution": float(om.orders[1] - om.orders[0]),
+              "rpm": {"min": float(om.rpm.min()), "max": float(om.rpm.max())},
+              "spectra": int(om.speed.size),
+              "order_cuts_max": {k: float(np.nanmax(v)) for k, v in cuts.items()}}
+    src = ang["source"]
+    return report, {
+        "ordermap.png": plot_order_map(om, unit=unit, orders=orders, speed_source=src),
+        "ordercuts.png": plot_order_cuts(om, cuts, unit=unit, scale=scale, speed_source=src),
+        "ordermap.csv": Grid(("rpm", om.rpm, "1/min"), ("order", om.orders, "1/rev"),
+                             ("amplitude", om.amplitude, unit)),
+        "ordercuts.csv": Columns({"rpm": om.rpm, "time": om.times,
+                                  **{f"order {k}": v for k, v in cuts.items()}},
+                                 {"rpm": "1/min", "time": "s",
+                                  **{f"order {k}": unit for k in cuts}}),
+    }
 
 
 def _tsa_view(record, x, unit, gearbox, freqs, f_sun, speed_range):
@@ -176,7 +229,7 @@ def _fault_marks(freqs):
             "fc": freqs["f_carrier"], "N fc": freqs["f_planet_pass"]}
 
 
-def _envelope_view(record, x, unit, freqs, band):
+def _envelope_view(record, x, unit, freqs, band, scale="linear"):
     from ..envelope import envelope_spectrum, fast_kurtogram
     from ..plotting.views import plot_envelope_spectrum
     from ..spectrum import level_at
@@ -192,9 +245,10 @@ def _envelope_view(record, x, unit, freqs, band):
     max_f = 4 * max(marks.values()) if marks else min(500.0, float(f[-1]))
     report = {"band_hz": [float(band[0]), float(band[1])], "band_source": source,
               "levels_at_fault_frequencies": levels}
-    fig = plot_envelope_spectrum(f, e, band=band, marks=marks, unit=unit,
+    fig = plot_envelope_spectrum(f, e, band=band, marks=marks, unit=unit, scale=scale,
                                  max_freq=min(max_f, float(f[-1])))
-    return report, {"envelope.png": fig}
+    return report, {"envelope.png": fig, "envelope.csv": Columns(
+        {"frequency": f, "amplitude": e}, {"frequency": "Hz", "amplitude": unit})}
 
 
 def _kurtogram_view(record, x):
@@ -221,7 +275,8 @@ def _cepstrum_view(record, x, freqs, gearbox):
         report["rahmonics"] = {k: rahmonics(q, c, v, 3).tolist() for k, v in spacings.items()}
     max_q = 1.5 / min(spacings.values()) if spacings else float(q[-1])
     fig = plot_cepstrum(q, c, spacings=spacings, max_quefrency=min(max_q, float(q[-1])))
-    return report, {"cepstrum.png": fig}
+    return report, {"cepstrum.png": fig, "cepstrum.csv": Columns(
+        {"quefrency": q, "cepstrum": c}, {"quefrency": "s", "cepstrum": "1"})}
 
 
 def _waterfall_view(record, x, unit, gearbox, freqs, f_sun, speed_range, segment, nat):
@@ -237,7 +292,9 @@ def _waterfall_view(record, x, unit, gearbox, freqs, f_sun, speed_range, segment
     if freqs is not None:
         mo = freqs["f_mesh"] / freqs["f_sun"]
         orders = {"fm": mo, "2fm": 2 * mo}
-    figs = {"waterfall.png": plot_waterfall(wf, unit=unit, orders=orders)}
+    figs = {"waterfall.png": plot_waterfall(wf, unit=unit, orders=orders),
+            "waterfall.csv": Grid(("time", wf.times, "s"), ("frequency", wf.freqs, "Hz"),
+                                  ("amplitude", wf.amplitude, unit))}
     report: dict[str, Any] = {"segments": int(wf.times.size),
                               "resolution_hz": float(wf.freqs[1] - wf.freqs[0]),
                               "angle_source": source}
@@ -249,7 +306,7 @@ def _waterfall_view(record, x, unit, gearbox, freqs, f_sun, speed_range, segment
     return report, figs
 
 
-def _psd_view(record, x, unit, freqs, band, segment):
+def _psd_view(record, x, unit, freqs, band, segment, scale="db"):
     from ..plotting.views import plot_psd
     from ..psd import band_power, welch_psd
 
@@ -260,7 +317,9 @@ def _psd_view(record, x, unit, freqs, band, segment):
         report["band_hz"] = list(band)
         report["rms_band"] = float(np.sqrt(band_power(f, p, band)))
     marks = {"fm": freqs["f_mesh"], "2fm": 2 * freqs["f_mesh"]} if freqs else None
-    return report, {"psd.png": plot_psd(f, p, unit=unit, marks=marks)}
+    return report, {"psd.png": plot_psd(f, p, unit=unit, marks=marks, scale=scale),
+                    "psd.csv": Columns({"frequency": f, "psd": p},
+                                       {"frequency": "Hz", "psd": f"({unit})^2/Hz"})}
 
 
 @app.command()
@@ -279,6 +338,12 @@ def view(
     segment: int = typer.Option(1024, "--segment", help="Segment length (samples): waterfall, psd."),
     nat: list[float] | None = typer.Option(None, "--nat", help="Natural frequency (Hz) to overlay "
                                            "on the Campbell diagram (repeatable)."),
+    revs: int | None = typer.Option(None, "--revs", help="ordermap: revolutions per spectrum "
+                                    "(order resolution 1/REVS); default: five bins between "
+                                    "the planet-pass sidebands (4 without a gearbox)."),
+    scale: str | None = typer.Option(None, "--scale", help="db (re the unit's ISO 1683 "
+                                     "reference, e.g. 1 µm/s²) or linear; default db, linear "
+                                     "for the envelope."),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("KIND.png (and further PNGs), view_KIND.json"),
@@ -286,6 +351,9 @@ def view(
 ) -> None:
     """Order, TSA, envelope, kurtogram, cepstrum, waterfall or PSD view of a record."""
     opts.choice("--kind", kind, KINDS)
+    opts.choice("--scale", scale, ("db", "linear"))
+    if revs is not None:
+        opts.at_least("--revs", revs, 1)
     opts.input_speed_option("--f-sun", f_sun)
     opts.band("--band", band)
     opts.band("--speed-range", speed_range)
@@ -307,11 +375,15 @@ def view(
     x = np.asarray(record.channel(ch), dtype=np.float64)
     freqs = gear_frequencies(gearbox, fsun, "paper") if gearbox is not None else None
     if kind == "order":
-        rep, figs = _order_view(record, x, unit, gearbox, freqs, fsun, speed_range)
+        rep, figs = _order_view(record, x, unit, gearbox, freqs, fsun, speed_range,
+                                scale or "db")
+    elif kind == "ordermap":
+        rep, figs = _ordermap_view(record, x, unit, gearbox, freqs, fsun, speed_range, revs,
+                                   scale or "db")
     elif kind == "tsa":
         rep, figs = _tsa_view(record, x, unit, gearbox, freqs, fsun, speed_range)
     elif kind == "envelope":
-        rep, figs = _envelope_view(record, x, unit, freqs, band)
+        rep, figs = _envelope_view(record, x, unit, freqs, band, scale or "linear")
     elif kind == "kurtogram":
         rep, figs = _kurtogram_view(record, x)
     elif kind == "cepstrum":
@@ -320,7 +392,7 @@ def view(
         rep, figs = _waterfall_view(record, x, unit, gearbox, freqs, fsun, speed_range, segment,
                                     nat or [])
     else:
-        rep, figs = _psd_view(record, x, unit, freqs, band, segment)
+        rep, figs = _psd_view(record, x, unit, freqs, band, segment, scale or "db")
     from ..io.output import to_jsonable
 
     report = to_jsonable({"record": str(record_file), "kind": kind, "channel": name,
@@ -333,7 +405,8 @@ def view(
         import matplotlib.pyplot as plt
 
         for fig in figs.values():
-            plt.close(fig)
+            if hasattr(fig, "savefig"):
+                plt.close(fig)
 
 
 
