@@ -28,6 +28,7 @@ from .parts.base import AbstractPart
 from .parts.drive import DrivePart, LoadPart
 from .parts.imperfections import MeshOffsets, TransmissionError
 from .parts.local_fault import LocalFault
+from .parts.mesh_excitation import excitation_from_table
 from .parts.supports import Supports
 from .parts.transfer_path import PlanetPassTransferPath
 from .registry import lookup
@@ -86,6 +87,9 @@ def spec_parts(spec, *, faults: tuple[AbstractFault, ...] | None = None) -> list
     if mesh["te_amplitude"]:
         h = jnp.asarray(mesh["te_harmonics"], dtype=jnp.float64)
         parts.append(TransmissionError(jnp.asarray(float(mesh["te_amplitude"])), h, jnp.zeros_like(h)))
+    excitation = excitation_from_table(mesh)
+    if excitation is not None:
+        parts.append(excitation)
     sensor = spec["sensor"]
     direction = sensor["direction"]
     if direction in _DIRECTIONS:
@@ -99,6 +103,8 @@ def spec_parts(spec, *, faults: tuple[AbstractFault, ...] | None = None) -> list
             sensor_angle=jnp.asarray(float(sensor["angle"])),
             direction_angle=jnp.asarray(d_angle),
             window_exponent=jnp.asarray(float(sensor["window_exponent"])),
+            window_harmonics=(None if sensor["window_harmonics"] is None else
+                              jnp.asarray(sensor["window_harmonics"], dtype=jnp.float64)),
         )
     )
     return parts
@@ -160,6 +166,8 @@ def daq_from_spec(spec, **overrides: Any) -> DAQ:
         snr_db=s["snr_db"],
         tacho_ppr=s["tacho_ppr"],
         tacho_shaft=s["tacho_shaft"],
+        frf_hz=None if s["frf_hz"] is None else tuple(s["frf_hz"]),
+        frf_db=None if s["frf_db"] is None else tuple(s["frf_db"]),
     )
     kw.update(overrides)
     return DAQ(**kw)

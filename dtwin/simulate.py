@@ -37,7 +37,8 @@ from .errors import SolverError
 from .integrator import UnrolledTsit5
 from .parts.drive import DrivePart, LoadPart
 from .parts.transfer_path import AbstractTransferPath, ring_velocity_fixed
-from .twin import Twin
+from .sensor_response import apply_frf, knot_basis
+from .twin import Coords, Twin
 
 QUANTITIES = ("acceleration", "velocity", "displacement", "ring_velocity")
 #: Default of `SolverOptions.rate_scale_hz` (Hz): rates are scaled by 2π times this.
@@ -105,6 +106,9 @@ class DAQ:
       no noise.
     - `tacho_ppr`, `tacho_shaft`: tachometer pulses per revolution of ``"sun"`` or
       ``"carrier"``; None = no tachometer.
+    - `frf_hz`, `frf_db`: a smooth sensor frequency response (knots in Hz and gains in dB,
+      :mod:`dtwin.sensor_response`) applied to the sampled signal before any integration and
+      noise; None = flat (a gain of 1).
     """
 
     sample_rate: float = 5000.0
@@ -115,6 +119,8 @@ class DAQ:
     snr_db: float | None = None
     tacho_ppr: int | None = None
     tacho_shaft: str = "sun"
+    frf_hz: tuple[float, ...] | None = None
+    frf_db: tuple[float, ...] | None = None
 
     def __post_init__(self):
         if self.quantity not in QUANTITIES:
@@ -125,6 +131,14 @@ class DAQ:
             raise ValueError("oversample must be >= 2 so the DAQ filter can remove aliases")
         if self.tacho_shaft not in ("sun", "carrier"):
             raise ValueError(f"tacho_shaft must be 'sun' or 'carrier', got {self.tacho_shaft!r}")
+        if (self.frf_hz is None) != (self.frf_db is None) or (
+            self.frf_hz is not None and len(self.frf_hz) != len(self.frf_db)
+        ):
+            raise ValueError("frf_hz and frf_db go together, one gain (dB) per knot (Hz)")
+        if self.frf_hz is not None:
+            object.__setattr__(self, "frf_hz", tuple(float(v) for v in self.frf_hz))
+            object.__setattr__(self, "frf_db", tuple(float(v) for v in self.frf_db))
+            knot_basis([1.0], self.frf_hz)  # validates the knots
 
 
 class SimResult(eqx.Module):
@@ -185,8 +199,6 @@ def state_scales(twin: Twin, rate_scale_hz: float = RATE_SCALE_HZ) -> tuple[Arra
 
 def _ext_static_forces(twin: Twin, omega_c):
     """Generalised static forces: load torque on the carrier and the balancing sun torque."""
-    from .twin import Coords
-
     tl = jnp.zeros(())
     for p in twin.find(LoadPart):
         tl = tl + p.load.torque(jnp.zeros(()), jnp.zeros(()), omega_c)
@@ -455,6 +467,8 @@ def _daq(ys, taps, daq: DAQ, fs_out, nsteps, seed, t_start) -> SimResult:
 
     sig = decimate(ys["signal"]) * daq.gain
     n = sig.shape[0]
+    if daq.frf_hz is not None:
+        sig = apply_frf(sig, fs_out, daq.frf_hz, daq.frf_db)
     if daq.quantity in ("velocity", "displacement"):
         sig = integrate_spectral(sig, fs_out, 1 if daq.quantity == "velocity" else 2, daq.f_highpass)
     half = (len(taps) - 1) // 2

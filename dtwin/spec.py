@@ -55,7 +55,7 @@ class FieldSpec:
       must be given).
     - `lo`, `hi`: plausible range (inclusive); ``None`` for open. Registered names take the
       registry's range.
-    - `choices`: allowed strings for ``str`` fields.
+    - `choices`: allowed strings for ``str`` fields (empty: any text).
     - `doc`: one line for ``docs/spec.md``.
     - `registry`: the registry name when the field is a registered parameter.
     """
@@ -125,6 +125,11 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
                                  doc="Fourier harmonics of the stiffness waveform"),
         "application_factor": FieldSpec("float", "1", 1.0, 1.0, 3.0,
                                         doc="ISO 6336 application factor K_A"),
+        **{f"excitation_{m}_{cs}": FieldSpec(
+            "floats", "m", None, -1e-3, 1e-3,
+            doc=f"calibrated transmission-error {cs}ine coefficients of the {m}-planet meshes, "
+                "mesh harmonics 1, 2, … (dtwin/parts/mesh_excitation.py)")
+           for m in ("sun", "ring") for cs in ("cos", "sin")},
     },
     "supports": {
         "k_bearing_sun": _reg("k_bearing_sun", 1e8),
@@ -189,6 +194,22 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
         "window": FieldSpec("str", "", "hann",
                             choices=("hann", "hamming", "blackman", "flattop", "rect"),
                             doc="spectral window"),
+        "window_harmonics": FieldSpec("floats", "1", None, -100.0, 100.0,
+                                      doc="calibrated window shape: cosine coefficients c_0, c_1, "
+                                          "… of the planet-angle window (replaces "
+                                          "window_exponent)"),
+        "frf_hz": FieldSpec("floats", "Hz", None, 1e-2, 1e6,
+                            doc="knots of the smooth sensor frequency response, increasing "
+                                "(dtwin/sensor_response.py)"),
+        "frf_db": FieldSpec("floats", "dB", None, -300.0, 300.0,
+                            doc="gains of the sensor frequency response at frf_hz (dB re 1)"),
+    },
+    "calibration": {
+        "records": FieldSpec("str", "", None, doc="healthy records the calibration was fitted "
+                                                  "on (written by dtwin calibrate)"),
+        "heldout_gap_db": FieldSpec("float", "dB", None, 0.0, 500.0,
+                                    doc="held-out gap of the calibrated twin on its records"),
+        "created_by": FieldSpec("str", "", None, doc="dtwin version that calibrated the spec"),
     },
     "imperfections": {
         "planet_position_errors": FieldSpec("floats", "rad", None, -0.1, 0.1,
@@ -302,6 +323,8 @@ def _check_value(path: str, v: Any, f: FieldSpec, problems: list) -> Any:
     if f.kind in ("int", "float"):
         return _check_number(path, v, f, problems)
     if f.kind == "str":
+        if not f.choices and isinstance(v, str):  # free text (e.g. [calibration] provenance)
+            return v
         if not isinstance(v, str) or v not in f.choices:
             close = [c for c in f.choices if isinstance(v, str) and v and c.startswith(v)]
             close = close or difflib.get_close_matches(str(v), f.choices, n=1)

@@ -11,7 +11,11 @@ default `PlanetPassTransferPath` (McFadden & Smith 1985) sees
   acceleration scale), weighted by a window of the planet's angle to the sensor,
   ``w(phi) = ((1 + cos phi) / 2) ** window_exponent``, ``phi = theta_c + psi_i - sensor_angle``:
   1 when the planet passes under the sensor, 0 on the far side. ``window_exponent`` controls
-  the window width (1: raised cosine; larger: narrower). An accelerometer on a housing does not
+  the window width (1: raised cosine; larger: narrower). A calibrated twin gives the window's
+  *shape* instead, as a cosine series ``w(phi) = sum_k c_k cos(k phi)``, k = 0 … K-1
+  (`window_harmonics`; :func:`window_cosine_coefficients` gives the series of the exponent
+  window): the signal is linear in ``c_k``, so a fit can solve for them without re-running the
+  ODE. An accelerometer on a housing does not
   see the quasi-static part of a force that travels past it (the static mesh load carried round
   by the carrier), only its dynamic part: the windowed force goes through a high-pass
   ``1 - L(s)``, ``L`` a second-order Butterworth low-pass at `highpass_hz` (default 50 Hz, far
@@ -28,6 +32,7 @@ import abc
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .base import AbstractPart
@@ -54,6 +59,20 @@ def ring_velocity_fixed(q, qdot):
     return _rot(q.theta_c, qdot.ring_xy + qdot.theta_c * _perp(q.ring_xy))
 
 
+def window_cosine_coefficients(exponent: float, n_terms: int) -> np.ndarray:
+    """Cosine-series coefficients ``c_0 … c_{K-1}`` of the window ``((1 + cos phi)/2)^p``.
+
+    Exact for an integer exponent ``p < K`` (the window is then a trigonometric polynomial of
+    degree p); otherwise the series truncated at K terms (least squares over a period).
+    """
+    n = 512
+    phi = 2.0 * np.pi * np.arange(n) / n
+    w = (0.5 * (1.0 + np.cos(phi))) ** float(exponent)
+    c = np.fft.rfft(w).real / n
+    c[1:] *= 2.0
+    return c[:n_terms].copy()
+
+
 class AbstractTransferPath(AbstractPart):
     """A path from the gear set to the sensor; `acceleration` in m/s² along the sensor axis.
 
@@ -73,6 +92,7 @@ class PlanetPassTransferPath(AbstractTransferPath):
     ring_weight: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(1.0))
     force_weight: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(1.0))
     highpass_hz: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(50.0))
+    window_harmonics: Float[Array, " K"] | None = None
 
     @property
     def aux_size(self) -> int:
@@ -80,6 +100,9 @@ class PlanetPassTransferPath(AbstractTransferPath):
 
     def window(self, twin, q) -> Float[Array, " N"]:
         phi = q.theta_c + twin.lp.planet_angles - self.sensor_angle
+        if self.window_harmonics is not None:
+            k = jnp.arange(self.window_harmonics.shape[0], dtype=jnp.float64)
+            return jnp.cos(phi[:, None] * k) @ self.window_harmonics
         return (0.5 * (1.0 + jnp.cos(phi))) ** self.window_exponent
 
     def windowed_force(self, twin, q, mesh) -> Float[Array, ""]:

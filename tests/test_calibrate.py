@@ -1,0 +1,129 @@
+"""Calibration on records the twin did not make (../shared/independent/, an independent
+simulator of the paper's simulation gearbox), and the pieces it is built from, each against a
+closed form."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dtwin.parts.transfer_path import window_cosine_coefficients
+from dtwin.sensor_response import apply_frf, frf_gain, knot_basis
+from dtwin.spec import load_spec, preset, spec_to_dict
+from dtwin.spec_writer import spec_to_toml
+
+IND = Path(__file__).resolve().parents[2] / "shared" / "independent"
+needs_independent = pytest.mark.skipif(not (IND / "baseline-1.csv").exists(),
+                                       reason="../shared/independent/ is not beside the checkout")
+
+
+def test_window_series_of_the_exponent_window():
+    # ((1 + cos φ)/2)^4 = (35 + 56 cos φ + 28 cos 2φ + 8 cos 3φ + cos 4φ) / 128 (binomial)
+    c = window_cosine_coefficients(4.0, 7)
+    np.testing.assert_allclose(c, np.array([35, 56, 28, 8, 1, 0, 0]) / 128, atol=1e-14)
+
+
+def test_frf_interpolates_in_log_frequency():
+    knots, gains = [10.0, 100.0, 1000.0], [0.0, -20.0, 10.0]
+    # linear in log f: half-way (in log) between 10 and 100 Hz lies sqrt(10·100) ≈ 31.6 Hz
+    g = np.asarray(frf_gain([5.0, 10.0, math.sqrt(1000.0), 100.0, 2000.0], knots, gains))
+    np.testing.assert_allclose(20 * np.log10(g), [0.0, 0.0, -10.0, -20.0, 10.0], atol=1e-12)
+    B = knot_basis([31.0, 500.0], knots)
+    np.testing.assert_allclose(B.sum(axis=1), 1.0)
+
+
+def test_frf_scales_a_sine_by_its_gain():
+    fs, n = 1000.0, 4000
+    t = np.arange(n) / fs
+    x = np.sin(2 * np.pi * 50.0 * t)  # 50 Hz: an integer number of periods (circular filter)
+    y = np.asarray(apply_frf(x, fs, [10.0, 100.0], [0.0, -20.0]))
+    expected = 10 ** ((-20.0 * math.log10(5.0)) / 20.0)  # log10(50/10)/log10(100/10) of −20 dB
+    assert np.max(np.abs(y)) == pytest.approx(expected, rel=1e-9)
+
+
+@pytest.mark.parametrize("name", ["paper-sim", "paper-bench", "paper-like", "lin-parker"])
+def test_spec_toml_round_trip(name, tmp_path):
+    data = spec_to_dict(preset(name))
+    data.pop("source")
+    path = tmp_path / "s.toml"
+    path.write_text(spec_to_toml(data))
+    again = spec_to_dict(load_spec(path))
+    again.pop("source")
+    assert again == data
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory):
+    from dtwin.identify.calibrate import calibrate
+
+    spec_file = IND / "gearbox.toml"
+    before = hashlib.sha256(spec_file.read_bytes()).hexdigest()
+    res = calibrate([IND / "baseline-1.csv"], spec_file)
+    assert hashlib.sha256(spec_file.read_bytes()).hexdigest() == before  # never modified
+    path = tmp_path_factory.mktemp("cal") / "calibrated.toml"
+    res.write_spec(path)
+    return res, path
+
+
+@needs_independent
+def test_calibration_closes_the_gap_on_a_held_out_record(calibrated):
+    """Calibrated on baseline-1 alone; baseline-2 (another noise realisation of the healthy
+    machine) is scored with the calibrated twin simulated in full, nothing refitted."""
+    from dtwin.identify.calibrate import heldout_gap
+
+    res, path = calibrated
+    user = heldout_gap(IND / "gearbox.toml", [IND / "baseline-2.csv"])
+    cal = heldout_gap(path, [IND / "baseline-2.csv"])
+    print(f"baseline-2 gap: spec as written {user.total:.2f} dB, calibrated {cal.total:.2f} dB;"
+          f" bands {cal.bands}")
+    assert res.gap_confirmed.total < 0.6 * res.gap_before.total
+    assert cal.total < 0.25 * user.total
+    assert cal.total < 4.5
+    for m in (1, 2, 3):
+        assert cal.bands[f"mesh{m}"] < 4.0
+
+
+@needs_independent
+@pytest.mark.xfail(strict=True, reason="issue 19's target (held-out gap <= 3 dB on baseline-2) "
+                   "is not met yet: 3.7 dB, the low band (a 4 Hz line) and one line between "
+                   "the mesh bands")
+def test_calibration_meets_the_three_db_target(calibrated):
+    from dtwin.identify.calibrate import heldout_gap
+
+    _, path = calibrated
+    assert heldout_gap(path, [IND / "baseline-2.csv"]).total <= 3.0
+
+
+@needs_independent
+def test_calibration_reports_what_the_data_do_not_determine(calibrated):
+    res, _ = calibrated
+    by_name = {p.name: p for p in res.parameters}
+    # three equally spaced planets and Zr ≡ 0 (mod 3): only window harmonics that are
+    # multiples of N = 3 reach the sensor's lines (McFadden & Smith 1985); the others are not
+    # determined, c_3 (the planet-pass line's level) is
+    assert by_name["window_c3"].determined
+    for k in (1, 2, 4, 5):
+        assert not by_name[f"window_c{k}"].determined
+    # the response at the mesh harmonics is measured by strong lines
+    assert any(p.determined for p in res.parameters if p.name.startswith("frf_db"))
+    assert 29.5 < res.f_sun < 30.5  # 1800 rpm
+    table = res.table()
+    assert "not determined" in table
+
+
+@needs_independent
+def test_calibrated_spec_is_a_spec_every_command_takes(calibrated):
+    from dtwin.build import build_twin, daq_from_spec
+    from dtwin.parts.mesh_excitation import MeshExcitation
+
+    _, path = calibrated
+    spec = load_spec(path)
+    tw = build_twin(spec)
+    assert any(isinstance(p, MeshExcitation) for p in tw.parts)
+    daq = daq_from_spec(spec)
+    assert daq.frf_hz is not None and len(daq.frf_hz) == len(daq.frf_db)
+    assert spec["calibration"]["records"] == "baseline-1.csv"
