@@ -113,7 +113,8 @@ def _spectrum_figures(folder, record, spec, f_sun, name, title):
                                                          title=f"{title}: time waveform"))
     folder.savefig(f"{name}_spectrum.png", plot_spectrum_peaks(
         data["freqs"], data["spec"], data["labelled"], unit=unit, floor=data["floor"],
-        title=f"{title}: spectrum 450–550 Hz"))
+        band=tuple(rep["band_hz"]),
+        title=f"{title}: spectrum {rep['band_hz'][0]:g}–{rep['band_hz'][1]:g} Hz"))
     folder.write_json(f"{name}_spectrum.json", rep)
     labels = sorted({p["labels"][0] for p in rep["peaks"] if p["labels"]})
     return rep, labels
