@@ -314,3 +314,23 @@ def test_signals_give_130_and_143(tmp_path, sig, code):
     assert p.returncode == code, err
     assert "interrupted" in err and "Traceback" not in err, err
     assert not (out / "manifest.json").exists()
+
+
+def test_fleet_exits_1_when_a_record_failed(files, tmp_path, monkeypatch, capsys):
+    """A fleet with a failed record keeps the others and exits 1 (0 would read as success)."""
+    from importlib import import_module
+
+    fleet = import_module("dtwin.identify.fleet")
+
+    def fake_run(records, spec, out, settings, **kw):
+        return fleet.FleetRun(out, "local", 5, 0, 1, 4, 0, 0, None, 0.1, [
+            {"record": f"r{i}", "stage": "read", "error_type": "RecordError", "error": "bad"}
+            for i in range(4)], [])
+
+    monkeypatch.setattr(fleet, "run_fleet", fake_run)
+    with pytest.raises(SystemExit) as e:
+        main(["fleet", "identify", files["rec"], "--preset", "paper-sim", "--out",
+              str(tmp_path / "fleet")])
+    assert e.value.code == 1
+    cap = capsys.readouterr()
+    assert "1 fitted, 4 failed" in cap.out and "4 of 5 record(s) failed" in cap.err

@@ -31,6 +31,7 @@ import typer
 from ..errors import SpecError
 from . import options as opts
 from .app import app
+from .logs import is_quiet, note
 
 fleet_app = typer.Typer(help="Fleet runs: many records in batch or on a Ray cluster, the "
                         "results table and per-machine trends.", no_args_is_help=True)
@@ -126,13 +127,24 @@ def fleet_identify(
                              max_retries=max_retries, discover=discover)
     run = run_fleet(records, gearbox, out, settings, manifest=manifest,
                     engine="ray" if ray_address and engine == "auto" else engine,
-                    address=ray_address, num_cpus=num_cpus, progress=not no_progress,
-                    force=force)
+                    address=ray_address, num_cpus=num_cpus,
+                    progress=not (no_progress or is_quiet()), force=force)
     if json_out:
         _echo_json(run.to_dict())
-        return
-    for note in run.notes:
-        typer.echo(f"note: {note}", err=True)
+    else:
+        _print_run(run, discover)
+    failed = run.failed + (run.discover_failed if discover else 0)
+    if failed:  # finished records are kept; a re-run retries the failed ones
+        note(f"{failed} of {run.records} record(s) failed (exit code 1); the others are in "
+             f"{out}; fix them and run the same command again")
+        raise SystemExit(1)
+
+
+def _print_run(run, discover: bool) -> None:
+    """The run's summary on stdout (notes on stderr)."""
+    for line in run.notes:
+        note(f"note: {line}")
+
     typer.echo(f"{run.records} records: {run.skipped} already done, {run.fitted} fitted, "
                f"{run.failed} failed" + (f"; discovery {run.discovered} done, "
                                          f"{run.discover_failed} failed" if discover else "")

@@ -147,11 +147,17 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
         _inject(job, inject, attempts_dir, engine == "ray")
         try:
             rec = read_record(job["path"])
+            runup = runup_range(rec, spec, settings.channel)
+            if runup is not None:  # a run-up is fitted as one, alone (never batched as steady)
+                entries[job["key"]] = _runup_entry(job, rec, spec, free, settings, kw, runup,
+                                                   fingerprint, engine)
+                continue
             prob, _ = _fit.make_problem(rec, spec, free, **{k: v for k, v in kw.items()
                                                       if k not in ("solver", "max_steps", "tol")})
             ready.append((job, rec, prob))
         except DtwinError as e:
             entries[job["key"]] = failure_entry(job, e, stage="read", fingerprint=fingerprint)
+
     groups: list[list[tuple[Mapping[str, Any], Any, Any]]] = []
     sigs: list[Any] = []
     for item in ready:
@@ -230,3 +236,75 @@ def discover_task(job: Mapping[str, Any], spec_data: Mapping[str, Any], settings
         "finished": _now(), "result": res.to_dict(),
     }
 
+
+
+#: Relative change of the input speed over a record above which it is a run-up (coast-down).
+RUNUP_SPEED_CHANGE = 0.03
+
+
+def runup_range(rec, spec, channel: str | int = 0) -> tuple[float, float] | None:
+    """The input-speed range (Hz, with a 3 % margin) of a run-up or coast-down, or None for a
+    steady record.
+
+    The speed comes from the tachometer when the record has one (its 2nd and 98th
+    percentiles), else from the strongest line near the mesh frequency in each quarter of the
+    record (a run-up moves it monotonically). A record is a run-up when the speed changes by
+    more than :data:`RUNUP_SPEED_CHANGE` of its median.
+    """
+    fs = float(rec.sample_rate)
+    gs = spec.gear_set()
+    to_sun = (gs.z_sun + gs.z_ring) / gs.z_sun
+    if rec.tacho is not None and rec.tacho_ppr:
+        from dtwin.order import shaft_speed, tacho_angle
+
+        ang = tacho_angle(np.asarray(rec.tacho), fs, int(rec.tacho_ppr))
+        sp = np.asarray(shaft_speed(ang, fs), dtype=float)
+        if rec.tacho_shaft == "carrier":
+            sp = sp * to_sun
+        lo, hi = float(np.percentile(sp, 2)), float(np.percentile(sp, 98))
+        monotone = True
+    else:
+        nominal = spec["operating"].get("f_sun")
+        x = np.asarray(rec.channel(channel), dtype=float)
+        n4 = x.size // 4
+        if not nominal or n4 < 256:
+            return None
+        mesh_order = gs.z_sun * gs.z_ring / (gs.z_sun + gs.z_ring)
+        sp = []
+        for q in range(4):
+            seg = x[q * n4:(q + 1) * n4]
+            amp = np.abs(np.fft.rfft((seg - seg.mean()) * np.hanning(n4), 4 * n4))
+            f = np.fft.rfftfreq(4 * n4, 1.0 / fs)
+            sel = (f > 0.5 * nominal * mesh_order) & (f < min(1.5 * nominal * mesh_order, fs / 2))
+            if not sel.any():
+                return None
+            sp.append(float(f[sel][np.argmax(amp[sel])]) / mesh_order)
+        sp = np.asarray(sp)
+        lo, hi = float(sp.min()), float(sp.max())
+        d = np.diff(sp)
+        monotone = bool(np.all(d >= 0) or np.all(d <= 0))
+    med = float(np.median(sp))
+    if med <= 0 or not monotone or (hi - lo) / med <= RUNUP_SPEED_CHANGE:
+        return None
+    return (0.97 * lo, 1.03 * hi)
+
+
+def _runup_entry(job, rec, spec, free, settings: FleetSettings, kw, runup, fingerprint: str,
+                 engine: str) -> dict[str, Any]:
+    """Fit a run-up record as a run-up (speed profile, spectrogram residuals), or refuse it
+    with the reason."""
+    t0 = time.perf_counter()
+    kw = {k: v for k, v in kw.items() if k not in ("f_sun", "features")}
+    try:
+        res = _fit.fit(rec, spec, free, runup=runup, starts=settings.starts,
+                       refine=settings.refine, **kw)
+    except DtwinError as e:
+        entry = failure_entry(job, e, stage="fit", fingerprint=fingerprint)
+        entry["error"] = (f"run-up record (input speed {runup[0]:.1f}–{runup[1]:.1f} Hz): "
+                          + entry["error"])
+        return entry
+
+    entry = _fit_entry(job, res, fingerprint=fingerprint, engine=engine, batched=1,
+                       wall=time.perf_counter() - t0)
+    entry["runup_hz"] = [float(runup[0]), float(runup[1])]
+    return entry
