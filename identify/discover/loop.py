@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.build import build_twin, daq_from_spec
+from dtwin.errors import DtwinError
 from dtwin.spec import Spec, load_spec
 from dtwin.spectrum import amplitude_spectrum, as_signal, noise_floor
 
@@ -203,66 +204,78 @@ def discover(
         for cov, i, matched in ranked:
             e = candidates[i]
             cr = CandidateResult(e.name, e.group, cov, matched)
-            say(f"  refit {e.name} (coverage {cov:.2f})")
-            Jt = model.response(i)  # (n, p)
-            _, Jc = segment_spectra(Jt.T, fs, settings.n_folds)  # (p, F, K)
-            Jc = np.moveaxis(Jc, 0, -1)  # (F, K, p)
-            sig_lines = [s.frequency for s in e.signature(kin, f_max)]
-            sig = np.broadcast_to(_bins_of(sig_lines, df, nb), Y.shape)
-            if not getattr(e, "modifies_model_lines", False):
-                sig = sig & ~model_line
-            ps = model.parameters[i]
-            p = Jc.shape[-1]
-            inp, sel, K = candidate_inputs(Z0, Jc, Y, floor, sig, model_line,
-                                           [q.nonnegative for q in ps], lg0)
-            nonneg = np.asarray(inp.nonneg)
-            active = np.asarray(inp.active)
-            T, fold_params = heldout_statistic(inp)
-            T = float(T)
-            fold_params = np.asarray(fold_params)
-            # held-out gap with the linearised model, parameters from the other fold
-            a_lin = np.zeros_like(Y)
-            for f in range(settings.n_folds):
-                pf = fold_params[1 - f]
-                th = theta_of(pf, nonneg, active)[:p]
-                a_f = np.exp(pf[-1]) * np.abs(Z0[f] + Jc[f] @ th)
-                a_lin[f] = a_f
-            cr.gap_after = heldout_gap(a_lin).total
-            cr.statistic = T
-            # bootstrap null
-            t_null = null_statistics(inp, rng, n_boot, Z0, floor, sel, seg_len)
-            cr.p_value = p_value(T, t_null, rng)
-            cr.significant = cr.p_value <= level and cr.gap_after < gap_now.total
-            # joint fit and intervals
-            val, loss, jac, r = fit_joint(inp, fold_params)
-            n_par = p + settings.n_folds
-            keep = np.r_[np.arange(p), P_MAX + np.arange(settings.n_folds)]
-            Jk = jac[:, keep]
-            s2 = residual_variance(inp, r, n_par)
-            try:
-                cov_u = s2 * np.linalg.inv(Jk.T @ Jk)
-            except np.linalg.LinAlgError:
-                cov_u = np.full((n_par, n_par), np.inf)
-            u = val[:p]
-            dth = np.where(nonneg[:p] > 0, np.exp(np.clip(u, -700, 700)), 1.0)  # dθ/du
-            th_units = theta_of(val, nonneg, active)[:p]
-            scales = model.scales[model.slice(i)]
-            cr.theta = th_units * scales
-            cr.sigma = np.sqrt(np.abs(np.diag(cov_u)[:p])) * dth * scales
-            gmain = np.asarray(jax.grad(e.main)(jnp.asarray(cr.theta)))
-            cov_th = cov_u[:p, :p] * np.outer(dth * scales, dth * scales)
-            cr.main = float(e.main(jnp.asarray(cr.theta)))
-            cr.main_sigma = float(np.sqrt(max(gmain @ cov_th @ gmain, 0.0)))
-            # identified: the profile interval of the overall amplitude excludes zero (more
-            # reliable than the delta method for a norm near zero, and scale-free)
-            c_lo, c_hi, evidence = amplitude_profile(inp, val, s2, chi2)
-            cr.main_interval = (c_lo * cr.main, c_hi * cr.main)
-            cr.evidence = evidence
-            cr.identified = is_identified(c_lo, evidence, cr.main, settings.confidence)
-            cr.log_gains = val[P_MAX:]
-            say(f"    T {T:.1f} p {cr.p_value:.4f} (level {level:.4f}) gap {cr.gap_after:.2f} dB "
-                f"main {cr.main:.3g} [{cr.main_interval[0]:.3g}, {cr.main_interval[1]:.3g}] "
-                f"identified {cr.identified}")
+            try:  # one candidate never ends the run: a failure sets it aside
+                say(f"  refit {e.name} (coverage {cov:.2f})")
+                Jt = model.response(i)  # (n, p)
+                _, Jc = segment_spectra(Jt.T, fs, settings.n_folds)  # (p, F, K)
+                Jc = np.moveaxis(Jc, 0, -1)  # (F, K, p)
+                sig_lines = [s.frequency for s in e.signature(kin, f_max)]
+                sig = np.broadcast_to(_bins_of(sig_lines, df, nb), Y.shape)
+                if not getattr(e, "modifies_model_lines", False):
+                    sig = sig & ~model_line
+                ps = model.parameters[i]
+                p = Jc.shape[-1]
+                inp, sel, K = candidate_inputs(Z0, Jc, Y, floor, sig, model_line,
+                                               [q.nonnegative for q in ps], lg0)
+                nonneg = np.asarray(inp.nonneg)
+                active = np.asarray(inp.active)
+                T, fold_params = heldout_statistic(inp)
+                T = float(T)
+                fold_params = np.asarray(fold_params)
+                # held-out gap with the linearised model, parameters from the other fold
+                a_lin = np.zeros_like(Y)
+                for f in range(settings.n_folds):
+                    pf = fold_params[1 - f]
+                    th = theta_of(pf, nonneg, active)[:p]
+                    a_f = np.exp(pf[-1]) * np.abs(Z0[f] + Jc[f] @ th)
+                    a_lin[f] = a_f
+                cr.gap_after = heldout_gap(a_lin).total
+                cr.statistic = T
+                # bootstrap null
+                t_null = null_statistics(inp, rng, n_boot, Z0, floor, sel, seg_len)
+                cr.p_value = p_value(T, t_null, rng)
+                cr.significant = cr.p_value <= level and cr.gap_after < gap_now.total
+                # joint fit and intervals
+                val, loss, jac, r = fit_joint(inp, fold_params)
+                n_par = p + settings.n_folds
+                keep = np.r_[np.arange(p), P_MAX + np.arange(settings.n_folds)]
+                Jk = jac[:, keep]
+                s2 = residual_variance(inp, r, n_par)
+                try:
+                    cov_u = s2 * np.linalg.inv(Jk.T @ Jk)
+                except np.linalg.LinAlgError:
+                    cov_u = np.full((n_par, n_par), np.inf)
+                u = val[:p]
+                dth = np.where(nonneg[:p] > 0, np.exp(np.clip(u, -700, 700)), 1.0)  # dθ/du
+                th_units = theta_of(val, nonneg, active)[:p]
+                scales = model.scales[model.slice(i)]
+                cr.theta = th_units * scales
+                cr.sigma = np.sqrt(np.abs(np.diag(cov_u)[:p])) * dth * scales
+                gmain = np.asarray(jax.grad(e.main)(jnp.asarray(cr.theta)))
+                cov_th = cov_u[:p, :p] * np.outer(dth * scales, dth * scales)
+                cr.main = float(e.main(jnp.asarray(cr.theta)))
+                cr.main_sigma = float(np.sqrt(max(gmain @ cov_th @ gmain, 0.0)))
+                # identified: the profile interval of the overall amplitude excludes zero (more
+                # reliable than the delta method for a norm near zero, and scale-free)
+                c_lo, c_hi, evidence = amplitude_profile(inp, val, s2, chi2)
+                cr.main_interval = (c_lo * cr.main, c_hi * cr.main)
+                cr.evidence = evidence
+                cr.identified = is_identified(c_lo, evidence, cr.main, settings.confidence)
+                cr.log_gains = val[P_MAX:]
+                say(f"    T {T:.1f} p {cr.p_value:.4f} (level {level:.4f}) gap {cr.gap_after:.2f} dB "
+                    f"main {cr.main:.3g} [{cr.main_interval[0]:.3g}, {cr.main_interval[1]:.3g}] "
+                    f"identified {cr.identified}")
+                out = [f"{q.name} = {v:.4g} {q.unit} lies outside its physical range "
+                       f"[{q.bounds[0]:g}, {q.bounds[1]:g}]"
+                       for q, v in zip(ps, cr.theta, strict=True)
+                       if not q.bounds[0] <= v <= q.bounds[1]]
+                if out:
+                    cr.rejected = "; ".join(out)
+            except (DtwinError, FloatingPointError, np.linalg.LinAlgError, ValueError) as err:
+                cr.rejected = f"refit failed: {type(err).__name__}: {err}"
+            if cr.rejected:
+                cr.significant = cr.identified = False
+                say(f"    set aside: {cr.rejected}")
             results.append(cr)
         last_cands = results
         ok = [c for c in results if c.significant and c.identified]

@@ -31,13 +31,18 @@ class CandidateResult:
     main_interval: tuple[float, float] = (float("nan"), float("nan"))
     evidence: float = float("nan")
     log_gains: np.ndarray | None = None
+    #: why the candidate was set aside (a fitted value outside its physical range, a refit that
+    #: failed); None when it was judged on its statistics
+    rejected: str | None = None
 
     def to_dict(self) -> dict:
         return dict(name=self.name, group=self.group, coverage=self.coverage,
                     statistic=self.statistic, p_value=self.p_value, gap_after=self.gap_after,
                     identified=self.identified, significant=self.significant,
                     main=self.main, main_sigma=self.main_sigma,
-                    main_interval=list(self.main_interval), evidence=self.evidence)
+                    main_interval=list(self.main_interval), evidence=self.evidence,
+                    rejected=self.rejected)
+
 
 
 @dataclasses.dataclass
