@@ -9,13 +9,6 @@ from . import _config  # noqa: F401  (float64 + compilation cache, before anythi
 from ._version import __version__ as __version__
 from .build import build_twin as build_twin
 from .build import daq_from_spec as daq_from_spec
-from .coupling import DriveComparison as DriveComparison
-from .coupling import SensitivitySweep as SensitivitySweep
-from .coupling import compare_drives as compare_drives
-from .coupling import comparison_twins as comparison_twins
-from .coupling import fault_rms as fault_rms
-from .coupling import fault_rms_and_slope as fault_rms_and_slope
-from .coupling import sensitivity_sweep as sensitivity_sweep
 from .errors import ChannelError as ChannelError
 from .errors import DtwinError as DtwinError
 from .errors import FitError as FitError

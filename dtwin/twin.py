@@ -30,9 +30,7 @@ deflection map, so every part's forces are consistent with virtual work.
 
 from __future__ import annotations
 
-import dataclasses
 import functools as ft
-from typing import Any
 
 import equinox as eqx
 import jax
@@ -40,6 +38,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .coords import Coords as Coords
+from .coords import MeshState as MeshState
+from .coords import unit_radial as unit_radial
+from .coords import unit_tangential as unit_tangential
 from .lumped import LumpedParameters
 from .parts.base import AbstractPart, Modulation
 
@@ -73,69 +75,6 @@ def _contact_force_jvp(s, primals, tangents):
     out = k * s * sp + c * dd * sg
     slope_d = k * sg + c * dd * sg * (1.0 - sg) / s
     return out, slope_d * d_d + (c * sg) * d_dd + (s * sp) * d_k + (dd * sg) * d_c
-
-
-class Coords(eqx.Module):
-    """Generalised coordinates (or velocities, accelerations, forces) of the gear set.
-
-    Translations in metres (carrier frame), rotations in radians (absolute). For a force-like
-    `Coords`, translation entries are forces (N) and rotation entries torques (N·m).
-    """
-
-    sun_xy: Float[Array, " 2"]
-    theta_s: Float[Array, ""]
-    ring_xy: Float[Array, " 2"]
-    theta_r: Float[Array, ""]
-    carrier_xy: Float[Array, " 2"]
-    theta_c: Float[Array, ""]
-    zeta: Float[Array, " N"]
-    eta: Float[Array, " N"]
-    theta_p: Float[Array, " N"]
-
-    @classmethod
-    def zeros(cls, n: int) -> Coords:
-        z2, z0, zn = jnp.zeros(2), jnp.zeros(()), jnp.zeros(n)
-        return cls(z2, z0, z2, z0, z2, z0, zn, zn, zn)
-
-    def __add__(self, other: Coords) -> Coords:
-        return jax.tree_util.tree_map(jnp.add, self, other)
-
-    def __mul__(self, scale: Any) -> Coords:
-        return jax.tree_util.tree_map(lambda a: a * scale, self)
-
-    def set(self, **fields: Any) -> Coords:
-        """A copy with the named fields replaced."""
-        return dataclasses.replace(self, **fields)
-
-
-class MeshState(eqx.Module):
-    """The meshes at one instant, shape (N,) each (sun-planet `_sp`, ring-planet `_rp`).
-
-    - `phase_*`: mesh phase (cycles); `k_*`: stiffness (N/m); `c_*`: damping (N·s/m);
-    - `delta_*`: deflection (m, positive = compressed), `ddelta_*`: its rate (m/s);
-    - `force_*`: contact force along the line of action (N), never negative.
-    """
-
-    phase_sp: Float[Array, " N"]
-    phase_rp: Float[Array, " N"]
-    k_sp: Float[Array, " N"]
-    k_rp: Float[Array, " N"]
-    c_sp: Float[Array, " N"]
-    c_rp: Float[Array, " N"]
-    delta_sp: Float[Array, " N"]
-    delta_rp: Float[Array, " N"]
-    ddelta_sp: Float[Array, " N"]
-    ddelta_rp: Float[Array, " N"]
-    force_sp: Float[Array, " N"]
-    force_rp: Float[Array, " N"]
-
-
-def unit_radial(psi):
-    return jnp.stack([jnp.cos(psi), jnp.sin(psi)], axis=-1)
-
-
-def unit_tangential(psi):
-    return jnp.stack([-jnp.sin(psi), jnp.cos(psi)], axis=-1)
 
 
 def mesh_deflections(lp: LumpedParameters, q: Coords) -> tuple[Array, Array]:

@@ -21,8 +21,10 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ..coords import Coords, MeshState
+
 if TYPE_CHECKING:
-    from ..twin import Coords, MeshState, Twin
+    from ..twin import Twin  # annotations only: the twin imports the parts
 
 
 class Modulation(eqx.Module):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
+from ..coords import Coords
 from .base import AbstractPart
 from .drive_base import AbstractDrive, AbstractLoad
 
@@ -23,8 +24,6 @@ class DrivePart(AbstractPart):
         return jnp.asarray(self.drive.aux_steady(omega_sun, torque_sun)).reshape(self.aux_size)
 
     def forces(self, twin, t, q, qdot, aux, mesh):
-        from ..twin import Coords
-
         torque, aux_dot = self.drive.shaft_torque(t, aux, q.theta_s, qdot.theta_s)
         f = Coords.zeros(twin.n_planets).set(theta_s=torque)
         outputs = self.drive.outputs(t, aux, q.theta_s, qdot.theta_s)
@@ -40,8 +39,6 @@ class LoadPart(AbstractPart):
     load: AbstractLoad
 
     def forces(self, twin, t, q, qdot, aux, mesh):
-        from ..twin import Coords
-
         tl = self.load.torque(t, q.theta_c, qdot.theta_c)
         f = Coords.zeros(twin.n_planets).set(theta_c=-tl)
         return f, jnp.zeros(0), {"torque_load": tl, "power_load": tl * qdot.theta_c}

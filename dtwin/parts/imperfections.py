@@ -24,9 +24,9 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ..coords import unit_radial, unit_tangential
 from ..faults import mesh_phases
 from ..stiffness import transmission_error
-from ..twin import unit_radial, unit_tangential
 from .base import AbstractPart, Modulation
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from ..coords import Coords
 from .base import AbstractPart
 
 
@@ -29,8 +30,6 @@ class Supports(AbstractPart):
     """
 
     def _forces(self, twin, q, qdot, modal=False):
-        from ..twin import Coords
-
         lp = twin.lp
 
         def c(k, m):

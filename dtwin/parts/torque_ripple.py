@@ -14,6 +14,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ..coords import Coords
 from .base import AbstractPart
 
 
@@ -32,8 +33,6 @@ class TorqueRipple(AbstractPart):
                              f"{self.pole_pairs}, {self.harmonic}")
 
     def forces(self, twin, t, q, qdot, aux, mesh):
-        from ..twin import Coords
-
         ang = self.harmonic * self.pole_pairs * q.theta_s
         torque = self.a_cos * jnp.cos(ang) + self.a_sin * jnp.sin(ang)
         f = Coords.zeros(twin.n_planets).set(theta_s=torque)
