@@ -60,7 +60,9 @@ def no_work(monkeypatch):
                          ("dtwin.identify.severity", "estimate_severity"),
                          ("dtwin.identify.fleet", "run_fleet"),
                          ("dtwin.identify.discover", "discover"),
-                         ("dtwin.coupling", "compare_drives")):
+                         ("dtwin.coupling", "compare_drives"),
+                         ("dtwin.identify.calibrate", "calibrate")):
+
         monkeypatch.setattr(import_module(module), name, _boom)
 
 
@@ -94,12 +96,15 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
         ("--window", "triangle"), ("--preset", "nope"), ("--spec", "{missing}"),
         ("--f-sun", "0"), ("--planet-fault", "x"), ("--threshold-db", "nan"),
         ("--min-spacing", "-1"), ("--max-peaks", "-3"), ("--floor-width", "1"),
-        ("--sample-rate", "-1"), *OUT_BAD]),
+        ("--sample-rate", "-1"), ("--scale", "loud"), ("--units", "furlongs"),
+        ("--highpass", "0"), ("--segment", "2"), ("--overlap", "1.5"), ("--iso-group", "3"),
+        ("--iso-support", "wobbly"), *OUT_BAD]),
     ("view", R): (["--kind", "psd"], [
         ("RECORD", "{missing}"), ("--kind", "spectrogram"), ("--channel", "nope"),
         ("--preset", "nope"), ("--spec", "{missing}"), ("--f-sun", "0"),
         ("--band", ("-1", "5")), ("--speed-range", ("0", "5")), ("--segment", "2"),
-        ("--nat", "-1"), ("--sample-rate", "0"), *OUT_BAD]),
+        ("--nat", "-1"), ("--sample-rate", "0"), ("--revs", "0"), ("--scale", "loud"),
+        *OUT_BAD]),
     ("identify", R): (["--preset", "paper-sim", "--free", "sun_fault"], [
         ("RECORD", "{missing}"), ("--free", "sun_faul"), ("--spec", "{missing}"),
         ("--preset", "nope"), ("--model", "quantum"), ("--f-sun", "0"),
@@ -123,7 +128,13 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
     ("fleet", "trends"): (["{done}"], [
         ("RESULTS", "{missing}"), ("--threshold", "sun_fault>>1"), ("--horizon", "0"),
         *OUT_BAD]),
+    ("calibrate", R): (["--preset", "paper-sim", "--out", "{done}_cal"], [
+
+        ("RECORDS", "{missing}"), ("--spec", "{missing}"), ("--preset", "nope"),
+        ("--model", "quantum"), ("--knots", "0"), ("--window-terms", "1"),
+        ("--channel", "nope"), ("--sample-rate", "-1"), *OUT_BAD]),
     ("discover", R): (["--preset", "paper-sim"], [
+
         ("RECORD", "{missing}"), ("--spec", "{missing}"), ("--preset", "nope"),
         ("--kind", "quantum"), ("--channel", "nope"), ("--sample-rate", "-1"),
         ("--max-steps", "-1"), ("--alpha", "0.5"), ("--alpha", "nan"), ("--n-boot", "0"),
@@ -334,3 +345,28 @@ def test_fleet_exits_1_when_a_record_failed(files, tmp_path, monkeypatch, capsys
     assert e.value.code == 1
     cap = capsys.readouterr()
     assert "1 fitted, 4 failed" in cap.out and "4 of 5 record(s) failed" in cap.err
+
+
+def test_presets_and_help_agree_with_the_library(capsys):
+    """The CLI's preset list is the library's, and every --preset help names all of them."""
+    import typer.main
+
+    from dtwin.cli import _load_commands
+    from dtwin.cli.app import app
+    from dtwin.cli.options import PRESETS
+    from dtwin.spec import PRESETS as LIB
+
+    assert tuple(PRESETS) == tuple(LIB)
+    _load_commands()
+
+    def walk(cmd):
+        if hasattr(cmd, "commands"):
+            for sub in cmd.commands.values():
+                yield from walk(sub)
+        else:
+            yield cmd
+
+    for cmd in walk(typer.main.get_command(app)):
+        for p in cmd.params:
+            if "--preset" in getattr(p, "opts", ()):
+                assert all(name in p.help for name in PRESETS), (cmd.name, p.help)

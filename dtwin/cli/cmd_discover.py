@@ -20,6 +20,7 @@ import typer
 
 from . import options as opts
 from .app import app
+from .logs import is_quiet, note
 
 
 def _fmt_lines(lines, k=8) -> str:
@@ -79,8 +80,8 @@ def markdown_report(result, record_name: str) -> str:
 @app.command()
 def discover(
     record_file: Path = typer.Argument(..., help="Record file (any supported format)."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
-    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset instead of --spec."),
+    spec: Path | None = opts.spec_option(),
+    preset: str | None = opts.preset_option(),
     kind: str | None = typer.Option(None, "--kind", help="Base model: torsional/translational "
                                                          "(default: the spec's model.kind)."),
     channel: str = typer.Option("0", "--channel", help="Channel name or index."),
@@ -117,7 +118,8 @@ def discover(
     opts.checked_record(record, ch, gearbox, input_speed(record, gearbox, None)[0], fit=True)
 
     settings = DiscoverySettings(alpha=alpha, n_boot=n_boot, max_steps=max_steps, seed=seed)
-    log = None if json_out else (lambda s: typer.echo(s, err=True))
+    log = None if json_out or is_quiet() else note
+
     result = run(record.channel(ch), gearbox, sample_rate=record.sample_rate, kind=kind,
                  settings=settings, log=log)
     report = {"record": str(record_file), "channel": str(channel), **result.to_dict()}
@@ -136,49 +138,55 @@ def discover(
             typer.echo(f"unexplained: {r.frequency:9.2f} Hz  +{r.excess_db:5.1f} dB  {r.text}")
 
     def files() -> dict:
-        from dtwin.identify.plotting.discover import plot_gap_bars, plot_step_spectra
-
-        unit = record.units[record.index(ch)] or "-"
-        out_files = {"discover.json": report,
-                     "discover.md": markdown_report(result, record_file.name),
-                     "gap.png": plot_gap_bars(result)}
-        band = (result.kinematics.f_mesh - 12 * result.kinematics.f_carrier,
-                result.kinematics.f_mesh + 12 * result.kinematics.f_carrier)
-        for k in range(len(result.models)):
-            out_files[f"spectrum_step{k}.png"] = plot_step_spectra(result, k, unit=unit)
-            out_files[f"spectrum_step{k}_mesh.png"] = plot_step_spectra(result, k, band=band,
-                                                                        unit=unit)
-        from dtwin.identify.tables import discovery_rows
-
-        from ..io.export import Columns
-        from ..io.html_report import HTMLReport
-
-        cols = {"frequency": result.freqs, "measured": result.measured}
-        cols.update({f"model_step{k}": m for k, m in enumerate(result.models)})
-        out_files["spectra.csv"] = Columns(cols, {c: ("Hz" if c == "frequency" else unit)
-                                                  for c in cols})
-        figures = {"Held-out gap, step by step": "gap.png"}
-        for k in range(len(result.models)):
-            what = "base model" if k == 0 else f"after step {k}"
-            figures[f"Measured vs {what}, full band"] = f"spectrum_step{k}.png"
-            figures[f"Measured vs {what}, first mesh harmonic ± 12 fc"] = f"spectrum_step{k}_mesh.png"
-        out_files["report.html"] = HTMLReport(
-            title=f"dtwin discover: {record_file.name} [{channel}]",
-            summary={"record": str(record_file), "channel": str(channel),
-                     "input speed (Hz, from the data)": result.f_sun,
-                     "held-out gap of the base model (dB)": result.initial_gap.total,
-                     "final held-out gap (dB)": result.final_gap.total,
-                     "stopped": result.stop_reason},
-            figures=figures,
-            tables={"Effects added (99 % intervals)": discovery_rows(result),
-                    "Unexplained lines": [{"frequency (Hz)": r.frequency,
-                                           "excess (dB)": r.excess_db,
-                                           "over floor (dB)": r.above_floor_db,
-                                           "kinematic description": r.text}
-                                          for r in result.unexplained]})
-        return out_files
+        return discover_files(result, report, record_file, channel,
+                              record.units[record.index(ch)] or "-")
 
     opts.emit(to_jsonable(report), json_out=json_out, table=table, out=out, force=force,
               files=files, inputs=[record_file], gearbox=gb,
               parameters={"channel": str(channel), "kind": kind, "max_steps": max_steps,
                           "alpha": alpha, "n_boot": n_boot, "seed": seed})
+
+
+def discover_files(result, report: dict, record_file: Path, channel, unit: str) -> dict:
+    """The files of ``dtwin discover --out``: report JSON and Markdown, figures, the spectra
+    (``spectra.csv``/``.npz``) and ``report.html``."""
+    from dtwin.identify.plotting.discover import plot_gap_bars, plot_step_spectra
+
+    out_files = {"discover.json": report,
+                 "discover.md": markdown_report(result, record_file.name),
+                 "gap.png": plot_gap_bars(result)}
+    band = (result.kinematics.f_mesh - 12 * result.kinematics.f_carrier,
+            result.kinematics.f_mesh + 12 * result.kinematics.f_carrier)
+    for k in range(len(result.models)):
+        out_files[f"spectrum_step{k}.png"] = plot_step_spectra(result, k, unit=unit)
+        out_files[f"spectrum_step{k}_mesh.png"] = plot_step_spectra(result, k, band=band,
+                                                                    unit=unit)
+    from dtwin.identify.tables import discovery_rows
+
+    from ..io.export import Columns
+    from ..io.html_report import HTMLReport
+
+    cols = {"frequency": result.freqs, "measured": result.measured}
+    cols.update({f"model_step{k}": m for k, m in enumerate(result.models)})
+    out_files["spectra.csv"] = Columns(cols, {c: ("Hz" if c == "frequency" else unit)
+                                              for c in cols})
+    figures = {"Held-out gap, step by step": "gap.png"}
+    for k in range(len(result.models)):
+        what = "base model" if k == 0 else f"after step {k}"
+        figures[f"Measured vs {what}, full band"] = f"spectrum_step{k}.png"
+        figures[f"Measured vs {what}, first mesh harmonic ± 12 fc"] = f"spectrum_step{k}_mesh.png"
+    out_files["report.html"] = HTMLReport(
+        title=f"dtwin discover: {record_file.name} [{channel}]",
+        summary={"record": str(record_file), "channel": str(channel),
+                 "input speed (Hz, from the data)": result.f_sun,
+                 "held-out gap of the base model (dB)": result.initial_gap.total,
+                 "final held-out gap (dB)": result.final_gap.total,
+                 "stopped": result.stop_reason},
+        figures=figures,
+        tables={"Effects added (99 % intervals)": discovery_rows(result),
+                "Unexplained lines": [{"frequency (Hz)": r.frequency,
+                                       "excess (dB)": r.excess_db,
+                                       "over floor (dB)": r.above_floor_db,
+                                       "kinematic description": r.text}
+                                      for r in result.unexplained]})
+    return out_files

@@ -49,8 +49,8 @@ def fleet_identify(
     records: list[str] = typer.Argument(..., help="Record files or quoted glob patterns "
                                         "('records/**/*.dtwin.h5')."),
     out: Path = typer.Option(..., "--out", help="Results folder (re-used by a re-run)."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
-    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset."),
+    spec: Path | None = opts.spec_option(),
+    preset: str | None = opts.preset_option(),
     free: str = typer.Option("sun_fault", "--free", help="Comma-separated registry names."),
     model: str = typer.Option("torsional", "--model", help="torsional or translational twin."),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz) of every "
@@ -68,8 +68,10 @@ def fleet_identify(
     manifest: Path | None = typer.Option(None, "--manifest", help="Fleet manifest CSV: path, "
                                          "machine, timestamp."),
     max_steps: int = typer.Option(40, "--max-steps", help="Solver steps per fit."),
-    tol: float = typer.Option(1e-4, "--tol", help="LM rtol (atol = tol/100); 1e-3 converges "
-                              "in fewer steps on short records (docs/fleet.md)."),
+    tol: float = typer.Option(1e-4, "--tol", help="Solver tolerance: rtol = atol = tol on θ and "
+                              "on the residuals (RMS norm); 1e-3 converges in fewer steps on "
+                              "short records (docs/fleet.md)."),
+
     starts: int = typer.Option(1, "--starts", help="Grid starts (batch size 1 only)."),
     refine: int = typer.Option(1, "--refine", help="Starts refined (batch size 1 only)."),
     grid: str = typer.Option("orders", "--grid", help="orders (residuals in the order domain: "
@@ -168,13 +170,13 @@ def fleet_table(
 
     if not (results / "records").is_dir() and not (results / "failed").is_dir():
         raise SpecError([("RESULTS", f"{results} holds no fleet results (records/ or failed/)")])
-    path, note = write_table(results, force=force, fmt="csv" if csv_out else "auto")
+    path, remark = write_table(results, force=force, fmt="csv" if csv_out else "auto")
     rows, names = table_rows(load_results(results))
     if json_out:
         _echo_json({"table": str(path), "rows": rows})
         return
-    if note:
-        typer.echo(f"note: {note}", err=True)
+    if remark:
+        note(f"note: {remark}")
     head = f"{'machine':<14} {'timestamp':<26} {'status':<7} " + " ".join(
         f"{n:>26}" for n in names) + f" {'gap dB':>7}  record"
     typer.echo(head)
@@ -240,8 +242,8 @@ def fleet_trends(
     for m, t in trends.items():
         flagged = "; ".join(f"{n}: {t.parameters[n].flag.reason}" for n in t.flagged)
         typer.echo(f"{m:<16} {len(t.records):>7}  {t.state:<12} {flagged or '-'}")
-    typer.echo(f"wrote {folder.path}/trends.json, trend_<machine>.png, overview.png",
-               err=True)
+    note(f"wrote {folder.path}/trends.json, trend_<machine>.png, overview.png")
+
 
 
 def _trend_extras(folder, results: Path, trends, thresholds, horizon: float) -> None:

@@ -30,6 +30,7 @@ from ..errors import RecordError, SpecError
 from ..reports import record_report
 from . import options as opts
 from .app import app
+from .logs import note
 
 record_app = typer.Typer(help="Recorded vibration files: inspect, check, convert.",
                          no_args_is_help=True)
@@ -165,9 +166,10 @@ def info(
     tacho_shaft: str | None = _SHAFT,
     group: str | None = _GROUP,
     fmt: str | None = _FMT,
-    preset: str | None = typer.Option(None, "--preset", help="Gearbox preset (paper-sim, "
-                                      "paper-bench) for the mesh and carrier frequencies."),
-    spec: Path | None = typer.Option(None, "--spec", help="Gearbox spec file (TOML)."),
+    preset: str | None = opts.preset_option("Gearbox for the mesh and carrier frequencies: "
+                                            + ", ".join(opts.PRESETS) + "."),
+    spec: Path | None = opts.spec_option(),
+
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input (sun) speed (Hz), "
                                        "overriding the spec's operating point."),
     f_mesh: float | None = typer.Option(None, "--f-mesh", help="Mesh frequency (Hz)."),
@@ -259,8 +261,9 @@ def convert(
                 tacho_shaft, group, fmt)
     rec.metadata["source_sha256"] = sha256_file(file)
     path = write_record(rec, target, force=force)
-    typer.echo(f"wrote {path}: {len(rec.channels)} channel(s), {rec.n_samples} samples at "
-               f"{rec.sample_rate:g} Hz", err=True)
+    note(f"wrote {path}: {len(rec.channels)} channel(s), {rec.n_samples} samples at "
+         f"{rec.sample_rate:g} Hz")
+
 
 
 def _print_report(report: dict[str, Any]) -> None:
