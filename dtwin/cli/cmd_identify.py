@@ -145,10 +145,11 @@ def identify(
     if f_sun is not None and runup is None:
         for p, r in zip(records, recs, strict=True):
             _check_given_speed(r, gb.spec, f_sun, ch, p)
-    res = fit(recs, gb.spec, names, kind=model, f_sun=f_sun,
-              runup=tuple(runup) if runup else None, solver=solver, starts=starts,
-              refine=refine, jac=jac, max_steps=max_steps, channel=ch,
-              progress=progress and not _quiet())
+    with opts.working("fitting", enabled=not progress):
+        res = fit(recs, gb.spec, names, kind=model, f_sun=f_sun,
+                  runup=tuple(runup) if runup else None, solver=solver, starts=starts,
+                  refine=refine, jac=jac, max_steps=max_steps, channel=ch,
+                  progress=progress and not _quiet())
     report = {"records": [str(p) for p in records], "gearbox": gb.source,
               "model": model, **res.to_dict()}
     opts.emit(report, json_out=json_out, table=lambda: typer.echo(res.table()), out=out,
@@ -223,8 +224,10 @@ def severity(
     (rec,) = _records([record], sample_rate, ch, gb.spec, f_sun)
     if f_sun is not None:
         _check_given_speed(rec, gb.spec, f_sun, ch, record)
-    est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
-                            channel=ch)
+    with opts.working("fitting the severity"):
+        est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
+                                channel=ch)
+
     report = {"record": str(record), "gearbox": gb.source, **est.to_dict()}
 
     def table() -> None:

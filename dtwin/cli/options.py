@@ -395,7 +395,50 @@ class progress_line:
             self._err.flush()
 
 
+class working:
+    """One updating line on stderr, ``LABEL … 12 s``, while a long step runs (fits, discovery)
+    whose library call reports no progress of its own. Only on a terminal and without
+    ``--quiet``; the line is cleared at the end, so logs and pipes stay clean.
+    """
+
+    def __init__(self, label: str, *, enabled: bool = True):
+        import sys
+
+        from .logs import is_quiet
+
+        self.label = label
+        self.enabled = enabled and not is_quiet() and sys.stderr.isatty()
+
+    def __enter__(self) -> working:
+        if self.enabled:
+            import sys
+            import threading
+            import time
+
+            self._stop = threading.Event()
+            t0 = time.perf_counter()
+
+            def tick() -> None:
+                while not self._stop.wait(1.0):
+                    sys.stderr.write(f"\r{self.label} … {time.perf_counter() - t0:.0f} s ")
+                    sys.stderr.flush()
+
+            self._thread = threading.Thread(target=tick, daemon=True)
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        if self.enabled:
+            import sys
+
+            self._stop.set()
+            self._thread.join()
+            sys.stderr.write("\r" + " " * (len(self.label) + 16) + "\r")
+            sys.stderr.flush()
+
+
 # --- the output tail ----------------------------------------------------------------------------
+
 
 
 
