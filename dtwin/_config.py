@@ -1,6 +1,6 @@
 """Process-wide JAX configuration: float64 and a persistent compilation cache.
 
-Imported first by :mod:`dtwin`. float64 is required (reference.md §6: in float32 the adaptive
+Imported first by :mod:`dtwin`. float64 is required (docs/references.md §6: in float32 the adaptive
 solver stalls on kHz mesh forcing). The compilation cache lives inside the project's virtual
 environment (``$VIRTUAL_ENV/jax-cache`` or ``sys.prefix/jax-cache``) unless ``DTWIN_JAX_CACHE``
 names another folder; set ``DTWIN_JAX_CACHE=off`` (or ``0``, ``none``) to disable it and

@@ -4,7 +4,7 @@
 periodic pattern of spacing Δf (the fm ± n·fc family of a planetary gearbox, harmonics of a
 shaft) has a log-spectrum periodic in f, which the inverse transform concentrates at
 ``q = 1/Δf`` and its multiples (rahmonics). The logarithm takes ``max(|X|, floor)`` so empty bins
-give a finite value (reference.md §7). Reference: Randall, "Vibration-based condition
+give a finite value (docs/references.md §7). Reference: Randall, "Vibration-based condition
 monitoring" (2011), ch. 3; Bogert, Healy & Tukey (1963).
 """
 

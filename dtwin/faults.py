@@ -12,7 +12,7 @@ with ``c'`` the single-pair stiffness of that mesh (:func:`dtwin.stiffness.singl
 tooth pair's stiffness the fault removes. Severity 0 gives ``Δk = 0`` exactly, so the faulty
 stiffness is bit-identical to the healthy one.
 
-**Severity → stiffness (the one place where this mapping lives; reference.md §7):**
+**Severity → stiffness (the one place where this mapping lives; docs/references.md §7):**
 
 - :class:`MissingTooth`: severity = fraction of the face width removed (1 = the whole tooth).
   Stiffness is proportional to the loaded face width, so ``f = severity`` for the whole contact

@@ -1,4 +1,4 @@
-"""The one registry of parameter names (docs/conventions.md, "Parameter names").
+"""The one registry of parameter names (docs/references.md §7, docs/conventions.md).
 
 Spec files, the Python API, the CLI (``--free``) and result files all use these names. Each
 entry states its SI unit, where it lives in a spec file (a dotted TOML path), where it lives in

@@ -1,6 +1,6 @@
 """The diffrax solve: a twin → a sampled sensor record, as a DAQ would record it.
 
-Pipeline (reference.md §6):
+Pipeline (docs/references.md §6):
 
 1. initial state: a steady state at the operating speed (static mesh deflections under the
    load, drive pre-loaded) or rest;
@@ -54,7 +54,7 @@ class SolverOptions:
       so `atol = 1e-5` means ~1e-11 m. With the defaults the sensor signal of the paper's
       gearbox is accurate to ~5e-5 of its rms, the numerical error's largest spectral line is
       ~98 dB below the signal's strongest, and in an ideal gearbox the lines the sideband rule
-      forbids stay ≥ ~65 dB below f_mesh (benchmarks/README.md, fourth round).
+      forbids stay ≥ ~65 dB below f_mesh (measured: benchmarks/README.md).
     - `rate_scale_hz`: the frequency (Hz) that converts a displacement scale into a rate scale,
       `sv = 2π rate_scale_hz sz`. A mode at this frequency weighs its displacement and velocity
       errors alike in the error norm; slower motion is controlled by its displacement, faster

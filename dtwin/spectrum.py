@@ -16,7 +16,7 @@ gain is divided out). Off a bin the peak is lower by the window's scalloping los
 ``rect``, 15 % for ``hann``, < 0.2 % for ``flattop``: use ``flattop`` to read amplitudes).
 Noise is *not* amplitude-correct in this scaling; use :mod:`dtwin.psd` for noise levels.
 
-The noise floor (reference.md §7) is a running median of the linear amplitude over a window of
+The noise floor (docs/references.md §7) is a running median of the linear amplitude over a window of
 bins, estimated before any logarithm and clamped to a positive minimum, so empty bins never give
 ``log 0``. Peaks are local maxima standing a threshold (dB) above that floor.
 
@@ -234,7 +234,7 @@ def noise_floor(
 ) -> np.ndarray:
     """Robust noise floor: running median of the linear amplitude over `width_bins` bins.
 
-    Estimated before any logarithm (reference.md §7) and clamped below at
+    Estimated before any logarithm (docs/references.md §7) and clamped below at
     ``min_fraction * max(spec)`` (and the smallest positive float), so it is never zero. For white
     Gaussian noise of standard deviation sigma, the amplitude of a bin is Rayleigh distributed and
     the median floor is ``2 sigma sqrt(ln 2 * sum w^2) / sum w`` (sigma sqrt(4 ln 2 / N) for

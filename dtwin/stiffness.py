@@ -3,7 +3,7 @@
 Three pieces, all pure JAX functions (jittable, vectorised, differentiable in every float
 argument):
 
-1. **Mean stiffness from geometry** (ISO 6336-1:2006, clause 9, method B; reference.md §4):
+1. **Mean stiffness from geometry** (ISO 6336-1:2006, clause 9, method B; docs/references.md §4):
    single-pair stiffness ``c'`` and mean mesh stiffness ``c_gamma_alpha`` of a pair, returned for
    the whole face width in N/m (:func:`single_pair_stiffness`, :func:`mesh_stiffness_mean`).
 2. **Waveform over a mesh cycle** (docs/conventions.md, "Mesh stiffness"): double tooth contact
@@ -98,7 +98,7 @@ def single_pair_stiffness(
 ) -> Float[Array, "..."]:
     r"""Single-pair tooth stiffness ``c'`` of a gear pair over the whole face width (N/m).
 
-    ISO 6336-1 method B (reference.md §4):
+    ISO 6336-1 method B (docs/references.md §4):
 
     .. math::
 
@@ -255,8 +255,8 @@ def cosine_series(x: Float[Array, "..."], coef: Float[Array, "... m"]) -> Float[
     the `m` cosines), and the derivative rule reuses that recurrence,
     ``d/dx = -2 pi sum_n n coef_n sin(2 pi n x)``, where JAX's rule for `cos` evaluates `m`
     sines more for a tangent; the sum (and its slope) are computed once per evaluation
-    (`_materialised`). On the paper's gearbox a simulation is ~1.4x faster and a forward-mode
-    Jacobian ~1.7x (benchmarks/README.md, "Fit", sixth round). Agrees with the direct sum to
+    (`_materialised`); the speed-up on the paper's gearbox is measured in benchmarks/README.md
+    ("Fit"). Agrees with the direct sum to
     rounding (~1e-15 of the amplitude at 12 harmonics); differentiable to any order (the rule
     is itself JAX).
     """
@@ -356,7 +356,7 @@ def transmission_error(
 
     **Returns:** the transmission error (m), shape of `phase`; its mean over a mesh cycle is 0.
 
-    Reference: reference.md §4 (typical amplitude 20 µm for a module-5 set).
+    Reference: docs/references.md §4 (typical amplitude 20 µm for a module-5 set).
     """
     phase = _f64(phase)
     a = _f64(harmonics).reshape(-1)

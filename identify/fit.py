@@ -62,7 +62,7 @@ SOLVERS = ("lm", "gauss-newton", "dogleg")
 #: Default statistical stopping rule: stop when the optimum is within this many standard
 #: errors of the accepted point (:func:`gauss_newton_step_in_sigma`). Above the ODE solver's
 #: noise floor: at rtol = 1e-4 the Gauss–Newton step at points within 0.03 in θ of the optimum
-#: of the benchmark fit measures 0.03–0.13 σ (benchmarks/README.md, "Fit", sixth round); with
+#: of the benchmark fit measures 0.03–0.13 σ (benchmarks/README.md, "Fit"); with
 #: 0.05 a fit could spend 15 steps chasing that noise. A step of 0.1 σ moves no interval
 #: noticeably.
 SIGMA_TOL = 0.1

@@ -8,7 +8,7 @@ What each test compares against:
 - steady state with the motor in the loop, over whole carrier periods: the torque balance through
   the gear ratio 1 + Zr/Zs and the energy balance of the coupled ODE (conservation of energy),
   with the gearbox's dissipation computed here from the states by a probe part;
-- the sideband rule of reference.md §2 for a sun fault (fm + k fs/N + n fc, n ≡ k mod N) and
+- the sideband rule of docs/references.md §2 for a sun fault (fm + k fs/N + n fc, n ≡ k mod N) and
   the motor-current-signature rule (a torque oscillation at f_x shows at f_e ± f_x in i_a);
 - RMS rising with severity in both models, the autodiff sensitivity against the secant slope,
   and the figure + table + JSON of the CLI on short records.
@@ -198,7 +198,7 @@ def test_sun_fault_lines_survive_with_the_motor_in_the_loop(coupled_steady):
     _, _, x, _ = coupled_steady
     freqs, amp = amplitude_spectrum(x, FS_DAQ, "hann", remove_mean=True)
     fsn = FS / N_PLANETS
-    # reference.md §2: lines at fm + k fs/N + n fc only for n ≡ k (mod N)
+    # docs/references.md §2: lines at fm + k fs/N + n fc only for n ≡ k (mod N)
     allowed = [FM + k * fsn + n * FC for k, n in ((1, 1), (1, -2), (-1, -1), (-1, 2))]
     cancelled = [FM + k * fsn + n * FC for k, n in ((1, 0), (-1, 0), (1, -1), (-1, 1))]
     lo = max(_line(freqs, amp, f) for f in cancelled)

@@ -23,7 +23,7 @@ def kin():
 
 
 def test_kinematics_match_reference(kin):
-    # reference.md §1 (paper Tables 1-2): fm 500.3, fc 6.18, fs 71.4, fp 16.7 (within 1 %)
+    # docs/references.md §1 (paper Tables 1-2): fm 500.3, fc 6.18, fs 71.4, fp 16.7 (within 1 %)
     assert kin.f_mesh == pytest.approx(500.3, rel=1e-3)
     assert kin.f_carrier == pytest.approx(6.2, rel=0.01)
     assert kin.f_sun_fault == pytest.approx(71.4, rel=0.01)
@@ -33,7 +33,7 @@ def test_kinematics_match_reference(kin):
 
 
 def test_describe_paper_labels(kin):
-    # the paper's healthy-spectrum lines fm ± 7fc (reference.md §1)
+    # the paper's healthy-spectrum lines fm ± 7fc (docs/references.md §1)
     assert [d.text for d in describe(kin.f_mesh - 7 * kin.f_carrier, kin, 0.1)] == ["fm − 7fc"]
     assert [d.text for d in describe(kin.f_mesh + 7 * kin.f_carrier, kin, 0.1)] == ["fm + 7fc"]
     # the motor family

@@ -329,7 +329,7 @@ PAPER_SIDEBANDS = {"fm − 7fc", "fm + 7fc"}
 
 
 def paper_like_discovery(settings: DiscoverySettings, seed: int):
-    """The paper's healthy-spectrum observation as the workflow sees it (reference.md §1-2):
+    """The paper's healthy-spectrum observation as the workflow sees it (docs/references.md §1-2):
     fm ± 7fc on a gearbox whose ideal twin forbids them (Zr mod N = 0).
 
     Record: the `paper-like` preset as specified (its translational model, planet position

@@ -2,7 +2,7 @@
 
 Records are short steady runs (2 s of signal for 0.5 Hz resolution; carrier sidebands are
 ~6 Hz apart) started from the steady state. Each simulation is cached for the module.
-References: McFadden & Smith (1985) and reference.md §2 for the sideband rule; Lin & Parker
+References: McFadden & Smith (1985) and docs/references.md §2 for the sideband rule; Lin & Parker
 (1999) for the natural frequencies (via `dtwin.modal`).
 """
 

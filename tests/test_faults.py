@@ -26,7 +26,7 @@ from dtwin.lumped import make_lumped, replace
 from dtwin.stiffness import mesh_stiffness_waveform, single_pair_from_mean
 
 F64 = jnp.float64
-ZS, ZP, ZR, N = 21, 30, 81, 3  # the paper's simulation gearbox (reference.md §1)
+ZS, ZP, ZR, N = 21, 30, 81, 3  # the paper's simulation gearbox (docs/references.md §1)
 EPS_SP, EPS_RP = 1.611, 1.936  # its contact ratios (involute geometry, standard 20° gears)
 
 

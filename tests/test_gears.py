@@ -82,7 +82,7 @@ def test_frequencies_match_paper_tables(make, f_sun, table):
     f = characteristic_frequencies(make(), f_sun)
     for name, ref in table.items():
         assert f[name] == pytest.approx(ref, rel=0.01), name
-    # the other conventions (reference.md §1): both flanks, ring fault, planet pass
+    # the other conventions (docs/references.md §1): both flanks, ring fault, planet pass
     f2 = characteristic_frequencies(make(), f_sun, planet_fault="both_flanks")
     assert f2["f_planet_fault"] == pytest.approx(2 * f["f_planet_fault"])
     gs = make()
@@ -501,7 +501,7 @@ def test_cli_freqs_json_matches_paper_table(capsys):
 
     main(["freqs", "--preset", "paper-sim", "--json"])
     out = json.loads(capsys.readouterr().out)
-    # paper Table 2 (reference.md §1)
+    # paper Table 2 (docs/references.md §1)
     assert out["frequencies_hz"]["f_mesh"] == pytest.approx(500.1, rel=0.01)
     assert out["frequencies_hz"]["f_sun_fault"] == pytest.approx(71.4, rel=0.01)
     assert out["f_planet_fault_both_flanks_hz"] == pytest.approx(

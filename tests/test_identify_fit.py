@@ -3,7 +3,7 @@
 No inverse crime in the CI form: the truth's mesh-stiffness waveform keeps 30 Fourier harmonics
 (sharper single/double-contact steps) and carries a 0.5 µm transmission error, the fitted twin
 keeps the spec's 12 harmonics and has no transmission error; and the bench runs 1 % slow
-(1782 rpm, reference.md §1) while the spec says 1800 rpm, so the speed is estimated from the
+(1782 rpm, docs/references.md §1) while the spec says 1800 rpm, so the speed is estimated from the
 record. The model-form error shows up as a larger residual variance (wider intervals) and a bias
 that the tolerance below documents.
 

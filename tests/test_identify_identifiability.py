@@ -56,7 +56,7 @@ def _analyse_at_truth(record, spec, tw, free, **kw):
 
 @pytest.fixture(scope="module")
 def steady_5k(truth_twin):
-    # the paper's DAQ: 5 kHz (reference.md §5); 1 s (6 carrier revolutions)
+    # the paper's DAQ: 5 kHz (docs/references.md §5); 1 s (6 carrier revolutions)
     return simulate(truth_twin, duration=1.0, f_sun=30.0, daq=DAQ(sample_rate=5000.0,
                     snr_db=SNR_DB), discard=0.05, seed=1).to_record()
 

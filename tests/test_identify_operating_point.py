@@ -1,8 +1,8 @@
 """dtwin.identify.operating_point: the input speed from the data, before any fit (issue 7 item 2).
 
 Synthetic records with known speed: mesh harmonics with planet-pass sidebands (the lines the
-sideband rule of reference.md §2 allows for Zr mod N = 0) plus noise, at the bench's actual
-1782 rpm while the spec says 1800 (reference.md §1), a tachometer, and a linear run-up."""
+sideband rule of docs/references.md §2 allows for Zr mod N = 0) plus noise, at the bench's actual
+1782 rpm while the spec says 1800 (docs/references.md §1), a tachometer, and a linear run-up."""
 
 import numpy as np
 import pytest
@@ -31,7 +31,7 @@ def _gear_signal(angle, orders, rng, n_planets=3, noise=0.3):
 
 
 def test_bench_speed_1782_rpm_from_spectrum(twin):
-    # paper's bench ran at 1782 rpm although set to 1800 (reference.md §1): 29.7 Hz, -1 %
+    # paper's bench ran at 1782 rpm although set to 1800 (docs/references.md §1): 29.7 Hz, -1 %
     fs, T, f_true = 5000.0, 2.0, 29.7
     t = np.arange(int(fs * T)) / fs
     o = gear_orders(twin)

@@ -2,7 +2,7 @@
 
 The numbers in the report are compared with numpy computed on the written arrays; the rate and
 duration checks with the paper's bench (f_sun = 29.7 Hz and the tooth counts of its preset, with
-f_carrier = f_sun Zs/(Zs + Zr), f_mesh = f_carrier Zr, reference.md §1).
+f_carrier = f_sun Zs/(Zs + Zr), f_mesh = f_carrier Zr, docs/references.md §1).
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ from dtwin.modal import (
     stiffness_matrix,
 )
 
-# Lin & Parker (1999), J. Vib. Acoust. 121:316, Table 2 (reference.md §3), N = 3, in Hz.
+# Lin & Parker (1999), J. Vib. Acoust. 121:316, Table 2 (docs/references.md §3), N = 3, in Hz.
 LP_ROTATIONAL = [0.0, 1475.7, 1930.3, 2658.3, 7462.8, 11775.3]
 LP_TRANSLATIONAL = [743.2, 1102.4, 1896.0, 2276.4, 6986.3, 9647.9]
 LP_ALPHA = math.radians(24.6)
@@ -171,7 +171,7 @@ def test_planet_modes_are_single_planet_with_central_members_clamped(n):
 # --- planet torsional spring --------------------------------------------------------------------
 
 def test_planet_torsional_spring_removes_rigid_body_mode(lp3, result3):
-    # reference.md §3: a planet torsional spring (1e8 N/m on u) wrongly attached moves the
+    # docs/references.md §3: a planet torsional spring (1e8 N/m on u) wrongly attached moves the
     # 0 Hz mode to about 556 Hz.
     assert float(result3.frequencies[0]) < 1e-3
     assert result3.mode_types[0] == "rotational"

@@ -28,7 +28,7 @@ from dtwin.parts.shaft import Shaft
 from dtwin.parts.speed_source import IdealSpeedSource, SpeedProfile, rpm_to_rad_s
 from dtwin.registry import lookup
 
-RATIO = 5.0  # bench: 1 + Zr/Zs = 1 + 84/21 (reference.md §1)
+RATIO = 5.0  # bench: 1 + Zr/Zs = 1 + 84/21 (docs/references.md §1)
 J_EQ = 1.5e-3  # kg·m², gearbox + brake referred to the sun
 W1800 = rpm_to_rad_s(1800.0)
 SETTLE_TIME_DOC = 0.06  # s, documented 2 % settling time of the default PMSM (docs/motor.md)

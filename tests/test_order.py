@@ -21,7 +21,7 @@ T = 3.0
 ZS, ZR, N = 21, 81, 3
 MESH_ORDER = ZS * ZR / (ZS + ZR)  # orders of the sun (reference shaft), ring fixed
 CARRIER_ORDER = ZS / (ZS + ZR)
-SB = N * CARRIER_ORDER  # sideband spacing allowed by the planet-pass rule (reference.md §2)
+SB = N * CARRIER_ORDER  # sideband spacing allowed by the planet-pass rule (docs/references.md §2)
 F0, F1 = 10.0, 30.0  # sun speed ramps linearly from F0 to F1 Hz over T
 
 

@@ -83,7 +83,7 @@ def test_unknown_preset_suggests_a_name():
 # --- Lin & Parker --------------------------------------------------------------------------------
 
 def test_lin_parker_preset_gives_their_lumped_values():
-    """Lin & Parker (1999) Table 1, reference.md §3: m, I/r², k in their u = r θ terms."""
+    """Lin & Parker (1999) Table 1, docs/references.md §3: m, I/r², k in their u = r θ terms."""
     lp = lumped_from_spec(preset("lin-parker"))
     r = {"sun": lp.rb_sun, "ring": lp.rb_ring, "planet": lp.rb_planet,
          "carrier": lp.centre_distance}
@@ -102,7 +102,7 @@ def test_lin_parker_preset_gives_their_lumped_values():
 
 
 def test_lin_parker_preset_reproduces_their_natural_frequencies():
-    """Lin & Parker (1999) Table 2 (reference.md §3), N = 3, within 0.5 %."""
+    """Lin & Parker (1999) Table 2 (docs/references.md §3), N = 3, within 0.5 %."""
     from dtwin.modal import natural_frequencies
 
     f = np.sort(np.asarray(natural_frequencies(lumped_from_spec(preset("lin-parker")))))
@@ -117,7 +117,7 @@ def test_lin_parker_preset_reproduces_their_natural_frequencies():
 # --- lumped parameters from geometry ----------------------------------------------------------------
 
 def _iso_mesh_stiffness(z1, z2, b, eps, ft, internal=False, x1=0.0, x2=0.0):
-    """ISO 6336-1 method B by hand (reference.md §4), 20°, h_fP/m = 1.25, K_A = 1."""
+    """ISO 6336-1 method B by hand (docs/references.md §4), 20°, h_fP/m = 1.25, K_A = 1."""
     inv_zn2 = 0.0 if internal else 1.0 / z2
     q = (0.04723 + 0.15551 / z1 + 0.25791 * inv_zn2 - 0.00635 * x1 - 0.11654 * x1 / z1
          - 0.00193 * x2 - 0.24188 * x2 * inv_zn2 + 0.00529 * x1**2 + 0.00182 * x2**2)
@@ -137,7 +137,7 @@ def test_iso_mesh_stiffness_from_the_load_torque():
     k_rp = _iso_mesh_stiffness(30, 81, 0.02, float(lp.eps_rp), ft, internal=True)
     assert float(lp.k_sun_planet) == pytest.approx(k_sp, rel=1e-10)
     assert float(lp.k_ring_planet) == pytest.approx(k_rp, rel=1e-10)
-    # "a few 1e8 N/m" for module-2 steel gears of 20 mm face (reference.md §4)
+    # "a few 1e8 N/m" for module-2 steel gears of 20 mm face (docs/references.md §4)
     assert 1e8 < float(lp.k_sun_planet) < 1e9
     # no load: the load factor is left out (line load >= 100 N/mm)
     lp0 = lumped_from_spec(load_spec(_with("operating.load_torque", 0.0)))
@@ -282,7 +282,7 @@ def test_missing_required_fields():
 def test_defaults_are_filled():
     s = load_spec(MINIMAL)
     assert s["gears"]["pressure_angle"] == pytest.approx(math.radians(20))
-    assert s["damping"]["zeta_sun_planet"] == 0.07  # reference.md §4 typical mesh damping
+    assert s["damping"]["zeta_sun_planet"] == 0.07  # docs/references.md §4 typical mesh damping
     assert s["sensor"]["angle"] == pytest.approx(math.pi / 2)  # conventions: on top
     assert s["motor"] == {"type": "ideal"}
     assert s["faults"] == [] and s["bearings"] == {}

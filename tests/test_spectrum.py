@@ -140,7 +140,7 @@ def test_time_stats_of_a_sine():
     assert s.crest_factor == pytest.approx(np.sqrt(2), rel=1e-6)
 
 
-# Simulation gearbox of the paper (reference.md §1): Zs 21, Zp 30, Zr 81, N 3, 1800 rpm input.
+# Simulation gearbox of the paper (docs/references.md §1): Zs 21, Zp 30, Zr 81, N 3, 1800 rpm input.
 F_SUN = 30.0
 FC = F_SUN * 21 / (21 + 81)
 FM = FC * 81

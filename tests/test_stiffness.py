@@ -100,7 +100,7 @@ def test_helix_angle_and_basic_rack_factors():
 
 
 def test_module2_20mm_steel_pair_is_a_few_1e8():
-    # reference.md §4: module-2 steel gears of 20 mm face give mesh stiffnesses of a few 1e8 N/m
+    # docs/references.md §4: module-2 steel gears of 20 mm face give mesh stiffnesses of a few 1e8 N/m
     # (the paper's simulation gearbox: sun 21, planet 30, ring 81; eps about 1.6 and 1.8)
     k_sp = float(mesh_stiffness_mean(21, 30, 0.020, 1.6))
     k_rp = float(mesh_stiffness_mean(30, 81, 0.020, 1.8, internal=True))
@@ -271,7 +271,7 @@ def test_single_pair_from_mean_inverts_iso_mean():
 # ---------------------------------------------------------------------------------------------
 def test_transmission_error_closed_form_and_zero_mean():
     ph = jnp.arange(64, dtype=F64) / 64
-    amp = 20e-6  # m, reference.md §4's typical amplitude
+    amp = 20e-6  # m, docs/references.md §4's typical amplitude
     e1 = transmission_error(ph, amp)
     np.testing.assert_allclose(np.asarray(e1), amp * np.sin(2 * np.pi * np.asarray(ph)),
                                atol=1e-20)

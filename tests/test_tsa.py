@@ -8,7 +8,7 @@ from dtwin.indicators import fm4
 from dtwin.io import Record
 from dtwin.tsa import planet_separation, sun_relative_angle, time_synchronous_average
 
-ZS, ZP, ZR, N = 21, 30, 81, 3  # the paper's simulation gearbox (reference.md §1)
+ZS, ZP, ZR, N = 21, 30, 81, 3  # the paper's simulation gearbox (docs/references.md §1)
 
 
 def _sun_fault_signature(rel_angle):

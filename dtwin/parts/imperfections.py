@@ -8,7 +8,7 @@ from the mesh deflection (docs/conventions.md, "Mesh deflection"):
   ``a dpsi_i`` along ``e_t``, which changes both mesh deflections by ``-a dpsi cos(alpha)``
   (a planet placed ahead relieves both its meshes: unequal load sharing, which the planet's
   rotation cannot absorb). Breaks the sideband cancellation of equally spaced planets
-  (reference.md §2): sidebands at every multiple of f_carrier.
+  (docs/references.md §2): sidebands at every multiple of f_carrier.
 - `SunEccentricity`: the sun's centre runs out by `e` (m), the offset turning with the sun:
   carrier-frame direction ``theta_s - theta_c + phase``.
 - `CarrierEccentricity`: every pin is offset by the same vector `e` (m) at carrier-frame angle

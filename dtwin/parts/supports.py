@@ -4,7 +4,7 @@ Translational bearings are isotropic, so their forces are the same in the carrie
 the fixed frame. Planet bearings connect each planet to its pin (`zeta`, `eta` are the bearing
 deflections). Torsional supports connect the sun, ring and carrier rotations to ground
 (a torsional spring on the planets is deliberately not offered: it would remove the gear
-set's rigid-body rotation, reference.md §3). In the dynamics only the ring's torsional support
+set's rigid-body rotation, docs/references.md §3). In the dynamics only the ring's torsional support
 acts — the sun and carrier turn without bound and are held by the drive shaft and the load
 (parts of their own); `k_torsion_sun` and `k_torsion_carrier` enter the twin's linear stiffness
 matrix (modal analysis, where they stand for shafts to ground) but not the time simulation.

@@ -169,7 +169,7 @@ def carrier_grid(kin: Kinematics, f_max: float, *, forbidden_only: bool = True,
                  mesh_orders: Sequence[int] = range(0, 5), bounds: OrderBounds = OrderBounds()
                  ) -> list[SignatureLine]:
     """Lines ``m fm + n fc`` (|n| ≤ carrier bound) up to `f_max`; with `forbidden_only` only
-    those the ideal gearbox's sideband rule cancels (reference.md §2)."""
+    those the ideal gearbox's sideband rule cancels (docs/references.md §2)."""
     out = []
     for m in mesh_orders:
         for n in range(-bounds.carrier, bounds.carrier + 1):

@@ -1,0 +1,128 @@
+"""The package's structure (issue 18): no import circles among modules, the parts do not import
+the twin, format modules do not import their dispatcher, the top-level package exposes the twin
+and not the Section 6 study, docstrings cite papers, standards or docs/, never a file outside
+the repository. Read from the source text (``ast``), so nothing is imported twice."""
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+import dtwin
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ((ROOT / "dtwin", "dtwin"), (ROOT / "identify", "dtwin.identify"))
+
+
+def _modules() -> dict[str, tuple[Path, bool]]:
+    mods = {}
+    for base, pkg in PACKAGES:
+        for f in base.rglob("*.py"):
+            parts = list(f.relative_to(base).with_suffix("").parts)
+            is_pkg = parts[-1] == "__init__"
+            if is_pkg:
+                parts = parts[:-1]
+            mods[".".join([pkg, *parts])] = (f, is_pkg)
+    return mods
+
+
+def _imports(name: str, tree: ast.Module, is_pkg: bool, mods, *, module_level: bool
+             ) -> set[str]:
+    nodes = tree.body if module_level else list(ast.walk(tree))
+    out = set()
+    for n in nodes:
+        if isinstance(n, ast.ImportFrom):
+            if n.level:
+                base = name.split(".") if is_pkg else name.split(".")[:-1]
+                base = base[: len(base) - (n.level - 1)]
+                m = ".".join(base + ([n.module] if n.module else []))
+            else:
+                m = n.module or ""
+            for a in n.names:
+                full = f"{m}.{a.name}"
+                out.add(full if full in mods else m)
+        elif isinstance(n, ast.Import):
+            out.update(a.name for a in n.names)
+    return {d for d in out if d in mods and d != name}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    index, low, stack, on, found, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                found.append(sorted(comp))
+
+    for v in list(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_import_circles_at_module_level():
+    mods = _modules()
+    graph = {n: _imports(n, ast.parse(f.read_text(encoding="utf-8")), p, mods, module_level=True)
+             for n, (f, p) in mods.items()}
+    assert _cycles(graph) == []
+
+
+@pytest.mark.parametrize("module,forbidden", [
+    # parts share Coords/MeshState with the twin through dtwin.coords, never the twin itself
+    *[(f"dtwin.parts.{f.stem}", "dtwin.twin") for f in (ROOT / "dtwin" / "parts").glob("*.py")
+      if f.stem != "__init__"],
+    # format modules use dtwin.io.values/files, never the dispatcher or the result folders
+    *[(f"dtwin.io.{f.stem}", "dtwin.io.readers") for f in (ROOT / "dtwin" / "io").glob("fmt_*.py")],
+    *[(f"dtwin.io.{f.stem}", "dtwin.io.output") for f in (ROOT / "dtwin" / "io").glob("fmt_*.py")],
+])
+def test_no_upward_import(module, forbidden):
+    """Not even inside a function (the annotations-only TYPE_CHECKING block aside)."""
+    mods = _modules()
+    f, is_pkg = mods[module]
+    tree = ast.parse(f.read_text(encoding="utf-8"))
+    for node in ast.walk(tree):  # drop `if TYPE_CHECKING:` blocks
+        if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING":
+            node.body = []
+    deps = _imports(module, tree, is_pkg, mods, module_level=False)
+    assert forbidden not in deps, f"{module} imports {forbidden}"
+
+
+def test_top_level_exposes_the_twin_not_the_section6_study():
+    for name in ("compare_drives", "sensitivity_sweep", "fault_rms", "comparison_twins",
+                 "DriveComparison", "SensitivitySweep", "fault_rms_and_slope"):
+        assert not hasattr(dtwin, name), name
+    from dtwin.coupling import compare_drives
+
+    assert callable(compare_drives)
+    for name in ("Twin", "build_twin", "simulate", "preset", "characteristic_frequencies"):
+        assert hasattr(dtwin, name), name
+
+
+def test_docstrings_cite_no_file_outside_the_repository():
+    """Facts once cited as ``reference.md §N`` (a file not in the repository) are in
+    docs/references.md; no source file names it."""
+    bad = []
+    for base, _ in PACKAGES:
+        for f in base.rglob("*.py"):
+            if re.search(r"reference\.md", f.read_text(encoding="utf-8")):
+                bad.append(str(f.relative_to(ROOT)))
+    assert bad == []
+    assert (ROOT / "docs" / "references.md").exists()
