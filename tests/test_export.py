@@ -87,3 +87,34 @@ def test_channel_tokens():
     assert r.channel_list("acc") == [0, 1, 2]  # a triaxial group
     assert r.channel_list("acc_z,0") == [2, 0]
     assert r.channel_list(1) == [1]
+
+
+def test_pandas_and_xarray_are_declared():
+    # `fleet table`'s Parquet opens with to_pandas() wherever the fleet extra is installed;
+    # the test extra brings pandas and xarray (Record.to_xarray)
+    import re
+    from importlib.metadata import requires
+
+    reqs = requires("dtwin") or []
+
+    def extra(name):
+        return {re.split(r"[<>=;\[ ]", r)[0].lower() for r in reqs
+                if re.search(rf"extra\s*==\s*['\"]{name}['\"]", r)}
+
+    assert "pandas" in extra("fleet") and "pyarrow" in extra("fleet")
+    assert {"pandas", "xarray"} <= extra("test")
+
+
+def test_parquet_table_opens_in_pandas(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    pytest.importorskip("pandas")
+    import datetime as dt
+
+    # the fleet table's column types (identify/fleet/table.py): UTC timestamps, floats, strings
+    t = pa.table({"timestamp": pa.array([dt.datetime(2026, 2, 1, tzinfo=dt.UTC)],
+                                        type=pa.timestamp("us", tz="UTC")),
+                  "sun_fault": pa.array([0.3]), "machine": pa.array(["m0"])})
+    pq.write_table(t, tmp_path / "table.parquet")
+    df = pq.read_table(tmp_path / "table.parquet").to_pandas()
+    assert df["sun_fault"].iloc[0] == 0.3 and str(df["timestamp"].dt.tz) == "UTC"
