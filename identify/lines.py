@@ -135,6 +135,30 @@ def chance_match_probability(kin: Kinematics, tolerance: float, f_max: float,
     return float(total / f_max)
 
 
+def band_bounds(kin: Kinematics, f_max: float, bounds: LineBounds = LineBounds()) -> LineBounds:
+    """`bounds` with the mesh harmonics raised to every harmonic below `f_max` (Hz): a line at
+    5 fm below Nyquist is "5fm", not "no kinematic match"."""
+    return dataclasses.replace(bounds, mesh=max(bounds.mesh, int(f_max // kin.f_mesh)))
+
+
+def _union_measure(freq: np.ndarray, tolerance: float, f_max: float) -> float:
+    """Measure (Hz) of the union of the intervals ``freq ± tolerance`` within (0, `f_max`)."""
+    freq = np.sort(np.asarray(freq)[np.asarray(freq) < f_max + tolerance])
+    lo = np.clip(freq - tolerance, 0.0, f_max)
+    hi = np.clip(freq + tolerance, 0.0, f_max)
+    total, cur_lo, cur_hi = 0.0, None, None
+    for a, b in zip(lo, hi, strict=True):
+        if cur_hi is None or a > cur_hi:
+            if cur_hi is not None:
+                total += cur_hi - cur_lo
+            cur_lo, cur_hi = a, b
+        else:
+            cur_hi = max(cur_hi, b)
+    if cur_hi is not None:
+        total += cur_hi - cur_lo
+    return float(total)
+
+
 def interpolated_peak(freqs: np.ndarray, amp: np.ndarray, k: int) -> float:
     """Frequency (Hz) of the peak at bin `k` refined by a parabola through the log amplitudes
     of bins k−1, k, k+1 (Hann: error well below 0.1 bin for an isolated line)."""
@@ -202,10 +226,15 @@ class ResidualLine:
     above_floor_db: float
     descriptions: tuple[Description, ...]
     chance: float
+    #: the label of the line as a member of a comb found in the record (:func:`find_combs`,
+    #: "14fs/3 − fc"), "" when it belongs to none; used when no bounded combination matches
+    comb: str = ""
 
     @property
     def text(self) -> str:
-        return " | ".join(d.text for d in self.descriptions) or "no kinematic match"
+        if self.descriptions:
+            return " | ".join(d.text for d in self.descriptions)
+        return f"{self.comb} (comb)" if self.comb else "no kinematic match"
 
     @property
     def power_excess(self) -> float:
@@ -215,7 +244,7 @@ class ResidualLine:
     def to_dict(self) -> dict:
         return dict(side=self.side, frequency=self.frequency, excess_db=self.excess_db,
                     above_floor_db=self.above_floor_db, description=self.text,
-                    chance_match_probability=self.chance)
+                    chance_match_probability=self.chance, comb=self.comb)
 
 
 def _peaks(amp, floor, thr_db):
@@ -242,7 +271,9 @@ def residual_lines(
 
     A line is a local maximum `threshold_db` above the noise floor (running median of the
     *measured* amplitude) whose level exceeds the other spectrum's (max over ±1 bin), both
-    floored at the noise floor, by `excess_db`. Sorted by excess, largest first.
+    floored at the noise floor, by `excess_db`. Sorted by excess, largest first. Mesh
+    harmonics are searched up to `f_max` (:func:`band_bounds`); combs are labelled by
+    :func:`find_combs` (the loop of :mod:`dtwin.identify.discover` does it).
 
     **Arguments:** `freqs` (Hz), `measured`, `model` (amplitude spectra, same unit; the model
     already scaled by its gain), `kin`, thresholds (dB), `tolerance_bins` for descriptions.
@@ -254,6 +285,7 @@ def residual_lines(
     df = float(freqs[1] - freqs[0])
     tol = tolerance_bins * df
     f_max = float(freqs[-1]) if f_max is None else float(f_max)
+    bounds = band_bounds(kin, f_max, bounds)
     chance = chance_match_probability(kin, tol, f_max, bounds)
     out = []
     for side, a, b in (("measured", measured, model), ("model", model, measured)):
@@ -284,3 +316,233 @@ def sideband_rule_lines(kin: Kinematics, f_max: float, bounds: LineBounds = Line
     return out
 
 
+
+
+#: Carrier sidebands ``|n|`` around each tooth of a fault comb.
+COMB_CARRIER = 2
+#: A comb is reported when this many residual lines lie on it and the chance of as many
+#: matches among the residual lines (binomial, Bonferroni over the combs tried) is below
+#: :data:`COMB_CHANCE`.
+COMB_MIN_MEMBERS = 3
+COMB_CHANCE = 1e-3
+
+
+@dataclasses.dataclass(frozen=True)
+class Comb:
+    """A family of lines ``k g + n fc`` (k = 1 … what the band holds, |n| ≤ `carrier`) found
+    in the residual lines and scored as a whole (:func:`find_combs`).
+
+    - `symbol` ("fs/3", "fp", "fsr", "fe", or a located frequency's name), `spacing` g (Hz),
+      `carrier` (|n| bound);
+    - `teeth`: comb lines in the band off the carrier grid; `tried`: residual lines off the
+      carrier grid it was tested against; `members`: (frequency, k, n, label) of the lines on it;
+    - `chance`: probability that a set of `tried` lines at uniformly random frequencies puts
+      at least ``len(members)`` on the comb (binomial tail, times the number of combs tried).
+    """
+
+    symbol: str
+    spacing: float
+    carrier: int
+    teeth: int
+    tried: int
+    members: tuple[tuple[float, int, int, str], ...]
+    chance: float
+
+    @property
+    def text(self) -> str:
+        return (f"comb k·{self.symbol} ± n fc (|n| ≤ {self.carrier}): {len(self.members)} of "
+                f"{self.tried} residual lines on its {self.teeth} teeth, chance "
+                f"{self.chance:.1e}")
+
+    def to_dict(self) -> dict:
+        return dict(symbol=self.symbol, spacing_hz=self.spacing, carrier=self.carrier,
+                    teeth=self.teeth, tried=self.tried, chance_match_probability=self.chance,
+                    members=[dict(frequency=f, k=k, n=n, label=lab)
+                             for f, k, n, lab in self.members])
+
+
+def comb_label(kin: Kinematics, symbol: str, g: float, k: int, n: int) -> str:
+    """Label of the comb line ``k g + n fc``; when fm is a whole multiple Q of g (fm = Zs fs/N,
+    fm = Zp fp) written around the nearest mesh harmonic, ``m fm + (k − m Q) g + n fc``."""
+    q = kin.f_mesh / g
+    if abs(q - round(q)) < 1e-6 * q and round(q) > 0:
+        qi = int(round(q))
+        m = int(np.floor(k / qi + 0.5))
+        return combination_text((("fm", m), (symbol, k - m * qi), ("fc", n)))
+    return combination_text(((symbol, k), ("fc", n)))
+
+
+def comb_lines(kin: Kinematics, symbol: str, g: float, f_max: float,
+               carrier: int = COMB_CARRIER) -> list[tuple[float, int, int, str]]:
+    """The comb ``k g + n fc`` (k ≥ 1, |n| ≤ `carrier`) below `f_max`: (Hz, k, n, label)."""
+    out = []
+    for k in range(1, int((f_max + carrier * kin.f_carrier) // g) + 1):
+        for n in range(-carrier, carrier + 1):
+            f = k * g + n * kin.f_carrier
+            if 0 < f < f_max:
+                out.append((f, k, n, comb_label(kin, symbol, g, k, n)))
+    return out
+
+
+def _binomial_tail(m: int, n: int, p: float) -> float:
+    """P(X ≥ m), X ~ Binomial(n, p)."""
+    import scipy.stats
+
+    return float(scipy.stats.binom.sf(m - 1, n, min(max(p, 0.0), 1.0)))
+
+
+def find_combs(lines: list[ResidualLine], kin: Kinematics, tolerance: float, f_max: float,
+               extra: dict[str, float] | None = None, carrier: int = COMB_CARRIER,
+               max_chance: float = COMB_CHANCE, min_members: int = COMB_MIN_MEMBERS
+               ) -> list[Comb]:
+    """Combs in the measured residual lines, scored jointly rather than line by line.
+
+    For each spacing g of the basis (``fs/N``, ``fp``, ``fsr``, ``fe``, ``fr = N fc``; `extra`:
+    located frequencies, e.g. ``{"fx": 2.1}``) the comb ``k g + n fc`` up to `f_max` is
+    compared with the residual lines that lie off the carrier grid ``m fm + n fc`` (|n| ≤ 8,
+    every mesh harmonic of the band: those lines are described already, and every comb whose
+    spacing divides fm would collect them). With ``p`` the share of the band within
+    `tolerance` of a tooth and L the lines tried, M members have chance
+    ``K · P(Binomial(L, p) ≥ M)`` (K combs tried, Bonferroni). The comb of smallest chance is
+    taken first and its members leave the pool (greedy), so one family is not counted twice.
+
+    **Returns:** the combs with at least `min_members` members and chance ≤ `max_chance`.
+    """
+    fm, fc = kin.f_mesh, kin.f_carrier
+    grid = np.array([m * fm + n * fc for m in range(int(f_max // fm) + 2)
+                     for n in range(-8, 9) if m * fm + n * fc > 0])
+    meas = [r for r in lines if r.side == "measured"
+            and np.min(np.abs(grid - r.frequency)) > tolerance]
+    basis = {s: g for s, g in kin.basis().items()}
+    basis[f"{kin.n_planets}fc"] = kin.n_planets * fc
+    basis.update(extra or {})
+    combs: dict[str, tuple] = {}
+    for sym, g in basis.items():
+        if g is None or not g > 2 * tolerance:
+            continue
+        c = 0 if sym in ("fe",) else carrier
+        teeth = [t for t in comb_lines(kin, sym, g, f_max, c)
+                 if np.min(np.abs(grid - t[0])) > tolerance]
+        if teeth:
+            combs[sym] = (g, c, teeth, np.array([t[0] for t in teeth]))
+    n_tried = max(len(combs), 1)
+    found: list[Comb] = []
+    pool = list(meas)
+    while pool and combs:
+        best = None
+        for sym, (g, c, teeth, tf) in combs.items():
+            p = _union_measure(tf, tolerance, f_max) / f_max
+            mem = []
+            for r in pool:
+                i = int(np.argmin(np.abs(tf - r.frequency)))
+                if abs(tf[i] - r.frequency) <= tolerance:
+                    mem.append((r, teeth[i]))
+            if len(mem) < min_members:
+                continue
+            ch = min(1.0, n_tried * _binomial_tail(len(mem), len(pool), p))
+            if best is None or ch < best[0]:
+                best = (ch, sym, g, c, teeth, mem)
+        if best is None or best[0] > max_chance:
+            break
+        ch, sym, g, c, teeth, mem = best
+        found.append(Comb(sym, g, c, len(teeth), len(pool),
+                          tuple((r.frequency, t[1], t[2], t[3]) for r, t in mem), ch))
+        used = {id(r) for r, _ in mem}
+        pool = [r for r in pool if id(r) not in used]
+        del combs[sym]
+    return found
+
+
+def label_combs(lines: list[ResidualLine], combs: list[Comb]) -> list[ResidualLine]:
+    """`lines` with each comb member's `comb` label (and the comb's chance as its `chance`)."""
+    lab = {}
+    for cb in combs:
+        for f, _, _, text in cb.members:
+            lab[f] = (text, cb.chance)
+    out = []
+    for r in lines:
+        if r.side == "measured" and r.frequency in lab:
+            text, ch = lab[r.frequency]
+            r = dataclasses.replace(r, comb=text, chance=r.chance if r.descriptions else ch)
+        out.append(r)
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Modulation:
+    """A modulation at a located frequency `f_x` (Hz) that is no gearbox frequency: the line
+    `f_x` and sidebands ``L ± j f_x`` (j = 1, 2) of the lines an ideal gearbox has (L =
+    ``m fm + n fc`` allowed by the sideband rule, |n| ≤ 8). `members`: (frequency, label) of
+    the residual lines on the family; `chance` as for :class:`Comb` (Bonferroni over the
+    frequencies tried)."""
+
+    f_x: float
+    teeth: int
+    tried: int
+    members: tuple[tuple[float, str], ...]
+    chance: float
+
+    @property
+    def text(self) -> str:
+        return (f"modulation at {self.f_x:.2f} Hz: {len(self.members)} of {self.tried} residual "
+                f"lines on its {self.teeth} lines, chance {self.chance:.1e}")
+
+    def to_dict(self) -> dict:
+        return dict(f_x_hz=self.f_x, teeth=self.teeth, tried=self.tried,
+                    chance_match_probability=self.chance,
+                    members=[dict(frequency=f, label=lab) for f, lab in self.members])
+
+
+def modulation_lines(kin: Kinematics, f_x: float, f_max: float, orders: int = 2,
+                     carrier: int = 8) -> list[tuple[float, str]]:
+    """Lines of a modulation at `f_x`: ``j f_x`` and ``m fm + n fc ± j f_x`` (lines allowed by
+    the sideband rule, every mesh harmonic of the band, |n| ≤ `carrier`, 1 ≤ j ≤ `orders`):
+    (Hz, label)."""
+    out = [(j * f_x, combination_text((("fx", j),))) for j in range(1, orders + 1)
+           if j * f_x < f_max]
+    for m in range(int(f_max // kin.f_mesh) + 1):
+        for n in range(-carrier, carrier + 1):
+            base = m * kin.f_mesh + n * kin.f_carrier
+            if base <= 0 or (kin.z_ring is not None and not kin.allowed_by_sideband_rule(m, n)):
+                continue
+            for j in range(-orders, orders + 1):
+                f = base + j * f_x
+                if j and 0 < f < f_max:
+                    out.append((f, combination_text((("fm", m), ("fc", n), ("fx", j)))))
+    return out
+
+
+def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float, f_max: float,
+                    max_chance: float = COMB_CHANCE, min_members: int = COMB_MIN_MEMBERS
+                    ) -> Modulation | None:
+    """Locate a modulation frequency from the record: each measured residual line below
+    ``fm / 2`` that no bounded combination describes and no comb holds is a trial `f_x`; its
+    family (:func:`modulation_lines`) is scored against the residual lines as a comb is
+    (:func:`find_combs`; the trial line itself is not counted). The most significant family
+    with at least `min_members` lines besides the trial line and chance ≤ `max_chance` and the
+    most members wins, the lowest frequency on a tie (a sideband ``3fc − f_x`` of the family
+    of f_x has f_x in its own family as ``3fc − (3fc − f_x)``: the modulation is the slower).
+
+    **Returns:** the :class:`Modulation`, or ``None``."""
+    meas = [r for r in lines if r.side == "measured"]
+    trials = [r for r in meas if not r.descriptions and not r.comb
+              and 2 * tolerance < r.frequency < 0.5 * kin.f_mesh]
+    trials.sort(key=lambda r: r.frequency)
+    best = None
+    for t in trials:
+        fam = modulation_lines(kin, t.frequency, f_max)
+        ff = np.array([f for f, _ in fam])
+        pool = [r for r in meas if r is not t]
+        mem = []
+        for r in pool:
+            i = int(np.argmin(np.abs(ff - r.frequency)))
+            if abs(ff[i] - r.frequency) <= tolerance:
+                mem.append((r.frequency, fam[i][1]))
+        if len(mem) < min_members:
+            continue
+        p = _union_measure(ff, tolerance, f_max) / f_max
+        ch = min(1.0, len(trials) * _binomial_tail(len(mem), len(pool), p))
+        if ch <= max_chance and (best is None or len(mem) + 1 > len(best.members)):
+            best = Modulation(t.frequency, len(fam), len(pool),
+                              ((t.frequency, "fx"),) + tuple(mem), ch)
+    return best

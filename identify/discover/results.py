@@ -65,10 +65,13 @@ class Step:
     candidates: list[CandidateResult]
     #: the effect's own label (its signature) of each matched line
     matched_labels: list[str] = dataclasses.field(default_factory=list)
+    #: what was added, in words ("load/speed fluctuation at 2.10 Hz")
+    summary: str = ""
 
     def to_dict(self) -> dict:
         return dict(
             number=self.number, effect=self.effect, group=self.group, named=self.named,
+            summary=self.summary,
             indistinguishable_from=self.indistinguishable_from,
             matched_lines=[dict(r.to_dict(), signature=lab) for r, lab in
                            zip(self.matched_lines, self.matched_labels or
@@ -100,6 +103,9 @@ class DiscoveryResult:
     models: list[np.ndarray]
     residuals: list[list[ResidualLine]]
     timing_s: float = 0.0
+    #: combs and the located modulation in the last residual lines (scored as families)
+    combs: list = dataclasses.field(default_factory=list)
+    modulation: object = None
 
     @property
     def named(self) -> list[str]:
@@ -121,5 +127,7 @@ class DiscoveryResult:
             chance_match_probability=self.chance_match_probability,
             stop_reason=self.stop_reason,
             last_candidates=[c.to_dict() for c in self.last_candidates],
+            combs=[c.to_dict() for c in self.combs],
+            modulation=None if self.modulation is None else self.modulation.to_dict(),
             timing_s=self.timing_s)
 

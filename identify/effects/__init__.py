@@ -12,7 +12,9 @@ Default candidates, in their look-alike groups:
 - ``housing_resonance``: a housing mode in the transfer path (frequency and damping located
   from the record, offered only when the lines call for one);
 - ``carrier_sidebands`` also holds the time-varying (planet-pass) transfer path, offered only
-  when the base twin's path has no planet window.
+  when the base twin's path has no planet window;
+- ``located_modulation``: a load/speed fluctuation at a frequency located from the record
+  (``f_x`` and ``L ± f_x``), offered only when the residual lines hold such a family.
 """
 
 from .base import AbstractEffect as AbstractEffect
@@ -28,6 +30,7 @@ from .eccentricity import SunEccentricityEffect as SunEccentricityEffect
 from .load_fluctuation import LoadFluctuationEffect as LoadFluctuationEffect
 from .load_sharing import LoadSharingEffect as LoadSharingEffect
 from .local_fault import LocalFaultEffect as LocalFaultEffect
+from .modulation import LocatedModulationEffect as LocatedModulationEffect
 from .planet_position import PlanetPositionEffect as PlanetPositionEffect
 from .torque_ripple import TorqueRippleEffect as TorqueRippleEffect
 from .transfer_path import HousingResonanceEffect as HousingResonanceEffect
@@ -38,6 +41,7 @@ for _e in (PlanetPositionEffect(), LoadSharingEffect(), CarrierEccentricityEffec
            SunEccentricityEffect(), LocalFaultEffect(location="sun"),
            LocalFaultEffect(location="planet"), TorqueRippleEffect(harmonic=6),
            PlanetBearingEffect(race="outer"), PlanetBearingEffect(race="inner"),
-           PlanetBearingEffect(race="ball"), HousingResonanceEffect(), TimeVaryingPathEffect()):
+           PlanetBearingEffect(race="ball"), HousingResonanceEffect(), TimeVaryingPathEffect(),
+           LocatedModulationEffect()):
     register_effect(_e)
 del _e

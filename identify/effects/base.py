@@ -47,7 +47,7 @@ from dtwin.kinematics import Kinematics, OrderBounds, combination_text
 from dtwin.registry import ParameterInfo
 
 __all__ = ["AbstractEffect", "EffectContext", "EffectParameter", "SignatureLine", "carrier_grid",
-           "register_effect", "registered_effects", "unregister_effect"]
+           "comb_grid", "register_effect", "registered_effects", "unregister_effect"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,7 +93,8 @@ class EffectContext:
     `spec` (the gearbox spec), `base_twin`, `kin` (kinematics at the estimated speed); the
     whole-record Hann amplitude spectra `freqs` (Hz), `measured` and `model` (the base twin,
     gain-matched), the measured noise `floor`; `lines`: the residual lines of the base twin
-    (:func:`dtwin.identify.lines.residual_lines`); `threshold_db`: line detection threshold.
+    (:func:`dtwin.identify.lines.residual_lines`); `threshold_db`: line detection threshold;
+    `tolerance_bins`: a line matches a frequency within this many bins of `freqs`.
     """
 
     spec: object
@@ -105,6 +106,7 @@ class EffectContext:
     floor: object = None
     lines: tuple = ()
     threshold_db: float = 12.0
+    tolerance_bins: float = 0.25
 
 
 class AbstractEffect(eqx.Module):
@@ -165,13 +167,19 @@ def registered_effects() -> list[AbstractEffect]:
     return list(_REGISTERED.values())
 
 
+def mesh_orders_of_band(kin: Kinematics, f_max: float) -> range:
+    """Mesh harmonics 0 … the last below `f_max` (and at least 0 … 4)."""
+    return range(0, max(4, int(f_max // kin.f_mesh)) + 1)
+
+
 def carrier_grid(kin: Kinematics, f_max: float, *, forbidden_only: bool = True,
-                 mesh_orders: Sequence[int] = range(0, 5), bounds: OrderBounds = OrderBounds()
+                 mesh_orders: Sequence[int] | None = None, bounds: OrderBounds = OrderBounds()
                  ) -> list[SignatureLine]:
-    """Lines ``m fm + n fc`` (|n| ≤ carrier bound) up to `f_max`; with `forbidden_only` only
-    those the ideal gearbox's sideband rule cancels (docs/references.md §2)."""
+    """Lines ``m fm + n fc`` (|n| ≤ carrier bound, every mesh harmonic below `f_max` unless
+    `mesh_orders` says otherwise) up to `f_max`; with `forbidden_only` only those the ideal
+    gearbox's sideband rule cancels (docs/references.md §2)."""
     out = []
-    for m in mesh_orders:
+    for m in (mesh_orders_of_band(kin, f_max) if mesh_orders is None else mesh_orders):
         for n in range(-bounds.carrier, bounds.carrier + 1):
             f = m * kin.f_mesh + n * kin.f_carrier
             if not 0 < f < f_max or (m == 0 and n <= 0):
@@ -183,10 +191,12 @@ def carrier_grid(kin: Kinematics, f_max: float, *, forbidden_only: bool = True,
 
 
 def family_grid(kin: Kinematics, f_max: float, symbol: str, g: float, orders: Sequence[int],
-                carrier: int = 2, mesh_orders: Sequence[int] = range(0, 5)) -> list[SignatureLine]:
-    """Lines ``m fm + j g + n fc`` for j in `orders`, |n| ≤ `carrier`, up to `f_max`."""
+                carrier: int = 2, mesh_orders: Sequence[int] | None = None
+                ) -> list[SignatureLine]:
+    """Lines ``m fm + j g + n fc`` for j in `orders`, |n| ≤ `carrier`, every mesh harmonic
+    below `f_max` (unless `mesh_orders`), up to `f_max`."""
     out = []
-    for m in mesh_orders:
+    for m in (mesh_orders_of_band(kin, f_max) if mesh_orders is None else mesh_orders):
         for j in orders:
             for n in range(-carrier, carrier + 1):
                 f = m * kin.f_mesh + j * g + n * kin.f_carrier
@@ -199,3 +209,14 @@ def family_grid(kin: Kinematics, f_max: float, symbol: str, g: float, orders: Se
 def rms(theta: Float[Array, " p"]) -> Float[Array, ""]:
     """Euclidean norm (used as the main amplitude of vector-valued effects)."""
     return jnp.sqrt(jnp.sum(theta**2))
+
+
+def comb_grid(kin: Kinematics, f_max: float, symbol: str, g: float, carrier: int = 2
+              ) -> list[SignatureLine]:
+    """The impulse comb of a repeating fault, ``k g + n fc`` for every k the band holds and
+    |n| ≤ `carrier` (:func:`dtwin.identify.lines.comb_lines`): a short impulse at rate g has
+    harmonics at every k g, low frequencies included, and the meshes carry them as sidebands
+    ``m fm + j g + n fc`` (fm = Zs fs/N = Zp fp lies on the comb)."""
+    from dtwin.identify.lines import comb_lines
+
+    return [SignatureLine(f, lab) for f, _, _, lab in comb_lines(kin, symbol, g, f_max, carrier)]

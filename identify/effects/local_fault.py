@@ -9,7 +9,7 @@ import equinox as eqx
 from dtwin.faults import Pitting
 from dtwin.parts.local_fault import LocalFault
 
-from .base import AbstractEffect, EffectParameter, carrier_grid, family_grid
+from .base import AbstractEffect, EffectParameter, comb_grid
 
 _GROUPS = {"sun": "sun_rotation", "planet": "planet_fault", "ring": "carrier_sidebands"}
 
@@ -18,9 +18,13 @@ class LocalFaultEffect(AbstractEffect):
     """Pitting of one tooth (severity = fraction of the flank band lost, ≥ 0).
 
     Part: :class:`dtwin.parts.local_fault.LocalFault` of a :class:`dtwin.faults.Pitting`
-    (stiffness loss linear in the severity). Lines: sun ``m fm + j fs/N + n fc``; planet
-    ``m fm + j fp + n fc``; ring ``m fm + n fc`` (fr = N fc lies on the carrier grid: the ring
-    fault belongs to the ``carrier_sidebands`` group). |j| ≤ 3, |n| ≤ 2.
+    (stiffness loss linear in the severity). Lines: the impulse comb of the tooth meeting its
+    mates (:func:`~dtwin.identify.effects.base.comb_grid`), at low frequency and as mesh
+    sidebands: sun ``k fs/N + n fc`` (fm = Zs fs/N: this holds ``m fm + j fs/N + n fc``);
+    planet ``k fp + n fc`` (fm = Zp fp), |n| ≤ 2; ring ``k fc`` (fr = N fc, its sidebands and
+    the mesh sidebands all lie on the carrier grid: the ring fault belongs to the
+    ``carrier_sidebands`` group); k up to what the band holds. Severity bounded to [0, 1] (a
+    fit outside is set aside by the search, with the reason in its report).
     """
 
     location: str = eqx.field(static=True, default="sun")
@@ -49,11 +53,10 @@ class LocalFaultEffect(AbstractEffect):
 
     def signature(self, kin, f_max):
         if self.location == "sun":
-            return family_grid(kin, f_max, f"fs/{kin.n_planets}", kin.f_sun_fault_per_planet,
-                               (-3, -2, -1, 1, 2, 3))
+            return comb_grid(kin, f_max, f"fs/{kin.n_planets}", kin.f_sun_fault_per_planet)
         if self.location == "planet":
-            return family_grid(kin, f_max, "fp", kin.f_planet_fault, (-3, -2, -1, 1, 2, 3))
-        return carrier_grid(kin, f_max, forbidden_only=False)
+            return comb_grid(kin, f_max, "fp", kin.f_planet_fault)
+        return comb_grid(kin, f_max, "fc", kin.f_carrier, carrier=0)
 
     def main(self, theta):
         return theta[0]

@@ -32,7 +32,7 @@ def _sensor_path(twin):
 
 def _grid_lines(kin, f_max, keep, carrier: int = 8):
     out = []
-    for m in range(0, 5):
+    for m in range(0, max(4, int(f_max // kin.f_mesh)) + 1):
         for n in range(-carrier, carrier + 1):
             f = m * kin.f_mesh + n * kin.f_carrier
             if 0 < f < f_max and keep(m, n, f):

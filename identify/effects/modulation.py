@@ -1,0 +1,80 @@
+"""A load or speed fluctuation at a frequency located from the record (no gearbox frequency)."""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import equinox as eqx
+
+from dtwin.parts.drive import LoadPart
+from dtwin.parts.loads import FluctuatingLoad
+
+from ..lines import find_modulation, modulation_lines
+from .base import AbstractEffect, EffectParameter, SignatureLine, rms
+
+
+class LocatedModulationEffect(AbstractEffect):
+    """Load torque ``a_cos cos(2 pi f_x t) + a_sin sin(2 pi f_x t)`` (N·m) on the carrier at a
+    frequency `f_x` (Hz) located from the record: a fluctuating process load, a brake's
+    unevenness or a speed controller's oscillation — anything that modulates the transmitted
+    torque at a rate that is not a gearbox frequency.
+
+    Parts: two :class:`dtwin.parts.loads.FluctuatingLoad` (mean 0, active at any speed). Every
+    mesh force is modulated together, so the lines are ``f_x`` and ``L ± j f_x`` around the
+    lines an ideal gearbox has (:func:`dtwin.identify.lines.modulation_lines`). The torque at
+    the carrier and the speed at the sun give the same lines to one sensor: the effect is
+    reported as a "load/speed fluctuation". `f_x` comes from the data (:meth:`adapt`:
+    :func:`dtwin.identify.lines.find_modulation`, a family of at least three residual lines
+    beside the f_x line, chance ≤ 1e-3); without one the candidate is withdrawn. Group
+    ``located_modulation``.
+    """
+
+    f_x: float | None = eqx.field(static=True, default=None)
+    name: ClassVar[str] = "located_modulation"
+    group: ClassVar[str] = "located_modulation"
+    description: ClassVar[str] = "load/speed fluctuation at a located frequency"
+    main_name: ClassVar[str] = "torque fluctuation amplitude at the carrier"
+    main_unit: ClassVar[str] = "N*m"
+    typical_range: ClassVar[tuple[float, float]] = (0.2, 10.0)
+    typical_note: ClassVar[str] = ("1–20 % of the mean load torque: process-load pulsation, a "
+                                   "brake's unevenness, a speed loop's oscillation")
+
+    @property
+    def summary(self) -> str:
+        """What the step adds, in words ("load/speed fluctuation at 2.10 Hz")."""
+        return "load/speed fluctuation" + ("" if self.f_x is None else f" at {self.f_x:.2f} Hz")
+
+    def adapt(self, context):
+        if self.f_x is not None:
+            return self
+        if context.freqs is None or not context.lines:
+            return None
+        import numpy as np
+
+        freqs = np.asarray(context.freqs)
+        df = float(freqs[1] - freqs[0])
+        found = find_modulation(list(context.lines), context.kin, context.tolerance_bins * df,
+                                float(freqs[-1]))
+        return None if found is None else LocatedModulationEffect(f_x=found.f_x)
+
+    def parameters(self, twin):
+        return (EffectParameter("located_modulation_cos", "N*m", 0.5,
+                                "load torque fluctuation at the located frequency, cosine"),
+                EffectParameter("located_modulation_sin", "N*m", 0.5,
+                                "load torque fluctuation at the located frequency, sine"))
+
+    def parts(self, theta, twin, kin):
+        if self.f_x is None:
+            raise ValueError("LocatedModulationEffect needs f_x (adapt() on the data)")
+        return (LoadPart(FluctuatingLoad(0.0, theta[0], self.f_x, math.pi / 2,
+                                         engage_speed=0.0)),
+                LoadPart(FluctuatingLoad(0.0, theta[1], self.f_x, 0.0, engage_speed=0.0)))
+
+    def signature(self, kin, f_max):
+        if self.f_x is None:
+            return []
+        return [SignatureLine(f, lab) for f, lab in modulation_lines(kin, self.f_x, f_max)]
+
+    def main(self, theta):
+        return rms(theta)
