@@ -28,13 +28,13 @@ test-all: lint
 	$(VENV)/bin/pytest -q -n 2 --dist loadgroup
 
 demo: $(STAMP)
-	$(PY) -m dtwin.demo --out demo-output
+	$(PY) -m dtwin.identify.demo --out demo-output
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
 
 notebooks: $(STAMP)
-	$(PY) -m dtwin.notebooks_render notebooks demo-output/notebooks
+	$(PY) notebooks/render.py notebooks demo-output/notebooks
 
 clean:
 	rm -rf $(VENV) demo-output .pytest_cache

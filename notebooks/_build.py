@@ -5,7 +5,7 @@
 
 Edit the cells here, not in Jupyter, then run this script: the notebooks stay reviewable as
 Python, carry no outputs, and every notebook has one cell tagged ``parameters`` (``FULL``).
-``make notebooks`` executes them and writes HTML with outputs (dtwin/notebooks_render.py);
+``make notebooks`` executes them and writes HTML with outputs (notebooks/render.py);
 ``tests/test_notebooks.py`` executes them in CI.
 """
 

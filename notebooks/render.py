@@ -1,6 +1,6 @@
 """Execute the notebooks in a folder and write them as HTML with their outputs (``make notebooks``).
 
-    python -m dtwin.notebooks_render NOTEBOOKS_DIR OUT_DIR [--full] [--timeout S] [NAME ...]
+    python notebooks/render.py NOTEBOOKS_DIR OUT_DIR [--full] [--timeout S] [NAME ...]
 
 Each ``*.ipynb`` in `NOTEBOOKS_DIR` (sorted; names starting with ``_`` are skipped; or only the
 given NAMEs) is executed with nbclient in a fresh kernel of *this* interpreter (the kernel spec

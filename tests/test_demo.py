@@ -12,7 +12,7 @@ pytestmark = pytest.mark.xdist_group("demo")
 
 
 def _run_demo(out: Path, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dtwin.demo", "--out", str(out), *extra],
+    return subprocess.run([sys.executable, "-m", "dtwin.identify.demo", "--out", str(out), *extra],
                           capture_output=True, text=True, timeout=1500)
 
 

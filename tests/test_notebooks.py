@@ -1,7 +1,7 @@
 """The notebooks run unattended: each is executed top to bottom with nbclient and fails on any error.
 
 Kernel: ``dtwin``, this interpreter (the venv's python), installed into ``sys.prefix`` by
-:func:`dtwin.notebooks_render.ensure_kernel` on first use, so a fresh clone needs only
+``ensure_kernel`` of ``notebooks/render.py`` on first use, so a fresh clone needs only
 ``make test``. ``MPLBACKEND=Agg``; short records by default (each notebook's ``FULL = False``).
 The notebooks are stored without outputs (checked here too), and ``notebooks/_build.py``, which
 writes them, reproduces them exactly. Notebooks run one after another on one xdist worker.
@@ -87,9 +87,22 @@ def test_build_script_reproduces_the_stored_notebooks(tmp_path):
     assert not changed, f"rerun notebooks/_build.py: the stored notebooks differ: {changed}"
 
 
+def _render():
+    """``notebooks/render.py`` (a script beside the notebooks, not part of the package)."""
+    import importlib.util
+
+    if "notebooks_render" not in sys.modules:
+        spec = importlib.util.spec_from_file_location("notebooks_render", NOTEBOOKS / "render.py")
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules["notebooks_render"] = mod
+        spec.loader.exec_module(mod)
+    return sys.modules["notebooks_render"]
+
+
+
 @pytest.mark.parametrize("path", _params())
 def test_notebook_runs_without_error(path):
-    from dtwin.notebooks_render import execute_notebook
+    execute_notebook = _render().execute_notebook
 
     os.environ["MPLBACKEND"] = "Agg"
     nb, err = execute_notebook(path)
