@@ -79,15 +79,21 @@ __all__ = [
     "mesh_phases",
     "mesh_stiffnesses",
     "parse_fault",
+    "peak_stiffness_loss",
     "planet_ring_delay",
     "planet_tooth_phases",
+    "severity_for_peak_loss",
+    "stiffness_loss_profile",
     "total_stiffness_loss",
     "tooth_window",
 ]
 
 #: Edge width of the smooth contact windows (mesh cycles): each edge is ``sigmoid(x / WINDOW_EDGE)``,
-#: rising from 10 % to 90 % over ``4.4 WINDOW_EDGE`` = 0.22 mesh cycles.
+#: rising from 10 % to 90 % over ``4.4 WINDOW_EDGE`` = 0.22 mesh cycles. A fault's own `ramp`
+#: (default this value) sets the edges of its loss.
 WINDOW_EDGE = 0.05
+#: Largest `ramp` of a fault (mesh cycles): a loss rising over ``4.4 × 0.5 ≈ 2`` cycles.
+MAX_RAMP = 0.5
 
 _LOCATIONS = ("sun", "planet", "ring")
 _FLANKS = ("sun", "ring", "both")
@@ -202,8 +208,8 @@ def _contact_time(x, period: int, eps):
     return v + 0.5 * eps
 
 
-def _smooth_box(u, start, stop):
-    return jax.nn.sigmoid((u - start) / WINDOW_EDGE) * jax.nn.sigmoid((stop - u) / WINDOW_EDGE)
+def _smooth_box(u, start, stop, edge=WINDOW_EDGE):
+    return jax.nn.sigmoid((u - start) / edge) * jax.nn.sigmoid((stop - u) / edge)
 
 
 def tooth_window(
@@ -269,6 +275,7 @@ class AbstractFault(eqx.Module):
     tooth: eqx.AbstractVar[int]
     planet: eqx.AbstractVar[int]
     flank: eqx.AbstractVar[str]
+    ramp: eqx.AbstractVar[Float[Array, ""]]
 
     def __check_init__(self):
         if self.location not in _LOCATIONS:
@@ -287,6 +294,12 @@ class AbstractFault(eqx.Module):
         if not isinstance(sev, jax.core.Tracer) and not (0.0 <= float(sev) <= 1.0):
             raise SpecError([("faults.severity", f"must lie in [0, 1] ({self.severity_meaning}), got "
                               f"{float(sev)}")])
+        ramp = self.ramp
+        if jnp.shape(ramp) != ():
+            raise SpecError([("faults.ramp", f"must be a scalar, got shape {jnp.shape(ramp)}")])
+        if not isinstance(ramp, jax.core.Tracer) and not (0.0 < float(ramp) <= MAX_RAMP):
+            raise SpecError([("faults.ramp", f"the loss's rise and fall must take 0 < ramp <= "
+                              f"{MAX_RAMP} mesh cycles, got {float(ramp)}")])
 
     @abc.abstractmethod
     def loss_fraction(
@@ -330,7 +343,7 @@ class AbstractFault(eqx.Module):
 
         def loss(count, period, eps, c1):
             u = _contact_time(count - self.tooth, period, eps)
-            return c1 * _smooth_box(u, 0.0, eps) * self.loss_fraction(u, eps)
+            return c1 * _smooth_box(u, 0.0, eps, self.ramp) * self.loss_fraction(u, eps)
 
         if self.location == "sun":
             phase_sp, _ = mesh_phases(lp, theta_s, theta_c, theta_r)
@@ -360,6 +373,7 @@ class MissingTooth(AbstractFault):
     tooth: int = eqx.field(static=True, default=0)
     planet: int = eqx.field(static=True, default=0)
     flank: str = eqx.field(static=True, default="both")
+    ramp: Float[Array, ""] = eqx.field(converter=_severity, default=WINDOW_EDGE)
 
     def loss_fraction(self, u, eps):
         return self.severity * jnp.ones_like(u)
@@ -382,6 +396,7 @@ class Pitting(AbstractFault):
     flank: str = eqx.field(static=True, default="sun")
     band_centre: float = eqx.field(static=True, default=0.5)
     band_width: float = eqx.field(static=True, default=0.4)
+    ramp: Float[Array, ""] = eqx.field(converter=_severity, default=WINDOW_EDGE)
 
     def __check_init__(self):
         lo = self.band_centre - 0.5 * self.band_width
@@ -413,6 +428,7 @@ class RootCrack(AbstractFault):
     flank: str = eqx.field(static=True, default="both")
     w_bending: float = eqx.field(static=True, default=0.30)
     w_shear: float = eqx.field(static=True, default=0.09)
+    ramp: Float[Array, ""] = eqx.field(converter=_severity, default=WINDOW_EDGE)
 
     def __check_init__(self):
         if not (self.w_bending > 0.0 and self.w_shear >= 0.0 and self.w_bending + self.w_shear < 1.0):
@@ -543,3 +559,83 @@ def mesh_stiffnesses(
     # so severity 0 still returns the healthy wave bit for bit).
     return jnp.maximum(k_sp - dk_sp, 0.0), jnp.maximum(k_rp - dk_rp, 0.0)
 
+
+
+# --------------------------------------------------------------------------------------------
+# Severity in physical terms: the peak mesh-stiffness loss
+# --------------------------------------------------------------------------------------------
+
+
+def _contact_ratio(fault: AbstractFault, lp_or_eps) -> Float[Array, ""]:
+    """Contact ratio of the mesh the fault's tooth loads (sun mesh for sun faults and planet
+    faults on the sun flank, ring mesh otherwise; a float is taken as the contact ratio)."""
+    if isinstance(lp_or_eps, LumpedParameters):
+        ring = fault.location == "ring" or (fault.location == "planet" and fault.flank == "ring")
+        return _f64(lp_or_eps.eps_rp if ring else lp_or_eps.eps_sp)
+    return _f64(lp_or_eps)
+
+
+def stiffness_loss_profile(
+    fault: AbstractFault, lp_or_eps, u: Float[ArrayLike, " n"]
+) -> Float[Array, " n"]:
+    r"""Fractional drop of the mesh stiffness at `u` mesh cycles after the faulty tooth enters
+    contact, relative to the healthy mesh stiffness there.
+
+    .. math:: \frac{\Delta k(u)}{k_{healthy}(u)} = \frac{w(u)\, f(\text{severity}, u)}
+              {1 + 0.75\,[\operatorname{frac}(u) < \varepsilon - 1]}
+
+    with ``w`` the fault's smooth contact window (edges of width `fault.ramp`), ``f`` its
+    :meth:`AbstractFault.loss_fraction` and the healthy stiffness the ideal ISO 6336 waveform in
+    units of ``c'``: ``1.75`` in double contact, ``1`` in single contact (the tooth enters at the
+    start of a double-contact zone, docs/conventions.md).
+
+    **Arguments:** `fault`; `lp_or_eps`: the gear set's :class:`LumpedParameters` (the contact
+    ratio of the fault's mesh is taken from it) or that contact ratio; `u` (mesh cycles).
+    **Returns:** the fractional loss (1) at each `u`.
+    """
+    eps = _contact_ratio(fault, lp_or_eps)
+    u = _f64(u)
+    healthy = jnp.where(jnp.mod(u, 1.0) < eps - 1.0, 1.0 + 0.75, 1.0)
+    window = _smooth_box(u, 0.0, eps, fault.ramp)
+    return window * fault.loss_fraction(u, eps) / healthy
+
+
+def peak_stiffness_loss(fault: AbstractFault, lp_or_eps, n_grid: int = 2001) -> Float[Array, ""]:
+    r"""Peak mesh-stiffness loss of a fault: the largest fractional drop of the mesh stiffness
+    while the faulty tooth is in mesh (:func:`stiffness_loss_profile`, maximised over the tooth's
+    passage, ``-4 ramp … eps + 4 ramp`` cycles on `n_grid` points).
+
+    The quantity comparable across fault models, benches and twins: severity is what a fault
+    type's own geometry measures (face width removed, pitted area, crack depth), the peak loss
+    what the mesh feels. A missing tooth of severity ``s`` with a sharp ramp has peak loss ``s``
+    (the whole pair, in single contact, where the healthy mesh has ``c'``); a root crack
+    ``g(s)`` (:func:`crack_loss_fraction`); a wide `ramp` lowers the peak of a short contact.
+    Differentiable in the severity and the ramp.
+
+    **Arguments:** `fault`; `lp_or_eps` (lumped parameters or the contact ratio of the fault's
+    mesh); `n_grid`. **Returns:** peak loss (1, a fraction; × 100 for %).
+    """
+    eps = _contact_ratio(fault, lp_or_eps)
+    s = jnp.linspace(0.0, 1.0, n_grid, dtype=jnp.float64)
+    u = -4.0 * fault.ramp + s * (eps + 8.0 * fault.ramp)
+    return jnp.max(stiffness_loss_profile(fault, eps, u))
+
+
+def severity_for_peak_loss(fault: AbstractFault, lp_or_eps, peak: float) -> float:
+    """Inverse of :func:`peak_stiffness_loss`: the severity of a fault of `fault`'s type, place
+    and ramp whose peak mesh-stiffness loss is `peak` (bisection; the loss grows with the
+    severity). **Returns:** severity in [0, 1]; 1 when even severity 1 loses less than `peak`.
+    """
+    def at(s):
+        return float(peak_stiffness_loss(eqx.tree_at(lambda f: f.severity, fault,
+                                                     jnp.asarray(s, jnp.float64)), lp_or_eps))
+
+    if peak <= 0.0:
+        return 0.0
+    if at(1.0) <= peak:
+        return 1.0
+    lo, hi = 0.0, 1.0
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if at(mid) < peak else (lo, mid)
+    return 0.5 * (lo + hi)

@@ -403,3 +403,69 @@ def test_faults_from_spec_tables_match_direct_construction(lp):
         assert np.array_equal(np.asarray(a), np.asarray(b))
     with pytest.raises(SpecError, match=r"faults\[0\].severity"):
         faults_from_table([{"type": "pitting", "location": "sun"}])
+
+
+# ------------------------------------------------------------------ peak mesh-stiffness loss
+def test_peak_stiffness_loss_closed_forms(lp):
+    """Sharp edges: a missing tooth of severity s removes s c' in single contact, where the
+    healthy mesh has c' (peak s); a root crack g(s); pitting whose band covers the single-contact
+    zone s. Against the stiffness the twin itself loses (mesh_stiffnesses), sampled densely."""
+    from dtwin.faults import peak_stiffness_loss
+
+    for s in (0.1, 0.5, 0.9):
+        assert float(peak_stiffness_loss(MissingTooth(s), lp)) == pytest.approx(s, rel=1e-4)
+        assert float(peak_stiffness_loss(RootCrack(s), lp)) == pytest.approx(
+            float(crack_loss_fraction(s)), rel=1e-4)
+        assert float(peak_stiffness_loss(Pitting(s), lp)) == pytest.approx(s, rel=2e-2)
+    # ring faults use the ring mesh's contact ratio; a float is taken as the contact ratio
+    assert float(peak_stiffness_loss(MissingTooth(0.4, location="ring"), lp)) == pytest.approx(
+        0.4, rel=1e-4)
+    assert float(peak_stiffness_loss(MissingTooth(0.4), EPS_SP)) == pytest.approx(0.4, rel=1e-4)
+    # the twin's own loss: max of dk / k_ideal over a sun revolution equals the peak
+    tc = relative_sun_revolution(20000)
+    f = MissingTooth(0.5, location="sun")
+    dk_sp, _ = loss_series(lp, (f,), tc)
+    c1 = float(single_pair_from_mean(lp.k_sun_planet, lp.eps_sp))
+    assert float(jnp.max(dk_sp)) / c1 == pytest.approx(0.5, rel=1e-3)
+
+
+def test_ramp_spreads_the_loss_and_keeps_its_area(lp):
+    """A wider ramp spreads the same loss over more of the passage: the area ∫ f w du is
+    s·eps/(1 − exp(−eps/ramp)) (∫σ(x)σ(c − x)dx = c/(1 − e^(−c)), the sigmoid edges), ≈ s·eps;
+    the peak drops below s, and severity 0 stays exactly 0."""
+    from dtwin.faults import peak_stiffness_loss, severity_for_peak_loss, stiffness_loss_profile
+
+    u = jnp.linspace(-5.0, 7.0, 24001)
+    du = float(u[1] - u[0])
+    for ramp in (0.05, 0.15, 0.3):
+        f = MissingTooth(0.5, ramp=ramp)
+        healthy = jnp.where(jnp.mod(u, 1.0) < EPS_SP - 1.0, 1.75, 1.0)
+        area = float(jnp.sum(stiffness_loss_profile(f, EPS_SP, u) * healthy)) * du
+        assert area == pytest.approx(0.5 * EPS_SP / (1 - math.exp(-EPS_SP / ramp)), rel=1e-5)
+    p_sharp = float(peak_stiffness_loss(MissingTooth(0.5), lp))
+    p_wide = float(peak_stiffness_loss(MissingTooth(0.5, ramp=0.3), lp))
+    assert p_wide < 0.95 * p_sharp
+    # the inverse
+    for ramp in (0.05, 0.3):
+        f = MissingTooth(0.5, ramp=ramp)
+        s = severity_for_peak_loss(f, lp, 0.36)
+        g = eqx.tree_at(lambda x: x.severity, f, jnp.asarray(s))
+        assert float(peak_stiffness_loss(g, lp)) == pytest.approx(0.36, rel=1e-6)
+    # severity 0: the loss is exactly zero whatever the ramp
+    tc = relative_sun_revolution(500)
+    dk_sp, dk_rp = loss_series(lp, (MissingTooth(0.0, ramp=0.3),), tc)
+    assert not np.any(np.asarray(dk_sp)) and not np.any(np.asarray(dk_rp))
+    with pytest.raises(SpecError, match="ramp"):
+        MissingTooth(0.5, ramp=0.0)
+
+
+def test_peak_stiffness_loss_gradient_matches_finite_differences(lp):
+    from dtwin.faults import peak_stiffness_loss
+
+    def peak(r):
+        return peak_stiffness_loss(RootCrack(0.4, ramp=r), lp)
+
+    g = float(jax.grad(peak)(jnp.asarray(0.3)))
+    h = 1e-5
+    fd = (float(peak(0.3 + h)) - float(peak(0.3 - h))) / (2 * h)
+    assert g == pytest.approx(fd, rel=1e-4, abs=1e-8)
