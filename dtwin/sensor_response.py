@@ -16,6 +16,7 @@ separate").
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
@@ -61,4 +62,4 @@ def apply_frf(x: Float[Array, " n"], sample_rate: float, knots_hz, gains_db) -> 
     """
     n = x.shape[0]
     g = frf_gain(np.fft.rfftfreq(n, 1.0 / sample_rate), knots_hz, gains_db)
-    return jnp.fft.irfft(jnp.fft.rfft(x) * g, n)
+    return jnp.fft.irfft(jnp.fft.rfft(x) * jax.lax.complex(g, jnp.zeros_like(g)), n)

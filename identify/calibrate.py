@@ -245,7 +245,7 @@ def _spec_from_data(data: dict[str, Any]) -> Spec:
 # ---------------------------------------------------------------------------------------- data
 def _as_record(r: Record | str | os.PathLike) -> tuple[Record, str]:
     if isinstance(r, Record):
-        return r, str(r.metadata.get("source", "record"))
+        return r, os.path.basename(str(r.metadata.get("source", "record")))
     return read_record(r), os.path.basename(os.fspath(r))
 
 

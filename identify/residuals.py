@@ -57,7 +57,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dtwin.errors import RecordError
+from dtwin.errors import RecordError, SettingsError
+from dtwin.parts.drive import DrivePart
+from dtwin.parts.speed_source import SpeedProfile
+from dtwin.simulate import DAQ, SolverOptions, _daq, _solve, daq_filter, initial_state
+from dtwin.spectrum import analytic_signal, get_window, noise_floor
 
 from .operating_point import gear_orders
 
@@ -114,17 +118,17 @@ class Features:
 
     def __post_init__(self):
         if self.kind not in ("spectrum", "spectrogram"):
-            raise ValueError(f"Features.kind must be spectrum or spectrogram, got {self.kind!r}")
+            raise SettingsError(f"Features.kind must be spectrum or spectrogram, got {self.kind!r}")
         if self.grid not in ("hz", "orders"):
-            raise ValueError(f"Features.grid must be hz or orders, got {self.grid!r}")
+            raise SettingsError(f"Features.grid must be hz or orders, got {self.grid!r}")
         if self.gain not in ("profile", "fixed"):
-            raise ValueError(f"Features.gain must be profile or fixed, got {self.gain!r}")
+            raise SettingsError(f"Features.gain must be profile or fixed, got {self.gain!r}")
         if self.f_max is not None:
             if self.grid != "orders" or self.kind != "spectrum" or self.envelope_weight > 0:
-                raise ValueError("Features.f_max (the order domain) needs grid='orders', "
+                raise SettingsError("Features.f_max (the order domain) needs grid='orders', "
                                  "kind='spectrum' and no envelope term")
             if not self.f_max > 0:
-                raise ValueError(f"Features.f_max must be > 0 Hz, got {self.f_max!r}")
+                raise SettingsError(f"Features.f_max must be > 0 Hz, got {self.f_max!r}")
 
     @property
     def order_domain(self) -> bool:
@@ -173,6 +177,8 @@ class Observation(eqx.Module):
     env_k: jax.Array
     env_meas: jax.Array
     env_floor: jax.Array
+    frf_hz: tuple[float, ...] | None = eqx.field(static=True, default=None)
+    frf_db: tuple[float, ...] | None = eqx.field(static=True, default=None)
     noise: jax.Array | None = None
     order_domain: bool = eqx.field(static=True, default=False)
 
@@ -187,8 +193,6 @@ class Observation(eqx.Module):
 
 # ------------------------------------------------------------------------------- transforms
 def _window(n: int) -> np.ndarray:
-    from dtwin.spectrum import get_window
-
     return get_window("hann", n)
 
 
@@ -216,8 +220,6 @@ def _feature_amplitude(x, obs_kind: str, n: int, seg: int):
 
 def _envelope(x, n: int):
     xp = jnp if isinstance(x, jax.Array) else np
-    from dtwin.spectrum import analytic_signal
-
     env = xp.abs(analytic_signal(x - xp.mean(x)))
     return _amplitude(env, n)
 
@@ -235,8 +237,6 @@ def _stationary_floor(amp2: np.ndarray, floor_bins: int) -> np.ndarray:
     measured on a 0.5 s run-up at 25.6 kHz, 10 dB SNR, that floor was 10 % (median) to 40 %
     (90th percentile) above the true noise's and the loss preferred severity 0.3 to the true 0.5;
     with the noise-only floor the loss is least at the truth."""
-    from dtwin.spectrum import noise_floor
-
     q = np.quantile(amp2, 0.1, axis=0) * _Q10_TO_MEDIAN
     return np.broadcast_to(noise_floor(q, floor_bins), amp2.shape)
 
@@ -295,8 +295,6 @@ def observe(
     **Raises:** `RecordError` for NaN/inf, a rate under 2.5 f_mesh, a record shorter than
     ``MIN_SIDEBAND_BINS / f_carrier`` or an empty band — before any simulation.
     """
-    from dtwin.spectrum import noise_floor
-
     feats = features or Features(kind="spectrum" if f_end is None else "spectrogram")
     x = _check(record, twin, f_sun if f_end is None else min(f_sun, f_end), channel)
     if f_end is not None:
@@ -309,7 +307,7 @@ def observe(
     f_round = round(float(f_sun), 1)
     if feats.order_domain:
         if f_end is not None:
-            raise ValueError("Features.f_max (the order domain) is for steady records")
+            raise SettingsError("Features.f_max (the order domain) is for steady records")
         if f_sun > feats.f_max * (1 + 1e-9):
             raise RecordError(f"input speed {f_sun:.4g} Hz is above Features.f_max = "
                               f"{feats.f_max:g} Hz; raise f_max")
@@ -405,9 +403,6 @@ def drive_at(twin, f_start, f_end=None, duration: float | None = None, discard: 
     ramp reaching `f_start` at ``t = discard`` (the first recorded sample) and `f_end` at
     ``discard + duration`` (a run-up record as :func:`dtwin.identify.residuals.observe` sees it).
     Values may be JAX arrays (traced)."""
-    from dtwin.parts.drive import DrivePart
-    from dtwin.parts.speed_source import SpeedProfile
-
     idx = [i for i, p in enumerate(twin.parts) if isinstance(p, DrivePart)]
     if not idx:
         return twin
@@ -443,8 +438,6 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     the time grid built in numpy — `simulate` itself converts a jnp grid with `float()`, which
     fails on tracers. `f_sun` (static, Hz) sets the step limit; the steady initial state is
     taken at `f_init` (Hz, may be traced) when given, else at `f_sun`."""
-    from dtwin.simulate import _daq, _solve, daq_filter, initial_state
-
     fs_out = float(daq.sample_rate)
     fs_hi = fs_out * daq.oversample
     taps = daq_filter(daq.oversample)
@@ -466,10 +459,9 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
 
 def model_signal(twin, obs: Observation, solver=None):
     """The twin's sensor signal for `obs` (same rate, length, quantity and speed), JAX."""
-    from dtwin.simulate import DAQ, SolverOptions
-
     solver = solver or SolverOptions()
-    daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample, quantity=obs.quantity)
+    daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample, quantity=obs.quantity,
+              frf_hz=obs.frf_hz, frf_db=obs.frf_db)
     f_init = obs.speed[0] if obs.order_domain else None
     sig = _simulate_jittable(_with_speed(twin, obs), duration=obs.duration,
                              f_sun=_start_speed(obs), daq=daq, discard=obs.discard, solver=solver,

@@ -82,20 +82,20 @@ def test_calibration_closes_the_gap_on_a_held_out_record(calibrated):
           f" bands {cal.bands}")
     assert res.gap_confirmed.total < 0.6 * res.gap_before.total
     assert cal.total < 0.25 * user.total
-    assert cal.total < 4.5
     for m in (1, 2, 3):
         assert cal.bands[f"mesh{m}"] < 4.0
 
 
 @needs_independent
-@pytest.mark.xfail(strict=True, reason="issue 19's target (held-out gap <= 3 dB on baseline-2) "
-                   "is not met yet: 3.7 dB, the low band (a 4 Hz line) and one line between "
-                   "the mesh bands")
 def test_calibration_meets_the_three_db_target(calibrated):
+    """Issue 19's acceptance: after calibrating on baseline-1 alone, baseline-2 (held out)
+    within 3 dB."""
     from dtwin.identify.calibrate import heldout_gap
 
     _, path = calibrated
-    assert heldout_gap(path, [IND / "baseline-2.csv"]).total <= 3.0
+    g = heldout_gap(path, [IND / "baseline-2.csv"])
+    print(f"baseline-2 held-out gap {g.total:.2f} dB, bands {g.bands}")
+    assert g.total <= 3.0
 
 
 @needs_independent
@@ -127,3 +127,20 @@ def test_calibrated_spec_is_a_spec_every_command_takes(calibrated):
     daq = daq_from_spec(spec)
     assert daq.frf_hz is not None and len(daq.frf_hz) == len(daq.frf_db)
     assert spec["calibration"]["records"] == "baseline-1.csv"
+
+
+def test_gap_counts_no_noise_bin_at_its_stated_rate():
+    """The gap's default threshold is family-wise: white noise alone puts a bin of the band
+    into its set in about ALPHA = 1 % of records (binomial: more than 8 of 200 has probability
+    ~2e-4 if the rate is 1 %)."""
+    from dtwin.identify.gap import ALPHA, gap, segment_spectra
+
+    rng = np.random.default_rng(7)
+    fs = 5000.0
+    hits = 0
+    for _ in range(200):
+        f, Z = segment_spectra(rng.standard_normal(20000), fs, 2)
+        A = np.abs(Z)
+        hits += gap(f, A, np.zeros_like(A), {"all": ((0.0, 0.45 * fs),)}).counts["all"] > 0
+    assert ALPHA == 0.01
+    assert hits <= 8

@@ -57,7 +57,7 @@ def calibrate(
         r = opts.read_record(p, sample_rate)
         opts.check_channel(r, ch)
         opts.checked_record(r, ch, gb.spec, None, fit=True)
-        r.metadata.setdefault("source", p.name)
+        r.metadata["source"] = p.name
         recs.append(r)
     settings = CalibrationSettings(window_terms=window_terms, n_knots=knots)
     import logging
@@ -67,7 +67,7 @@ def calibrate(
                  settings=settings, progress=lambda m: log.info("calibrate: %s", m))
     report = result.to_dict()
     report["spec"] = gb.source
-    unit = recs[0].units[_channel_index(recs[0], ch)]
+    unit = recs[0].units[_channel_index(recs[0], ch)] or "record unit"
     opts.emit(report, json_out=json_out, table=lambda: typer.echo(result.table()), out=out,
               force=force, files=_files(result, report, unit), inputs=[spec, *records],
               gearbox=gb, parameters={"records": [str(p) for p in records], "knots": knots,
