@@ -54,7 +54,7 @@ from .residuals import (
     observe,
     point_groups,
 )
-from .uncertainty import Uncertainty, analyse
+from .uncertainty import Uncertainty, analyse, expected_noise_rss
 
 __all__ = ["FitResult", "Problem", "SOLVERS", "fit", "fit_batch", "make_problem", "stack_problems"]
 
@@ -439,6 +439,26 @@ class FitResult:
         lo, hi = self.uncertainty.interval[i]
         return float(lo), float(hi)
 
+    @property
+    def widened(self) -> float:
+        """Factor the intervals were widened by for lack of fit (1: none;
+        :mod:`dtwin.identify.uncertainty`, "Lack of fit")."""
+        return 1.0 if self.uncertainty is None else float(self.uncertainty.widened)
+
+    def status(self, name: str) -> str:
+        """``NOT DETERMINED``, ``unconverged``, ``widened ×k for lack of fit`` (the loss stands
+        well above the noise: a model-form error of that size could move the value, so it is
+        never called ok) or ``ok``; empty without uncertainty."""
+        if self.uncertainty is None:
+            return ""
+        if name in self.uncertainty.not_determined:
+            return "NOT DETERMINED"
+        if not self.converged:
+            return "unconverged"
+        if self.widened > 1.0:
+            return f"widened ×{self.widened:.2g} for lack of fit"
+        return "ok"
+
     def table(self) -> str:
         """A readable table: value, 95 % interval, determined or not."""
         rows = [f"{'parameter':<18} {'initial':>12} {'fitted':>12} {'95 % interval':>28}  status"]
@@ -446,8 +466,7 @@ class FitResult:
             if self.uncertainty is not None:
                 lo, hi = self.uncertainty.interval[i]
                 iv = f"[{lo:.5g}, {hi:.5g}]"
-                st = ("NOT DETERMINED" if n in self.uncertainty.not_determined
-                      else "ok" if self.converged else "unconverged")
+                st = self.status(n)
             else:
                 iv, st = "", ""
             rows.append(f"{n:<18} {self.initial[n]:>12.5g} {self.values[n]:>12.5g} {iv:>28}  {st}")
@@ -456,6 +475,12 @@ class FitResult:
                     + ("converged" if self.converged else f"NOT converged ({self.message})")
 
                     + (f"; at bound: {', '.join(self.at_bound)}" if self.at_bound else ""))
+        u = self.uncertainty
+        if u is not None and np.isfinite(u.lack_of_fit):
+            rows.append(f"lack of fit: loss {u.lack_of_fit:.3g}× what the noise alone leaves"
+                        + (f"; every interval widened ×{u.widened:.3g} (covariance × the ratio: "
+                           "a model-form error of this size moves the estimates)"
+                           if u.widened > 1.0 else ""))
         for n, why in self.not_determined.items():
             rows.append(f"  {n}: not determined by these data ({why})")
         return "\n".join(rows)
@@ -573,6 +598,7 @@ def make_problem(
     if not (len(f_list) == len(r_list) == len(feat_list) == len(w_list) == n):
         raise FitError("f_sun, runup, features and weights need one entry per record")
     nominal = _nominal_speed(spec_or_twin, twin)
+    frf = _sensor_response(spec_or_twin)
     obs, ops = [], []
     for i, rec in enumerate(records):
         # cheap input checks before the speed estimate
@@ -601,11 +627,24 @@ def make_problem(
             else:
                 ops.append({"f_sun": float(f0), "method": "given"})
             f1 = None
-        obs.append(observe(rec, twin, f_sun=f0, f_end=f1, features=feat_list[i], channel=channel,
-                           weight=w_list[i], discard=discard, oversample=oversample))
+        ob = observe(rec, twin, f_sun=f0, f_end=f1, features=feat_list[i], channel=channel,
+                     weight=w_list[i], discard=discard, oversample=oversample)
+        obs.append(dataclasses.replace(ob, frf_hz=frf[0], frf_db=frf[1]) if frf else ob)
     problem = Problem(twin, pset, tuple(obs), rtol=rtol, atol=atol,
                       adjoint="forward" if jac == "fwd" else "reverse")
     return problem, ops
+
+
+def _sensor_response(spec_or_twin) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+    """The calibrated sensor response ``(frf_hz, frf_db)`` of a spec (None: flat, or a twin)."""
+    from dtwin.spec import Spec, load_spec
+    from dtwin.twin import Twin
+
+    if isinstance(spec_or_twin, Twin):
+        return None
+    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
+    s = spec["sensor"]
+    return None if s["frf_hz"] is None else (tuple(s["frf_hz"]), tuple(s["frf_db"]))
 
 
 def start_grid(p: int, n_starts: int, spread: float, seed: int) -> np.ndarray:
@@ -715,7 +754,8 @@ def fit(
         unc = analyse(pset, theta, np.asarray(r), np.asarray(J),
                       point_groups(problem.observations),
                       n_profiled_gains=problem.n_profiled_gains,
-                      profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem, mode))
+                      profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem, mode),
+                      expected_rss=expected_noise_rss(problem.observations))
     at_bound = pset.at_bound(theta)
     hit_limit = int(steps[best]) >= max_steps
     converged = bool(ok[best]) and not hit_limit
@@ -828,7 +868,8 @@ def fit_batch(
         if uncertainty:
             unc = analyse(pset, th[i], np.asarray(rs[i]), np.asarray(Js[i]),
                           point_groups(prob.observations),
-                          n_profiled_gains=prob.n_profiled_gains)
+                          n_profiled_gains=prob.n_profiled_gains,
+                          expected_rss=expected_noise_rss(prob.observations))
         at_bound = pset.at_bound(th[i])
         out.append(FitResult(
             names=pset.free, values=pset.as_dict(th[i]), theta=th[i],
