@@ -370,3 +370,16 @@ def test_presets_and_help_agree_with_the_library(capsys):
         for p in cmd.params:
             if "--preset" in getattr(p, "opts", ()):
                 assert all(name in p.help for name in PRESETS), (cmd.name, p.help)
+
+
+def test_unwritable_out_refused_before_work(tmp_path, monkeypatch, no_work, capsys):
+    """A folder the user cannot write to is refused up front (root can write anywhere, so the
+    permission probe is replaced here)."""
+    from dtwin.cli import options
+
+    monkeypatch.setattr(options, "_writable", lambda folder: False)
+    with pytest.raises(SystemExit) as e:
+        main(["simulate", "--preset", "paper-sim", "--out", str(tmp_path / "ro" / "x")])
+    assert e.value.code == 2
+    assert "not writable" in capsys.readouterr().err
+    assert not (tmp_path / "ro").exists()
