@@ -80,13 +80,22 @@ def compare_drives_cmd(
         "severities": sev, "duration_s": duration, "discard_s": discard, "kind": kind,
         "quantity": daq.quantity, "k_shaft": k_shaft, "speed_bandwidth_hz": speed_bandwidth,
         "sensitivity": not no_sensitivity, "sweep": sweep}
-    cmp = compare_drives(spec, sev, kind=kind, duration=duration, discard=discard, daq=daq,
-                         sensitivity=not no_sensitivity, k_shaft=k_shaft,
-                         speed_bandwidth=speed_bandwidth)
+    from .logs import note
+
+    note(f"simulating both models at {len(sev)} severities ({duration:g} s each, one compiled "
+         "call per model; minutes on a CPU) …")
+    with opts.working("simulating"):
+        cmp = compare_drives(spec, sev, kind=kind, duration=duration, discard=discard, daq=daq,
+                             sensitivity=not no_sensitivity, k_shaft=k_shaft,
+                             speed_bandwidth=speed_bandwidth)
     summary = {"comparison": cmp.to_dict()}
     swp = None
     if sweep:
-        swp = sensitivity_sweep(spec, kind=kind, duration=duration, discard=discard, daq=daq)
+        note("sensitivity sweep over shaft stiffness and speed-loop bandwidth …")
+        with opts.working("sweeping"):
+            swp = sensitivity_sweep(spec, kind=kind, duration=duration, discard=discard,
+                                    daq=daq)
+
         summary["sweep"] = swp.to_dict()
     if out is not None:
         from ..io.output import OutputFolder
@@ -106,6 +115,14 @@ def compare_drives_cmd(
             if swp is not None:
                 folder.savefig("sweep.png", plot_sensitivity_sweep(swp))
             folder.write_json("compare_drives.json", summary)
+            from ..io.export import write_columns
+
+            cols = {"severity": cmp.severities,
+                    **{f"rms_{m}": cmp.rms[m] for m in MODELS},
+                    **({f"slope_{m}": cmp.slope[m] for m in MODELS} if cmp.slope else {})}
+            write_columns(folder, "compare_drives", cols,
+                          {k: ("1" if k == "severity" else cmp.unit if k.startswith("rms")
+                               else f"{cmp.unit} per unit severity") for k in cols})
     if as_json:
         from ..io.output import to_jsonable
 
