@@ -277,7 +277,12 @@ def test_compare_drives_cli_figure_table_and_monotonic_rms(tmp_path, capsys):
     data = json.loads((out / "compare_drives.json").read_text())
     assert printed == data
     manifest = json.loads((out / "manifest.json").read_text())
-    assert set(manifest["files"]) == {"comparison.png", "compare_drives.json"}
+    assert set(manifest["files"]) == {"comparison.png", "compare_drives.json",
+                                      "compare_drives.csv", "compare_drives.npz"}
+    with np.load(out / "compare_drives.npz") as z:  # the figure's arrays, with units
+        np.testing.assert_array_equal(z["rms_coupled"],
+                                      [r["rms_coupled"] for r in data["comparison"]["rows"]])
+        assert list(z["units"])[:2] == ["1", "m/s^2"]
     assert manifest["settings"]["kind"] == "torsional"
     assert (out / "comparison.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     rows = data["comparison"]["rows"]
