@@ -39,7 +39,7 @@ def plot_machine_trend(trend: Any, names: Sequence[str] | None = None) -> Figure
             ax.axhline(p.flag.threshold, ls="--", color=_STATE_COLOURS[p.flag.state], lw=1,
                        label=f"threshold ({p.flag.direction})")
             state = p.flag.state
-        ax.set_ylabel(n)
+        ax.set_ylabel(f"{n} ({_unit(n)})")
         ax.grid(alpha=0.3)
         ax.set_title(f"{n}: {state}", fontsize=9, loc="left",
                      color=_STATE_COLOURS.get(state, "black"))
@@ -84,14 +84,22 @@ def plot_fleet_overview(trends: Mapping[str, Any], parameter: str | None = None)
         ax.axvline(thr, ls="--", color="0.4", lw=1)
         ax2.axhline(thr, ls="--", color="0.4", lw=1)
     ax.set_yticks(range(len(machines)), machines)
-    ax.set_xlabel(f"latest {parameter} (95 %)")
+    ax.set_xlabel(f"latest {parameter} ({_unit(parameter)}), 95 % interval")
     ax.set_title("Fleet: latest estimate per machine", fontsize=10)
     ax.grid(alpha=0.3)
     ax2.set_xlabel("days since each machine's first record")
-    ax2.set_ylabel(parameter)
+    ax2.set_ylabel(f"{parameter} ({_unit(parameter)})")
     ax2.set_title("Trajectories (green ok, orange approaching, red crossed)", fontsize=9)
     ax2.grid(alpha=0.3)
     if len(machines) <= 12:
         ax2.legend(fontsize=7, loc="best")
     fig.tight_layout()
     return fig
+
+
+def _unit(name: str) -> str:
+    """The registry's unit of parameter `name` ("dimensionless" for 1; "?" if unknown)."""
+    from dtwin.registry import REGISTRY
+
+    info = REGISTRY.get(name)
+    return "?" if info is None else ("dimensionless" if info.unit == "1" else info.unit)
