@@ -135,6 +135,22 @@ def chance_match_probability(kin: Kinematics, tolerance: float, f_max: float,
     return float(total / f_max)
 
 
+def _alias(f: float, kin: Kinematics, tolerance: float, f_nyquist: float
+           ) -> tuple[Description, ...]:
+    """Descriptions "alias of 5fm" of a line in the top fifth of the band that is the mirror
+    ``2 f_nyquist − f`` of a carrier-grid line above Nyquist (``m fm + n fc``, m ≥ 1): what a
+    DAQ's anti-alias filter lets through in its transition band (the independent records show
+    5 fm = 2501.5 Hz at 2498.5 Hz)."""
+    if f < 0.8 * f_nyquist:
+        return ()
+    fa = 2.0 * f_nyquist - f
+    b = dataclasses.replace(LineBounds(), mesh=int(2 * f_nyquist // kin.f_mesh) + 1, fault=0,
+                            motor=0)
+    return tuple(dataclasses.replace(d, text=f"alias of {d.text}")
+                 for d in describe(fa, kin, tolerance, b)
+                 if d.coefficient("fm") > 0 and d.families <= 2 and d.frequency > f_nyquist)
+
+
 def band_bounds(kin: Kinematics, f_max: float, bounds: LineBounds = LineBounds()) -> LineBounds:
     """`bounds` with the mesh harmonics raised to every harmonic below `f_max` (Hz): a line at
     5 fm below Nyquist is "5fm", not "no kinematic match"."""
@@ -297,9 +313,9 @@ def residual_lines(
             if ex < excess_db:
                 continue
             f = interpolated_peak(freqs, a, int(k))
+            desc = tuple(describe(f, kin, tol, bounds)) or _alias(f, kin, tol, float(freqs[-1]))
             out.append(ResidualLine(side, f, int(k), float(ex),
-                                    float(20 * np.log10(a[k] / floor[k])),
-                                    tuple(describe(f, kin, tol, bounds)), chance))
+                                    float(20 * np.log10(a[k] / floor[k])), desc, chance))
     out.sort(key=lambda r: -r.excess_db)
     return out
 

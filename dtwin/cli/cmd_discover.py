@@ -40,6 +40,7 @@ def markdown_report(result, record_name: str) -> str:
            "![gap](gap.png)", "", "![base](spectrum_step0.png)", ""]
     for s in result.steps:
         out += [f"## Step {s.number}: {s.named}", "",
+                f"- what: {s.summary}" if s.summary else "",
                 f"- effect fitted: `{s.effect}` (group `{s.group}`"
                 + (f"; not told apart from {', '.join(s.indistinguishable_from)}"
                    if s.indistinguishable_from else "") + ")",
@@ -63,6 +64,10 @@ def markdown_report(result, record_name: str) -> str:
             out.append(f"| {c.name} | {c.group} | {c.coverage:.2f} | {c.p_value:.3g} | "
                        f"{c.gap_after:.2f} | {c.identified} |")
         out += ["", f"![step {s.number}](spectrum_step{s.number}.png)", ""]
+    fams = list(result.combs) + ([result.modulation] if result.modulation is not None else [])
+    if fams:
+        out += ["## Line families in the last residual (scored as a whole)", ""]
+        out += [f"- {c.text}" for c in fams] + [""]
     out += ["## Unexplained lines", ""]
     if result.unexplained:
         out += ["| f (Hz) | excess (dB) | over floor (dB) | kinematic description |",
@@ -133,6 +138,9 @@ def discover(
                        + ("" if s.main['unit'] in ("1", "", "-") else f" {s.main['unit']}")
                        + f" [{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}]"
                        + (" (dimensionless)" if s.main['unit'] == "1" else ""))
+        for s in result.steps:
+            if s.summary:
+                typer.echo(f"step {s.number}: {s.summary}")
         typer.echo(f"stopped: {result.stop_reason}")
         for r in result.unexplained[:15]:
             typer.echo(f"unexplained: {r.frequency:9.2f} Hz  +{r.excess_db:5.1f} dB  {r.text}")
