@@ -12,7 +12,8 @@ small static object with
 
 The kinds of address are final classes: :class:`LumpedField` (a field of
 :class:`dtwin.lumped.LumpedParameters`), :class:`PartField` (a field of the first part of a
-type, optionally matching a condition), :class:`Tie` (several addresses set together) and
+type, optionally matching a condition), :class:`PartElement` (one element of a part's array
+field), :class:`Tie` (several addresses set together) and
 :class:`SignalGain` (a gain applied to the simulated signal after the solve, not a twin field).
 A new parameter is a registry entry with one of these, next to the part that owns it.
 """
@@ -31,7 +32,7 @@ import numpy as np
 from .errors import ParameterError
 from .lumped import LumpedParameters, replace
 
-__all__ = ["AbstractAddress", "LumpedField", "PartField", "SignalGain", "Tie"]
+__all__ = ["AbstractAddress", "LumpedField", "PartElement", "PartField", "SignalGain", "Tie"]
 
 
 class AbstractAddress(abc.ABC):
@@ -143,6 +144,64 @@ class PartField(AbstractAddress):
             raise ParameterError(f"{self._describe()}: no factory to build the part")
         return eqx.tree_at(lambda p: _attr(p, self.path), self.factory(),
                            jnp.asarray(value, dtype=jnp.float64))
+
+
+@dataclasses.dataclass(frozen=True)
+class PartElement(AbstractAddress):
+    """One element of an array field of the first part of type `part` (e.g. the k-th cosine
+    coefficient of the transfer path's window).
+
+    - `part`, `path`: as :class:`PartField`, the path ending at a 1-D array (or None).
+    - `element`: the index in that array.
+    - `fill`: ``fill(part, size)`` → the array to install when the field is None or shorter
+      than `size` (:meth:`ensure`); it must leave the dynamics unchanged (e.g. the series of
+      the window the part already uses, or zeros).
+    - `size`: the length :meth:`ensure` makes the array at least.
+    - `factory`: builds the part when the twin has none (None: the part must exist).
+    """
+
+    part: type
+    path: tuple[str, ...]
+    element: int
+    fill: Callable[[Any, int], Any]
+    size: int
+    factory: Callable[[], Any] | None = None
+
+    def _index(self, twin) -> int | None:
+        return next((i for i, p in enumerate(twin.parts) if isinstance(p, self.part)), None)
+
+    def _array(self, twin):
+        i = self._index(twin)
+        if i is None:
+            return None, None
+        return i, _attr(twin.parts[i], self.path)
+
+    def get(self, twin) -> float:
+        _, arr = self._array(twin)
+        if arr is None or jnp.shape(arr)[0] <= self.element:
+            return 0.0
+        return float(arr[self.element])
+
+    def set(self, twin, value):
+        i, arr = self._array(twin)
+        if arr is None or jnp.shape(arr)[0] <= self.element:
+            raise ParameterError(f"the twin's {self.part.__name__}.{'.'.join(self.path)} has no "
+                                 f"element {self.element}; call ensure first")
+        new = jnp.asarray(arr).at[self.element].set(jnp.asarray(value, dtype=jnp.float64))
+        return eqx.tree_at(lambda t: _attr(t.parts[i], self.path), twin, new)
+
+    def ensure(self, twin):
+        if self._index(twin) is None:
+            if self.factory is None:
+                return twin
+            twin = twin.with_parts(self.factory())
+        i, arr = self._array(twin)
+        if arr is None or jnp.shape(arr)[0] < self.size:
+            twin = eqx.tree_at(lambda t: _attr(t.parts[i], self.path), twin,
+                               jnp.asarray(self.fill(twin.parts[i], self.size),
+                                           dtype=jnp.float64),
+                               is_leaf=lambda x: x is None)
+        return twin
 
 
 @dataclasses.dataclass(frozen=True)

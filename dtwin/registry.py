@@ -22,12 +22,14 @@ from collections.abc import Iterable, Mapping
 
 import jax.numpy as jnp
 
-from .address import AbstractAddress, LumpedField, PartField, SignalGain, Tie
+from .address import AbstractAddress, LumpedField, PartElement, PartField, SignalGain, Tie
 from .errors import ParameterError
 from .faults import MissingTooth
 from .parts.drive import LoadPart
 from .parts.imperfections import CarrierEccentricity, SunEccentricity, TransmissionError
 from .parts.local_fault import LocalFault
+from .parts.mesh_excitation import MeshExcitation
+from .parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,6 +106,62 @@ def _zero_carrier_eccentricity():
     return CarrierEccentricity(jnp.zeros(()))
 
 
+#: Registered cosine terms of the window and mesh harmonics of the excitation (calibration).
+N_WINDOW_TERMS = 9
+N_EXCITATION_HARMONICS = 8
+
+
+def _window_fill(path, size: int):
+    """The series of the window the path already uses (unchanged dynamics), `size` terms."""
+    old = path.window_harmonics
+    if old is None:
+        return window_cosine_coefficients(float(path.window_exponent), size)
+    return jnp.concatenate([old, jnp.zeros(size - old.shape[0])])
+
+
+def _zeros_fill(_part, size: int):
+    return jnp.zeros(size)
+
+
+def _zero_excitation():
+    return MeshExcitation.zeros(N_EXCITATION_HARMONICS)
+
+
+def _window_entries() -> tuple[ParameterInfo, ...]:
+    return tuple(
+        _P(f"window_c{k}", "1", f"cosine coefficient {k} of the planet-angle window "
+           "(calibrated transfer path)", f"sensor.window_harmonics[{k}]", (-100.0, 100.0),
+           "none", (-float("inf"), float("inf")),
+           address=PartElement(PlanetPassTransferPath, ("window_harmonics",), k, _window_fill,
+                               N_WINDOW_TERMS))
+        for k in range(N_WINDOW_TERMS))
+
+
+def _excitation_entries() -> tuple[ParameterInfo, ...]:
+    out = []
+    for mesh in ("sun", "ring"):
+        for cs in ("cos", "sin"):
+            for h in range(1, N_EXCITATION_HARMONICS + 1):
+                out.append(_P(
+                    f"excitation_{mesh}_{cs}_{h}", "m",
+                    f"transmission-error {cs}ine coefficient of mesh harmonic {h}, "
+                    f"{mesh}-planet meshes (calibrated excitation)",
+                    f"mesh.excitation_{mesh}_{cs}[{h - 1}]", (-1e-3, 1e-3), "none",
+                    (-float("inf"), float("inf")),
+                    address=PartElement(MeshExcitation, (f"{mesh}_{cs}",), h - 1, _zeros_fill,
+                                        N_EXCITATION_HARMONICS, _zero_excitation)))
+    return tuple(out)
+
+
+def _frf_entries() -> tuple[ParameterInfo, ...]:
+    # the sensor response belongs to the DAQ, not to the twin: no address (dtwin calibrate
+    # solves it in closed form; identify cannot free it)
+    return tuple(
+        _P(f"frf_db_{j}", "dB", f"gain of the sensor frequency response at knot {j}",
+           f"sensor.frf_db[{j}]", (-300.0, 300.0), "none", (-float("inf"), float("inf")))
+        for j in range(8))
+
+
 def _fault(location: str, factory) -> PartField:
     return PartField(LocalFault, ("fault", "severity"), (("fault.location", location),), factory)
 
@@ -165,6 +223,10 @@ _ENTRIES: tuple[ParameterInfo, ...] = (
     # --- sensor -------------------------------------------------------------------------------
     _P("sensor_gain", "1", "gain of the transfer path to the sensor", "sensor.gain", (1e-6, 1e6),
        address=SignalGain()),
+    # --- calibration (dtwin calibrate; docs/calibration.md) -------------------------------------
+    *_window_entries(),
+    *_excitation_entries(),
+    *_frf_entries(),
 )
 
 REGISTRY: dict[str, ParameterInfo] = {e.name: e for e in _ENTRIES}

@@ -538,6 +538,13 @@ def _check_operating(table: Any, problems: list) -> dict[str, Any]:
 
 def _check_cross(data: dict[str, Any], problems: list) -> None:
     """Checks that need several fields: the gear geometry, fault indices, per-planet lists."""
+    s = data["sensor"]
+    hz, db = s.get("frf_hz"), s.get("frf_db")
+    if hz is not None and any(b <= a for a, b in zip(hz, hz[1:], strict=False)):
+        problems.append(("sensor.frf_hz", "knots must be increasing (Hz)"))
+    if (hz is None) != (db is None) or (hz is not None and len(hz) != len(db)):
+        problems.append(("sensor.frf_db", "give sensor.frf_hz and sensor.frf_db together, one "
+                         "gain per knot"))
     g = data["gears"]
     if any(g.get(k) is None for k in ("z_sun", "z_planet", "z_ring", "n_planets", "module",
                                       "face_width")):

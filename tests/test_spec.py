@@ -191,6 +191,9 @@ BAD = [
     ("gears.z_sun", 21.5, "gears.z_sun", "integer"),
     ("gears.n_planets", 5, "gears.n_planets", "do not fit"),  # tip circles overlap
     ("gears.modul", 0.002, "gears.modul", "did you mean 'module'"),
+    ("calibration.heldout_gap_db", -2.0, "calibration.heldout_gap_db", "outside"),
+    ("sensor.frf_hz", [100.0, 10.0], "sensor.frf_hz", "increasing"),
+    ("sensor.frf_db", [0.0], "sensor.frf_db", "one gain per knot"),
     ("gears.planet_angles", [0.0, 2.0], "gears.planet_angles", "3 finite angles"),
     ("material.youngs_modulus", 206.0, "material.youngs_modulus", "206 GPa"),
     ("material.density", 7.85, "material.density", "7.85 g/cm³"),
