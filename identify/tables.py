@@ -28,14 +28,15 @@ def _unit(name: str) -> str:
 def fit_rows(result: Any) -> list[dict[str, Any]]:
     """One row per fitted parameter of a :class:`dtwin.identify.fit.FitResult`: ``parameter``,
     ``unit``, ``initial``, ``fitted``, ``lower_95``, ``upper_95``, ``status`` (ok,
-    unconverged, NOT DETERMINED)."""
+    unconverged, NOT DETERMINED, widened ×k for lack of fit: ``FitResult.status``)."""
     rows = []
     nd = result.not_determined
     for i, n in enumerate(result.names):
         lo = hi = None
         if result.uncertainty is not None:
             lo, hi = (float(v) for v in result.uncertainty.interval[i])
-        status = ("NOT DETERMINED" if n in nd else "ok" if result.converged else "unconverged")
+        status = (result.status(n) if hasattr(result, "status") else
+                  "NOT DETERMINED" if n in nd else "ok" if result.converged else "unconverged")
         rows.append({"parameter": n, "unit": _unit(n), "initial": float(result.initial[n]),
                      "fitted": float(result.values[n]), "lower_95": lo, "upper_95": hi,
                      "status": status})
