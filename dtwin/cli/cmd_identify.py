@@ -231,9 +231,7 @@ def severity(
     report = {"record": str(record), "gearbox": gb.source, **est.to_dict()}
 
     def table() -> None:
-        lo, hi = est.interval
-        typer.echo(f"{location} fault severity {est.severity:.3f}  95 % [{lo:.3f}, {hi:.3f}] "
-                   f"({est.method})" + ("" if est.determined else "  NOT DETERMINED"))
+        typer.echo(est.summary())  # severity and peak stiffness loss, 95 %, status
         typer.echo(est.fit.table())
 
     opts.emit(report, json_out=json_out, table=table, out=out, force=force,
