@@ -36,7 +36,19 @@ def _interrupt_exit(signum: int) -> SystemExit:
     name = "SIGTERM" if signum == signal.SIGTERM else "SIGINT"
     print(f"interrupted ({name}): nothing was written to --out; run the same command again to "
           "start over (fleet runs resume)", file=sys.stderr)
+    if _CONSOLE_SCRIPT:
+        # The result folder is already clean (staged outputs were discarded on the way up).
+        # Leave at once: a normal interpreter shutdown with XLA's threads still running a
+        # host callback (progress, loss history) can crash (exit 139 instead of 130).
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(128 + int(signum))
     return SystemExit(128 + int(signum))
+
+
+#: True while :func:`main` runs as the console script (no `argv` given), not in-process.
+_CONSOLE_SCRIPT = False
+
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -50,8 +62,11 @@ def main(argv: list[str] | None = None) -> None:
     from ..errors import DtwinError
     from .logs import setup_logging
 
+    global _CONSOLE_SCRIPT
+    _CONSOLE_SCRIPT = argv is None
     setup_logging()
     _load_commands()
+
     _SIGNALS.clear()
     old = {}
     if threading.current_thread() is threading.main_thread():
