@@ -37,11 +37,14 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .build import build_twin, daq_from_spec, operating_speed
 from .errors import SolverError, SpecError
 from .faults import MissingTooth
+from .motor_spec import drive_from_spec
 from .parts.drive import DrivePart
 from .parts.local_fault import LocalFault
 from .simulate import DAQ, SolverOptions, simulate
+from .spec import Spec, load_spec
 from .twin import Twin
 
 __all__ = [
@@ -134,10 +137,6 @@ def comparison_twins(
 
     **Returns:** ``(traditional, coupled)``.
     """
-    from .build import build_twin, operating_speed
-    from .motor_spec import drive_from_spec
-    from .spec import Spec, load_spec
-
     if not isinstance(spec, Spec):
         spec = load_spec(spec)
     if start not in ("steady", "rest"):
@@ -429,9 +428,6 @@ def compare_drives(
 
     **Returns:** a :class:`DriveComparison`.
     """
-    from .build import daq_from_spec, operating_speed
-    from .spec import Spec, load_spec
-
     if not isinstance(spec, Spec):
         spec = load_spec(spec)
     f = operating_speed(spec) if f_sun is None else float(f_sun)
@@ -515,9 +511,6 @@ def sensitivity_sweep(
     coupled twin, each speed-loop bandwidth (Hz). The parameters are array leaves of the drive
     (:func:`set_drive_parameters`), so one compiled solve per model serves the whole sweep.
     Other arguments as :func:`compare_drives` (``start="steady"``)."""
-    from .build import daq_from_spec, operating_speed
-    from .spec import Spec, load_spec
-
     if not isinstance(spec, Spec):
         spec = load_spec(spec)
     f = operating_speed(spec) if f_sun is None else float(f_sun)

@@ -35,6 +35,7 @@ from jaxtyping import Array, Float
 
 from .errors import SolverError
 from .integrator import UnrolledTsit5
+from .io.record import Record
 from .parts.drive import DrivePart, LoadPart
 from .parts.transfer_path import AbstractTransferPath, ring_velocity_fixed
 from .sensor_response import apply_frf, knot_basis
@@ -164,8 +165,6 @@ class SimResult(eqx.Module):
 
     def to_record(self, metadata: dict | None = None):
         """The result as a `dtwin.io.Record` (channel ``vibration``, optional tachometer)."""
-        from .io.record import Record
-
         unit = {"acceleration": "m/s^2", "velocity": "m/s", "displacement": "m",
                 "ring_velocity": "m/s"}[self.quantity]
         return Record(

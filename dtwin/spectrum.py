@@ -50,6 +50,7 @@ from jaxtyping import Array, Float
 
 from .errors import RecordError
 from .indicators import TimeStats, time_stats
+from .io.record import Record
 from .kinematics import Kinematics, OrderBounds, combination_text
 
 __all__ = [
@@ -104,8 +105,6 @@ def as_signal(
     `x` is a :class:`dtwin.io.Record` (then `channel` picks the row and the record's rate is used;
     a `sample_rate` that disagrees raises) or a 1-D array (then `sample_rate` is required).
     """
-    from .io.record import Record
-
     if isinstance(x, Record):
         if sample_rate is not None and float(sample_rate) != float(x.sample_rate):
             raise RecordError(

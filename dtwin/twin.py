@@ -42,8 +42,10 @@ from .coords import Coords as Coords
 from .coords import MeshState as MeshState
 from .coords import unit_radial as unit_radial
 from .coords import unit_tangential as unit_tangential
+from .faults import mesh_phases
 from .lumped import LumpedParameters
 from .parts.base import AbstractPart, Modulation
+from .stiffness import mesh_stiffness_waveform
 
 KINDS = ("translational", "torsional")
 
@@ -280,9 +282,6 @@ class Twin(eqx.Module):
 
     def _mesh_from_deflections(self, q: Coords, mod: Modulation, d_rigid, dd_rigid) -> MeshState:
         """`mesh_state` from the rigid-geometry deflections ``L q`` and rates ``L q'`` (2N,)."""
-        from .faults import mesh_phases
-        from .stiffness import mesh_stiffness_waveform
-
         lp, n = self.lp, self.n_planets
         ph_sp, ph_rp = mesh_phases(lp, q.theta_s, q.theta_c, q.theta_r)
         ph = jnp.concatenate([ph_sp + mod.dphase_sp, ph_rp + mod.dphase_rp])

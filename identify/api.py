@@ -12,6 +12,11 @@ See docs/identification.md.
 
 from __future__ import annotations
 
+import numpy as np
+
+from dtwin.kinematics import Kinematics
+from dtwin.spectrum import label_frequency
+
 from .fit import SOLVERS as SOLVERS
 from .fit import FitResult as FitResult
 from .fit import Problem as Problem
@@ -46,9 +51,7 @@ __all__ = [
 def plot_fit(result: FitResult, record_index: int = 0, *, label_peaks: bool = True):
     """Figure of measured vs fitted levels of one record of `result`, peaks labelled with their
     gear-frequency combinations (:func:`dtwin.spectrum.label_frequency`)."""
-    import numpy as np
-
-    from .plotting.fit import plot_fit_spectrum
+    from .plotting.fit import plot_fit_spectrum  # at call time: matplotlib only for figures
 
     freqs, meas, model = result.spectra()[record_index]
     labels = []
@@ -61,19 +64,9 @@ def plot_fit(result: FitResult, record_index: int = 0, *, label_peaks: bool = Tr
 
 
 def _labels(result: FitResult, i: int, freqs, meas, n: int = 8):
-    import numpy as np
-
-    from dtwin.spectrum import FrequencyBasis, label_frequency
-
-    from .operating_point import gear_orders
-
     p = result.problem
     obs = p.observations[i]
-    f_sun = float(obs.speed[0])
-    o = gear_orders(p.twin)
-    basis = FrequencyBasis(f_mesh=o["mesh"] * f_sun, f_carrier=o["carrier"] * f_sun,
-                           f_sun_fault=o["sun_fault"] * f_sun,
-                           f_planet_fault=o["planet_fault"] * f_sun, n_planets=p.twin.lp.n_planets)
+    basis = Kinematics.from_gear_set(p.twin.lp, float(obs.speed[0]))
     m = np.asarray(meas)
     # the n highest local maxima, one per line (neighbouring bins of a peak are not new lines)
     peak = np.flatnonzero((m[1:-1] >= m[:-2]) & (m[1:-1] >= m[2:])) + 1
@@ -94,7 +87,7 @@ def _labels(result: FitResult, i: int, freqs, meas, n: int = 8):
 
 def plot_severity_series(series: SeveritySeries, truth=None):
     """Figure of the trajectories of a :class:`SeveritySeries` (one panel per parameter)."""
-    from .plotting.fit import plot_trajectories
+    from .plotting.fit import plot_trajectories  # at call time: matplotlib only for figures
 
     vals = {n: series.trajectory(n)[0] for n in series.names}
     lo = {n: series.trajectory(n)[1] for n in series.names}

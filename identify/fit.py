@@ -42,7 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from dtwin.errors import FitError, ParameterError
+from dtwin.errors import FitError, ParameterError, SettingsError
 
 from .params import ParameterSet
 from .residuals import (
@@ -136,7 +136,7 @@ def batch_mode(batch: str = "auto") -> str:
     (measured on a 2 s record at 5 kHz: 2 vmapped residual evaluations 2.2–2.8× one, 2 mapped
     1.94×; benchmarks/README.md "Fit")."""
     if batch not in BATCH_MODES:
-        raise ValueError(f"batch must be one of {BATCH_MODES}, got {batch!r}")
+        raise SettingsError(f"batch must be one of {BATCH_MODES}, got {batch!r}")
     if batch == "auto":
         return "map" if jax.default_backend() == "cpu" else "vmap"
     return batch
@@ -337,7 +337,7 @@ def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0):
       record, 3 parameters: the loss settled to 1e-5 after 4–5 steps, the Cauchy test stopped
       it after 13–19; benchmarks/README.md "Fit")."""
     if name not in _SOLVER_CLASSES:
-        raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
+        raise SettingsError(f"solver must be one of {SOLVERS}, got {name!r}")
     return _SOLVER_CLASSES[name](rtol=rtol, atol=atol, norm=optx.rms_norm, sigma_tol=sigma_tol)
 
 
@@ -580,7 +580,7 @@ def make_problem(
         for n in list(fixed or {}) + list(initial or {}):
             lookup(n)
     if jac not in ("fwd", "rev"):
-        raise ValueError(f"jac must be 'fwd' or 'rev', got {jac!r}")
+        raise SettingsError(f"jac must be 'fwd' or 'rev', got {jac!r}")
     if not isinstance(records, (list, tuple)):
         records = [records]
     if not records:
@@ -706,7 +706,7 @@ def fit(
     **Returns:** :class:`FitResult`.
     """
     if solver not in SOLVERS:
-        raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+        raise SettingsError(f"solver must be one of {SOLVERS}, got {solver!r}")
     mode = batch_mode(batch)
     t0 = time.perf_counter()
     if problem is None:

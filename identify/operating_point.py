@@ -26,6 +26,8 @@ import numpy as np
 
 from dtwin.errors import RecordError
 from dtwin.kinematics import Kinematics
+from dtwin.order import shaft_speed, tacho_angle
+from dtwin.spectrum import noise_floor
 
 __all__ = ["OperatingPoint", "SpeedProfileEstimate", "estimate_speed", "estimate_speed_profile",
            "gear_orders"]
@@ -97,13 +99,9 @@ def estimate_speed(
 
     **Returns:** :class:`OperatingPoint`.
     """
-    from dtwin.spectrum import noise_floor
-
     fs = float(record.sample_rate)
     orders = gear_orders(twin)
     if record.tacho is not None and record.tacho_ppr:
-        from dtwin.order import shaft_speed, tacho_angle
-
         ang = tacho_angle(np.asarray(record.tacho), fs, int(record.tacho_ppr))
         f = float(np.mean(shaft_speed(ang, fs)))
         if record.tacho_shaft == "carrier":
@@ -203,8 +201,6 @@ def estimate_speed_profile(
     import scipy.optimize
     import scipy.signal
 
-    from dtwin.order import shaft_speed, tacho_angle
-
     fs = float(record.sample_rate)
     orders = gear_orders(twin)
     mo = orders["mesh"]
@@ -231,8 +227,6 @@ def estimate_speed_profile(
     f, tt, Z = scipy.signal.stft(x - x.mean(), fs=fs, window="hann", nperseg=seg,
                                  noverlap=seg // 2, boundary=None, padded=False)
     A = np.abs(Z)
-    from dtwin.spectrum import noise_floor
-
     cands = np.linspace(lo, hi, 2001)
     best = []
     for j in range(A.shape[1]):

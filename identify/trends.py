@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from dtwin.errors import SettingsError
+
 __all__ = ["DEFAULT_THRESHOLDS", "MachineTrend", "ParameterTrend", "TrendFlag", "fit_trend",
            "flag_trend", "machine_trends", "parse_threshold"]
 
@@ -61,7 +63,7 @@ def parse_threshold(text: str) -> tuple[str, tuple[float | str, str]]:
                 float(value[:-1])
                 return name, (value, direction)
             return name, (float(value), direction)
-    raise ValueError(f"threshold {text!r}: write name>value, name<value or name<-20%")
+    raise SettingsError(f"threshold {text!r}: write name>value, name<value or name<-20%")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -170,7 +172,7 @@ def flag_trend(days, values, intercept: float, slope: float, slope_se: float,
                horizon_days: float = 90.0) -> TrendFlag:
     """The flag of one trajectory (module docstring)."""
     if direction not in ("above", "below"):
-        raise ValueError(f"direction must be above or below, got {direction!r}")
+        raise SettingsError(f"direction must be above or below, got {direction!r}")
     sgn = 1.0 if direction == "above" else -1.0
     t = np.asarray(days, float)
     x = np.asarray(values, float)

@@ -126,3 +126,20 @@ def test_docstrings_cite_no_file_outside_the_repository():
                 bad.append(str(f.relative_to(ROOT)))
     assert bad == []
     assert (ROOT / "docs" / "references.md").exists()
+
+
+def test_identify_raises_dtwin_errors_for_bad_settings():
+    """Invalid settings of a fleet run, a fit's features or a search are `SettingsError`: a
+    `DtwinError` (reported per record by fleet tasks, one line by the CLI) and a `ValueError`."""
+    from dtwin.errors import DtwinError, SettingsError
+    from dtwin.identify.discover import normal_quantile
+    from dtwin.identify.fleet import FleetSettings
+    from dtwin.identify.residuals import Features
+    from dtwin.identify.trends import parse_threshold
+
+    for make in (lambda: FleetSettings(batch_size=0), lambda: FleetSettings(kind="rigid"),
+                 lambda: Features(grid="bins"), lambda: normal_quantile(1.5),
+                 lambda: parse_threshold("sun_fault 3")):
+        with pytest.raises(SettingsError) as e:
+            make()
+        assert isinstance(e.value, DtwinError) and isinstance(e.value, ValueError)
