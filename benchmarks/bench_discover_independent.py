@@ -36,8 +36,14 @@ def main(argv=None) -> int:
     p.add_argument("--spec", type=Path, default=None, help="a calibrated spec (skip calibrate)")
     p.add_argument("--records", nargs="*", default=RECORDS)
     p.add_argument("--max-steps", type=int, default=3)
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--quick", action="store_true", help="load-fluct and tone, one step")
+    p.add_argument("--json", action="store_true", help="one JSON list on stdout (run_all.py)")
     args = p.parse_args(argv)
+    if args.quick:
+        args.records, args.max_steps = ["load-fluct", "tone"], 1
+    if not (IND / "baseline-1.csv").exists():
+        print("[]" if args.json else f"no independent records at {IND}")
+        return 0
 
     from dtwin.identify.calibrate import calibrate
     from dtwin.identify.discover import DiscoverySettings, discover
@@ -49,8 +55,9 @@ def main(argv=None) -> int:
         res = calibrate([IND / "baseline-1.csv"], IND / "gearbox.toml")
         spec = Path(tempfile.mkdtemp()) / "calibrated.toml"
         res.write_spec(spec)
-        print(json.dumps(dict(kind="calibrate", run_s=time.perf_counter() - w0)))
-    rows = []
+        rows = [dict(kind="calibrate", run_s=time.perf_counter() - w0)]
+    else:
+        rows = []
     for name in args.records:
         load0, w0, c0 = load_average()[0], time.perf_counter(), time.process_time()
         r = discover(read_record(IND / f"{name}.csv"), spec,
@@ -63,10 +70,12 @@ def main(argv=None) -> int:
                    located_hz=None if r.modulation is None else r.modulation.f_x,
                    stop=r.stop_reason, target_s=300.0)
         rows.append(row)
-        print(json.dumps(row) if args.json else
-              f"{name:16s} {wall:7.1f} s wall {cpu:7.1f} s CPU load {load0:4.1f} "
-              f"named {r.named} gap {row['gap_before_db']:.2f} → {row['gap_after_db']:.2f} dB "
-              f"({r.stop_reason})")
+        if not args.json:
+            print(f"{name:16s} {wall:7.1f} s wall {cpu:7.1f} s CPU load {load0:4.1f} "
+                  f"named {r.named} gap {row['gap_before_db']:.2f} → {row['gap_after_db']:.2f} dB "
+                  f"({r.stop_reason})", flush=True)
+    if args.json:
+        print(json.dumps(rows))
     return 0
 
 

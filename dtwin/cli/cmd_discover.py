@@ -58,12 +58,20 @@ def markdown_report(result, record_name: str) -> str:
         for p in s.parameters:
             out.append(f"| {p['name']} | {p['value']:.4g} | [{p['interval'][0]:.3g}, "
                        f"{p['interval'][1]:.3g}] | {p['unit']} |")
-        out += ["", "| candidate refit | group | coverage | p | held-out gap (dB) | identified |",
-                "|---|---|---|---|---|---|"]
+        out += ["", "| candidate refit | group | coverage | p | held-out gap (dB) | identified "
+                "| set aside |", "|---|---|---|---|---|---|---|"]
         for c in s.candidates:
             out.append(f"| {c.name} | {c.group} | {c.coverage:.2f} | {c.p_value:.3g} | "
-                       f"{c.gap_after:.2f} | {c.identified} |")
+                       f"{c.gap_after:.2f} | {c.identified} | {c.rejected or ''} |")
         out += ["", f"![step {s.number}](spectrum_step{s.number}.png)", ""]
+    kept = {id(c) for s in result.steps for c in s.candidates}
+    last = [c for c in result.last_candidates if id(c) not in kept]
+    if last:
+        out += ["## Candidates refit in the last step (none kept)", "",
+                "| candidate | group | coverage | p | held-out gap (dB) | identified | set aside |",
+                "|---|---|---|---|---|---|---|"]
+        out += [f"| {c.name} | {c.group} | {c.coverage:.2f} | {c.p_value:.3g} | "
+                f"{c.gap_after:.2f} | {c.identified} | {c.rejected or ''} |" for c in last] + [""]
     fams = list(result.combs) + ([result.modulation] if result.modulation is not None else [])
     if fams:
         out += ["## Line families in the last residual (scored as a whole)", ""]

@@ -94,7 +94,9 @@ class EffectContext:
     whole-record Hann amplitude spectra `freqs` (Hz), `measured` and `model` (the base twin,
     gain-matched), the measured noise `floor`; `lines`: the residual lines of the base twin
     (:func:`dtwin.identify.lines.residual_lines`); `threshold_db`: line detection threshold;
-    `tolerance_bins`: a line matches a frequency within this many bins of `freqs`.
+    `tolerance_bins`: a line matches a frequency within this many bins of `freqs`;
+    `modulation`: the family of a modulation at a located frequency in `lines`
+    (:func:`dtwin.identify.lines.find_modulation`), None when there is none.
     """
 
     spec: object
@@ -107,6 +109,7 @@ class EffectContext:
     lines: tuple = ()
     threshold_db: float = 12.0
     tolerance_bins: float = 0.25
+    modulation: object = None
 
 
 class AbstractEffect(eqx.Module):

@@ -50,12 +50,18 @@ class LocatedModulationEffect(AbstractEffect):
             return self
         if context.freqs is None or not context.lines:
             return None
-        import numpy as np
+        found = context.modulation
+        if found is None:
+            import dataclasses
 
-        freqs = np.asarray(context.freqs)
-        df = float(freqs[1] - freqs[0])
-        found = find_modulation(list(context.lines), context.kin, context.tolerance_bins * df,
-                                float(freqs[-1]))
+            import numpy as np
+
+            freqs = np.asarray(context.freqs)
+            df = float(freqs[1] - freqs[0])
+            lines = [dataclasses.replace(r, comb="") if "fx" in r.comb else r
+                     for r in context.lines]
+            found = find_modulation(lines, context.kin, context.tolerance_bins * df,
+                                    float(freqs[-1]))
         return None if found is None else LocatedModulationEffect(f_x=found.f_x)
 
     def parameters(self, twin):
