@@ -7,6 +7,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
+from dtwin.errors import SettingsError
 from dtwin.kinematics import combination_text
 from dtwin.parts.bearing_defect import BEARING_DEFECTS, PlanetBearingDefect, bearing_frequencies
 
@@ -47,7 +48,7 @@ class PlanetBearingEffect(AbstractEffect):
 
     def __check_init__(self):
         if self.race not in BEARING_DEFECTS:
-            raise ValueError(f"PlanetBearingEffect.race must be one of {tuple(BEARING_DEFECTS)}, "
+            raise SettingsError(f"PlanetBearingEffect.race must be one of {tuple(BEARING_DEFECTS)}, "
                              f"got {self.race!r}")
 
     @property
@@ -71,7 +72,7 @@ class PlanetBearingEffect(AbstractEffect):
         """(defect order, modulation order) over the planet's rotation relative to the
         carrier."""
         if self.geometry is None:
-            raise ValueError("PlanetBearingEffect needs the bearing geometry (adapt() with a "
+            raise SettingsError("PlanetBearingEffect needs the bearing geometry (adapt() with a "
                              "spec that has [bearings.planet])")
         f = bearing_frequencies(*self.geometry)
         d, m = BEARING_DEFECTS[self.race]

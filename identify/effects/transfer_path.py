@@ -9,6 +9,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from dtwin.errors import SettingsError
 from dtwin.kinematics import combination_text
 from dtwin.parts.housing_resonance import HousingResonance
 from dtwin.parts.transfer_path import PlanetPassTransferPath
@@ -115,7 +116,7 @@ class HousingResonanceEffect(AbstractEffect):
 
     def parts(self, theta, twin, kin):
         if self.f_res is None:
-            raise ValueError("HousingResonanceEffect needs f_res (adapt() on the data)")
+            raise SettingsError("HousingResonanceEffect needs f_res (adapt() on the data)")
         p = _sensor_path(twin)
         kw = {} if p is None else dict(sensor_angle=p.sensor_angle,
                                        window_exponent=p.window_exponent)
