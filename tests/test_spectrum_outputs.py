@@ -92,3 +92,20 @@ def test_all_channels_of_a_triaxial_sensor(triax, tmp_path, capsys):
         assert {"iso20816.png", "report.html"} <= files
     html = (tmp_path / "all" / "report.html").read_text()
     assert html.count("data:image/png;base64,") == 7  # 3 spectra, 3 waveforms, ISO figure
+
+
+def test_view_all_channels_psd_matches_scipy(triax, tmp_path, capsys):
+    path, data = triax
+    out = tmp_path / "psd"
+    main(["view", str(path), "--kind", "psd", "--channel", "all", "--segment", "1024", "--json",
+          "--out", str(out)])
+    rep = json.loads(capsys.readouterr().out)
+    assert [c["channel"] for c in rep["channels"]] == ["acc_x", "acc_y", "acc_z"]
+    for k, c in enumerate(("acc_x", "acc_y", "acc_z")):
+        arr = _npz(out / f"psd_{c}.npz")
+        f, p = scipy.signal.welch(data[k], fs=FS, window="hann", nperseg=1024, noverlap=512)
+        np.testing.assert_allclose(arr["frequency"], f)
+        np.testing.assert_allclose(arr["psd"], p, rtol=1e-9)
+        assert list(arr["units"]) == ["Hz", "(m/s^2)^2/Hz"]
+    files = set(json.loads((out / "manifest.json").read_text())["files"])
+    assert {"psd_acc_x.png", "psd_acc_y.png", "psd_acc_z.png"} <= files

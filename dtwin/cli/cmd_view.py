@@ -327,7 +327,8 @@ def view(
     record_file: Path = typer.Argument(..., help="Record file (any supported format)."),
     kind: str = typer.Option(..., "--kind", help="order, tsa, envelope, kurtogram, cepstrum, "
                              "waterfall or psd."),
-    channel: str = opts.channel_option(),
+    channel: str = typer.Option("0", "--channel", help="Channel name or index, a comma list, a "
+                                "group (a triaxial sensor's name) or 'all': one view each."),
     preset: str | None = opts.preset_option(),
     spec: Path | None = opts.spec_option(),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input (sun) speed in Hz."),
@@ -366,41 +367,39 @@ def view(
     gb = opts.load_gearbox(preset, spec, required=False)
     gearbox = gb.spec if gb is not None else None
     record = opts.read_record(record_file, sample_rate)
-    ch = channel_token(channel)
-    name, unit = channel_unit(record, ch)
+    try:
+        rows = record.channel_list(channel_token(channel))
+    except Exception:  # noqa: BLE001 - one message listing the channels
+        opts.check_channel(record, channel_token(channel))
+        raise
     fsun, fsun_source = input_speed(record, gearbox, f_sun)
-    opts.checked_record(record, ch, gearbox, fsun)
+    opts.checked_record(record, rows, gearbox, fsun)
     if band is not None:
         opts.band("--band", band, nyquist=record.sample_rate / 2)
-    x = np.asarray(record.channel(ch), dtype=np.float64)
     freqs = gear_frequencies(gearbox, fsun, "paper") if gearbox is not None else None
-    if kind == "order":
-        rep, figs = _order_view(record, x, unit, gearbox, freqs, fsun, speed_range,
-                                scale or "db")
-    elif kind == "ordermap":
-        rep, figs = _ordermap_view(record, x, unit, gearbox, freqs, fsun, speed_range, revs,
-                                   scale or "db")
-    elif kind == "tsa":
-        rep, figs = _tsa_view(record, x, unit, gearbox, freqs, fsun, speed_range)
-    elif kind == "envelope":
-        rep, figs = _envelope_view(record, x, unit, freqs, band, scale or "linear")
-    elif kind == "kurtogram":
-        rep, figs = _kurtogram_view(record, x)
-    elif kind == "cepstrum":
-        rep, figs = _cepstrum_view(record, x, freqs, gearbox)
-    elif kind == "waterfall":
-        rep, figs = _waterfall_view(record, x, unit, gearbox, freqs, fsun, speed_range, segment,
-                                    nat or [])
-    else:
-        rep, figs = _psd_view(record, x, unit, freqs, band, segment, scale or "db")
     from ..io.output import to_jsonable
 
-    report = to_jsonable({"record": str(record_file), "kind": kind, "channel": name,
-                          "unit": unit, "f_sun_hz": fsun, "f_sun_source": fsun_source, **rep})
+    reports, figs = [], {}
+    for i in rows:
+        name, unit = channel_unit(record, i)
+        x = np.asarray(record.channel(i), dtype=np.float64)
+        rep, one = _one_view(kind, record, x, unit, gearbox, freqs, fsun, speed_range, band,
+                             segment, nat, revs, scale)
+        reports.append({"channel": name, "unit": unit, **rep})
+        sfx = "" if len(rows) == 1 else f"_{''.join(c if c.isalnum() or c in '-_' else '_' for c in name)}"
+        for fname, v in one.items():
+            stem, ext = fname.rsplit(".", 1)
+            if len(rows) > 1 and hasattr(v, "axes") and v.axes:  # each figure names its channel
+                v.axes[0].set_title(f"{v.axes[0].get_title()} [{name}]")
+            figs[f"{stem}{sfx}.{ext}"] = v
+    head = {"record": str(record_file), "kind": kind, "f_sun_hz": fsun,
+            "f_sun_source": fsun_source}
+    report = to_jsonable({**head, **reports[0]} if len(reports) == 1
+                         else {**head, "channels": reports})
     opts.emit(report, json_out=json_out, table=lambda: _print_summary(report), out=out,
               force=force, files={**figs, f"view_{kind}.json": report}, inputs=[record_file],
-              gearbox=gb, parameters={"kind": kind, "channel": name, "f_sun": fsun,
-                                      "band": list(band) if band else None})
+              gearbox=gb, parameters={"kind": kind, "channels": [r["channel"] for r in reports],
+                                      "f_sun": fsun, "band": list(band) if band else None})
     if out is None:
         import matplotlib.pyplot as plt
 
@@ -408,6 +407,27 @@ def view(
             if hasattr(fig, "savefig"):
                 plt.close(fig)
 
+
+def _one_view(kind, record, x, unit, gearbox, freqs, fsun, speed_range, band, segment, nat,
+              revs, scale):
+    """The report and files of one view of one channel."""
+    if kind == "order":
+        return _order_view(record, x, unit, gearbox, freqs, fsun, speed_range, scale or "db")
+    if kind == "ordermap":
+        return _ordermap_view(record, x, unit, gearbox, freqs, fsun, speed_range, revs,
+                              scale or "db")
+    if kind == "tsa":
+        return _tsa_view(record, x, unit, gearbox, freqs, fsun, speed_range)
+    if kind == "envelope":
+        return _envelope_view(record, x, unit, freqs, band, scale or "linear")
+    if kind == "kurtogram":
+        return _kurtogram_view(record, x)
+    if kind == "cepstrum":
+        return _cepstrum_view(record, x, freqs, gearbox)
+    if kind == "waterfall":
+        return _waterfall_view(record, x, unit, gearbox, freqs, fsun, speed_range, segment,
+                               nat or [])
+    return _psd_view(record, x, unit, freqs, band, segment, scale or "db")
 
 
 def _flatten(d: dict, prefix: str = "") -> list[tuple[str, str]]:
