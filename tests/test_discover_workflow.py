@@ -137,6 +137,26 @@ def test_group_named_gap_shrinks(case, spec, base_twin, truth):
         plot_gap_bars(res)
         plot_step_spectra(res, 0)
         plot_step_spectra(res, 1, band=(450.0, 550.0))
+        # the files of `dtwin discover --out`: report.html embeds every figure as a PNG and
+        # holds the steps' table; the spectra go out as CSV/NPZ with units
+        import base64
+        import tempfile
+        from pathlib import Path
+
+        from dtwin.cli.cmd_discover import discover_files
+        from dtwin.cli.options import write_outputs
+
+        with tempfile.TemporaryDirectory() as tmp:
+            out = write_outputs(Path(tmp) / "d", files=discover_files(
+                res, to_jsonable(res.to_dict()), Path("record.dtwin.h5"), "0", "m/s^2"))
+            page = (out / "report.html").read_text()
+            imgs = page.split("data:image/png;base64,")[1:]
+            assert len(imgs) == 1 + 2 * len(res.models)
+            assert all(base64.b64decode(i.split("'")[0])[:4] == b"\x89PNG" for i in imgs)
+            assert res.steps[0].named in page and "manifest.json (full)" in page
+            with np.load(out / "spectra.npz") as z:
+                assert list(z["columns"])[:2] == ["frequency", "measured"]
+                assert list(z["units"])[:2] == ["Hz", "m/s^2"]
 
 
 # the groups that need a spec, a base or a truth of their own (one short record each)
