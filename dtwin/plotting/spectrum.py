@@ -34,7 +34,7 @@ def plot_spectrum_peaks(
     *,
     band: tuple[float, float] | None = None,
     unit: str = "m/s^2",
-    db: bool = False,
+    db: bool | None = None,
     scale: str | None = None,
     floor: np.ndarray | None = None,
     title: str = "Amplitude spectrum",
@@ -49,13 +49,13 @@ def plot_spectrum_peaks(
     - `labelled`: peaks from :func:`dtwin.spectrum.label_peaks` (numbered, labelled).
     - `band`: frequency range shown (Hz), None for the whole spectrum (callers pass the
       gearbox's mesh band, :func:`dtwin.plotting.levels.mesh_band`).
-    - `scale`: ``"db"`` (levels in dB re the unit's ISO 1683 reference, e.g. 1 µm/s²) or
-      ``"linear"``; `db` is the older switch (``db=True`` is ``scale="db"``), linear by default.
+    - `scale`: ``"db"`` (levels in dB re the unit's ISO 1683 reference, e.g. 1 µm/s², the
+      default) or ``"linear"``; `db` is the older switch (``db=False`` is ``scale="linear"``).
     - `floor`: noise floor to draw (same unit as `spec`), optional.
     - `table`: add the table of numbers, frequencies, amplitudes and labels.
     - `channel`: channel name shown in the title (several channels: one figure each).
     """
-    scale = scale or ("db" if db else "linear")
+    scale = scale or ("linear" if db is False else "db")
     freqs = np.asarray(freqs)
     spec = np.asarray(spec)
     sel = np.ones(freqs.shape, bool) if band is None else (freqs >= band[0]) & (freqs <= band[1])
