@@ -279,7 +279,14 @@ def spectrum_report(
     peaks = find_peaks(freqs, spec, threshold_db=threshold_db, min_spacing_hz=min_spacing_hz,
                        band=band, floor=floor, max_peaks=max_peaks)
     df = float(freqs[1] - freqs[0])
-    if frequencies is not None:
+    withheld = None
+    if frequencies is not None and df > float(frequencies["f_carrier"]):
+        # a label is matched within one bin: bins wider than the carrier sideband spacing
+        # would fit some label to any peak
+        withheld = (f"resolution {df:.4g} Hz is coarser than the carrier frequency "
+                    f"{float(frequencies['f_carrier']):.4g} Hz: the peaks are not labelled; "
+                    f"use a record longer than {1.0 / float(frequencies['f_carrier']):.3g} s")
+    if frequencies is not None and withheld is None:
         basis = FrequencyBasis(frequencies["f_mesh"], frequencies["f_carrier"],
                                frequencies.get("f_sun_fault"), frequencies.get("f_planet_fault"),
                                n_planets)
@@ -305,7 +312,9 @@ def spectrum_report(
         "time_stats": {"rms": float(stats.rms), "kurtosis": float(stats.kurtosis),
                        "crest_factor": float(stats.crest_factor)},
         "frequencies_hz": frequencies,
+        "labels_withheld": withheld,
         "peaks": [
+
             {"number": lp.number, "frequency_hz": lp.peak.frequency,
              "amplitude": lp.peak.amplitude, "above_floor_db": lp.peak.above_floor_db,
              "labels": [lab.text for lab in lp.labels],

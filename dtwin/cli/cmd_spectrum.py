@@ -172,7 +172,12 @@ def spectrum(
             rep["iso20816"] = {"velocity_rms_mm_s": v, "band_hz": list(iso_band),
                                "zone": units_mod.iso20816_zone(v, zones),
                                "zones_mm_s": zones.boundaries, "classification": zones.description}
+        if rep.get("labels_withheld"):
+            from .logs import warn
+
+            warn(rep["labels_withheld"])
         reports.append(rep)
+
         datas.append(data)
     head = {"record": str(record_file), "f_sun_hz": fsun, "f_sun_source": fsun_source,
             "gearbox": gb.source if gb is not None else None}
