@@ -214,12 +214,21 @@ def rms(theta: Float[Array, " p"]) -> Float[Array, ""]:
     return jnp.sqrt(jnp.sum(theta**2))
 
 
-def comb_grid(kin: Kinematics, f_max: float, symbol: str, g: float, carrier: int = 2
-              ) -> list[SignatureLine]:
+def comb_grid(kin: Kinematics, f_max: float, symbol: str, g: float, carrier: int = 2,
+              off_carrier_grid: bool = True) -> list[SignatureLine]:
     """The impulse comb of a repeating fault, ``k g + n fc`` for every k the band holds and
     |n| ≤ `carrier` (:func:`dtwin.identify.lines.comb_lines`): a short impulse at rate g has
     harmonics at every k g, low frequencies included, and the meshes carry them as sidebands
-    ``m fm + j g + n fc`` (fm = Zs fs/N = Zp fp lies on the comb)."""
+    ``m fm + j g + n fc`` (fm = Zs fs/N = Zp fp lies on the comb). With `off_carrier_grid`
+    the teeth ``k g = m fm`` (j = 0: lines ``m fm + n fc`` that every planet-to-planet
+    difference makes too) are left out, so the signature holds the lines that tell the fault
+    apart from the ``carrier_sidebands`` group."""
     from dtwin.identify.lines import comb_lines
 
-    return [SignatureLine(f, lab) for f, _, _, lab in comb_lines(kin, symbol, g, f_max, carrier)]
+    out = []
+    for f, k, _, lab in comb_lines(kin, symbol, g, f_max, carrier):
+        q = k * g / kin.f_mesh
+        if off_carrier_grid and abs(q - round(q)) < 1e-9 * max(q, 1.0):
+            continue
+        out.append(SignatureLine(f, lab))
+    return out

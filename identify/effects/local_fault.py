@@ -56,7 +56,7 @@ class LocalFaultEffect(AbstractEffect):
             return comb_grid(kin, f_max, f"fs/{kin.n_planets}", kin.f_sun_fault_per_planet)
         if self.location == "planet":
             return comb_grid(kin, f_max, "fp", kin.f_planet_fault)
-        return comb_grid(kin, f_max, "fc", kin.f_carrier, carrier=0)
+        return comb_grid(kin, f_max, "fc", kin.f_carrier, carrier=0, off_carrier_grid=False)
 
     def main(self, theta):
         return theta[0]
