@@ -243,6 +243,7 @@ def usable_record(
     f_mesh: float | None = None,
     f_carrier: float | None = None,
     fit: bool = False,
+    fit_min_carrier_periods: float = 2.0,
 ) -> list[Problem]:
     """The one check of a record before an analysis (every command that reads one calls it).
 
@@ -250,7 +251,10 @@ def usable_record(
     :data:`UNUSABLE` problems of the channels used (`channels`, default all) or of the whole
     record. Returns the problems where the analysis degrades (clipping, a rate too low for the
     mesh, a record shorter than :data:`MIN_CARRIER_PERIODS` carrier periods, a bad tacho), for
-    the caller to show as warnings; with `fit` (parameter fits), those are refused too.
+    the caller to show as warnings; with `fit` (parameter fits), those are refused too, except
+    a record shorter than :data:`MIN_CARRIER_PERIODS` carrier periods that still holds
+    `fit_min_carrier_periods` (2: the carrier sidebands two Hann bins apart, resolved; the fits'
+    own limit, ``dtwin.identify.residuals.MIN_SIDEBAND_BINS``): warned about, not refused.
     """
     problems = check_record(record, f_mesh=f_mesh, f_carrier=f_carrier, channels=channels)
     used = None
@@ -263,7 +267,13 @@ def usable_record(
                 pass
     mine = [p for p in problems if p.channel is None or used is None or p.channel in used
             or p.kind == "unknown_channel"]
-    refuse = [p for p in mine if p.kind in UNUSABLE or fit]
+
+    def fit_can_use(p: Problem) -> bool:
+        return (p.kind == "too_short" and f_carrier is not None
+                and record.duration >= fit_min_carrier_periods / float(f_carrier))
+
+    refuse = [p for p in mine if p.kind in UNUSABLE or (fit and not fit_can_use(p))]
+
     if refuse:
         src = record.metadata.get("source")
         head = f"record {src} cannot be used" if src else "the record cannot be used"
@@ -272,4 +282,5 @@ def usable_record(
         err = RecordError(head + ":\n  " + "\n  ".join(p.message for p in refuse))
         err.problems = refuse  # type: ignore[attr-defined]
         raise err
-    return mine
+    return [p for p in mine if p not in refuse]
+
