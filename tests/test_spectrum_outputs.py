@@ -109,3 +109,12 @@ def test_view_all_channels_psd_matches_scipy(triax, tmp_path, capsys):
         assert list(arr["units"]) == ["Hz", "(m/s^2)^2/Hz"]
     files = set(json.loads((out / "manifest.json").read_text())["files"])
     assert {"psd_acc_x.png", "psd_acc_y.png", "psd_acc_z.png"} <= files
+
+
+def test_view_units_g(triax, capsys):
+    path, data = triax
+    main(["view", str(path), "--kind", "psd", "--channel", "acc_y", "--units", "g", "--json"])
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["unit"] == "g"
+    # Parseval: the PSD's total power is the variance; 3 m/s² / sqrt 2 = 0.2163 g RMS
+    assert rep["rms_total"] == pytest.approx(np.std(data[1]) / 9.80665, rel=0.01)

@@ -3,7 +3,7 @@
     dtwin view RECORD --kind order|ordermap|tsa|envelope|kurtogram|cepstrum|waterfall|psd
                [--channel C] [--preset P | --spec FILE] [--f-sun HZ] [--band LOW HIGH]
                [--speed-range LOW HIGH] [--segment N] [--nat HZ ...] [--revs 4]
-               [--scale db|linear] [--sample-rate HZ]
+               [--scale db|linear] [--units m/s^2|g|mm/s|um] [--highpass 10] [--sample-rate HZ]
                [--json] [--out DIR] [--force]
 
 - ``order``: order spectrum of the input (sun) shaft after angular resampling; the angle comes
@@ -339,6 +339,11 @@ def view(
     segment: int = typer.Option(1024, "--segment", help="Segment length (samples): waterfall, psd."),
     nat: list[float] | None = typer.Option(None, "--nat", help="Natural frequency (Hz) to overlay "
                                            "on the Campbell diagram (repeatable)."),
+    units: str | None = typer.Option(None, "--units", help="Output unit: m/s^2, g, mm/s, um "
+                                     "(acceleration integrated behind --highpass); default as "
+                                     "recorded."),
+    highpass: float = typer.Option(10.0, "--highpass", help="High-pass (Hz) of the integration "
+                                   "to mm/s or um (4th-order Butterworth, zero phase)."),
     revs: int | None = typer.Option(None, "--revs", help="ordermap: revolutions per spectrum "
                                     "(order resolution 1/REVS); default: five bins between "
                                     "the planet-pass sidebands (4 without a gearbox)."),
@@ -353,6 +358,13 @@ def view(
     """Order, TSA, envelope, kurtogram, cepstrum, waterfall or PSD view of a record."""
     opts.choice("--kind", kind, KINDS)
     opts.choice("--scale", scale, ("db", "linear"))
+    if units is not None:
+        from .. import units as units_mod
+
+        if units_mod.normalise_unit(units) is None:
+            raise opts.OptionError("--units", f"unknown unit {units!r}; use one of "
+                                   f"{', '.join(units_mod.UNITS)}")
+    opts.positive("--highpass", highpass, unit="Hz")
     if revs is not None:
         opts.at_least("--revs", revs, 1)
     opts.input_speed_option("--f-sun", f_sun)
@@ -383,6 +395,15 @@ def view(
     for i in rows:
         name, unit = channel_unit(record, i)
         x = np.asarray(record.channel(i), dtype=np.float64)
+        if units is not None:
+            from .. import units as units_mod
+
+            if units_mod.quantity(unit) is None:
+                raise opts.OptionError("--units", f"channel {name!r} is in {unit}, not a "
+                                       "vibration unit; drop --units")
+            x = units_mod.convert_signal(x, record.sample_rate, unit, units,
+                                         highpass_hz=highpass)
+            unit = units_mod.normalise_unit(units)
         rep, one = _one_view(kind, record, x, unit, gearbox, freqs, fsun, speed_range, band,
                              segment, nat, revs, scale)
         reports.append({"channel": name, "unit": unit, **rep})
