@@ -92,6 +92,7 @@ def simulate(
     summary = {"settings": settings, "spectrum": report}
 
     def files() -> dict:
+        from ..io.export import Columns
         from ..io.readers import write_record
         from ..plotting.spectrum import plot_spectrum_peaks, plot_waveform
 
@@ -104,6 +105,9 @@ def simulate(
                 data["freqs"], data["spec"], data["labelled"], band=band, unit=unit,
                 floor=data["floor"], title=f"Simulated spectrum — {spec.name} "
                                            f"{', '.join(fault or []) or 'healthy'}"),
+            "spectrum.csv": Columns({"frequency": data["freqs"], "amplitude": data["spec"],
+                                     "noise_floor": data["floor"]},
+                                    {"frequency": "Hz", "amplitude": unit, "noise_floor": unit}),
             "simulate.json": summary,
         }
 
