@@ -24,15 +24,18 @@ import jax.numpy as jnp
 
 from .errors import SpecError
 from .faults import AbstractFault, faults_from_table
+from .motor_spec import drive_from_spec
 from .parts.base import AbstractPart
 from .parts.drive import DrivePart, LoadPart
 from .parts.imperfections import MeshOffsets, TransmissionError
+from .parts.loads import ConstantLoad
 from .parts.local_fault import LocalFault
 from .parts.mesh_excitation import excitation_from_table
 from .parts.supports import Supports
 from .parts.transfer_path import PlanetPassTransferPath
 from .registry import lookup
 from .simulate import DAQ
+from .spec import Spec, load_spec, lumped_from_spec
 from .twin import Twin
 
 _DIRECTIONS = {"vertical": math.pi / 2, "horizontal": 0.0}
@@ -51,8 +54,6 @@ def drive_part(spec, *, start: str = "steady", f_sun: float | None = None) -> Dr
     """The drive of the spec's `[motor]` table; with ``start="steady"`` its speed set point is
     constant at `f_sun` (default `operating.f_sun`), with ``"rest"`` it follows the table's
     `start` (a step from standstill by default)."""
-    from .motor_spec import drive_from_spec
-
     table = dict(spec["motor"] or {})
     table.setdefault("type", "ideal")
     f = operating_speed(spec) if f_sun is None else float(f_sun)
@@ -113,8 +114,6 @@ def spec_parts(spec, *, faults: tuple[AbstractFault, ...] | None = None) -> list
 
 def load_part(spec, load_torque: float | None = None) -> LoadPart:
     """The carrier load of `[operating]` (N·m)."""
-    from .parts.loads import ConstantLoad
-
     tl = spec["operating"]["load_torque"] if load_torque is None else load_torque
     return LoadPart(ConstantLoad(jnp.asarray(float(tl or 0.0))))
 
@@ -141,8 +140,6 @@ def build_twin(
     - `extra_parts`: further parts (effects) to add.
     - `n_harmonics`: stiffness Fourier harmonics (default `mesh.n_harmonics`).
     """
-    from .spec import Spec, load_spec, lumped_from_spec
-
     if not isinstance(spec, Spec):
         spec = load_spec(spec)
     kind = kind or spec["model"]["kind"]

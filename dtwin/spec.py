@@ -32,8 +32,20 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from .errors import GeometryError, SpecError
+from .errors import GeometryError, SpecError, UnreadableFileError
+from .gears import (
+    GearSet,
+    base_radii,
+    contact_ratios,
+    masses_and_inertias,
+    operating_pressure_angles,
+    reference_radii,
+    relative_mesh_phase,
+)
+from .lumped import make_lumped
+from .motor_spec import drive_from_spec
 from .registry import REGISTRY
+from .stiffness import mesh_stiffness_mean
 
 SPECS_DIR = Path(__file__).resolve().parent / "presets"
 """Folder of the bundled preset specs (``dtwin/presets/*.toml``, installed with the package)."""
@@ -412,8 +424,6 @@ class Spec:
 
 
 def _gear_set(g: Mapping[str, Any], *, quiet: bool):
-    from .gears import GearSet
-
     kw = {k: v for k, v in g.items() if v is not None}
     with warnings.catch_warnings():
         if quiet:
@@ -506,8 +516,6 @@ def _check_motor(table: Any, problems: list) -> dict[str, Any]:
         if k == "type":
             continue
         out[k] = dict(v) if isinstance(v, Mapping) else v
-    from .motor_spec import drive_from_spec
-
     try:
         drive_from_spec(dict(out))
     except SpecError as e:
@@ -586,8 +594,6 @@ def load_spec(source: str | os.PathLike | Mapping[str, Any]) -> Spec:
     **Raises:** :class:`~dtwin.errors.SpecError` listing every problem as (field path, message);
     :class:`~dtwin.errors.UnreadableFileError` if the file cannot be read.
     """
-    from .errors import UnreadableFileError
-
     if isinstance(source, Mapping):
         return Spec(_validate(source), None)
     path = Path(source)
@@ -653,16 +659,6 @@ def lumped_from_spec(spec: Spec, *, model: str | None = None):
     import jax.numpy as jnp
     import numpy as np
 
-    from .gears import (
-        base_radii,
-        contact_ratios,
-        masses_and_inertias,
-        operating_pressure_angles,
-        reference_radii,
-        relative_mesh_phase,
-    )
-    from .lumped import make_lumped
-
     kind = model if model is not None else spec["model"]["kind"]
     if kind not in ("translational", "torsional"):
         raise SpecError([("model.kind", f"must be translational or torsional, got {kind!r}")])
@@ -699,8 +695,6 @@ def lumped_from_spec(spec: Spec, *, model: str | None = None):
     mesh = spec["mesh"]
     k_sp, k_rp = mesh["k_sun_planet"], mesh["k_ring_planet"]
     if k_sp is None or k_rp is None:
-        from .stiffness import mesh_stiffness_mean
-
         t_load = spec["operating"]["load_torque"]
         ft = None
         if t_load > 0:

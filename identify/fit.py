@@ -42,12 +42,20 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from dtwin.errors import FitError, ParameterError, SettingsError
+from dtwin.build import build_twin
+from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
+from dtwin.parts.drive import DrivePart
+from dtwin.registry import lookup
+from dtwin.simulate import SolverOptions
+from dtwin.spec import Spec, load_spec
+from dtwin.twin import Twin
 
+from .operating_point import estimate_speed, estimate_speed_profile
 from .params import ParameterSet
 from .residuals import (
     Features,
     Observation,
+    _check,
     fitted_levels,
     model_signal,
     observation_residuals,
@@ -86,8 +94,6 @@ class Problem(eqx.Module):
     adjoint: str = eqx.field(static=True, default="forward")
 
     def solver_options(self):
-        from dtwin.simulate import SolverOptions
-
         return SolverOptions(rtol=self.rtol, atol=self.atol, adjoint=self.adjoint)
 
     def signals(self, theta):
@@ -515,26 +521,16 @@ class FitResult:
 
 # ------------------------------------------------------------------------------------ fit
 def _as_twin(spec_or_twin, kind: str):
-    from dtwin.twin import Twin
-
     if isinstance(spec_or_twin, Twin):
         return spec_or_twin
-    from dtwin.build import build_twin
-
     return build_twin(spec_or_twin, kind=kind)
 
 
 def _nominal_speed(spec_or_twin, twin) -> float | None:
-    from dtwin.twin import Twin
-
     if not isinstance(spec_or_twin, Twin):
-        from dtwin.spec import Spec, load_spec
-
         spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
         f = spec["operating"]["f_sun"]
         return None if f is None else float(f)
-    from dtwin.parts.drive import DrivePart
-
     for p in twin.parts:
         if isinstance(p, DrivePart):
             return float(p.drive.speed.final) / (2 * np.pi)
@@ -566,15 +562,11 @@ def make_problem(
 
     Arguments as :func:`fit`. **Returns:** ``(problem, operating_points)``.
     """
-    from .operating_point import estimate_speed, estimate_speed_profile
-
     if isinstance(free, ParameterSet):
         pset = free
     else:
         # names first: an unknown name fails before the twin is even built
         names = [s.strip() for s in free.split(",")] if isinstance(free, str) else list(free)
-        from dtwin.registry import lookup
-
         for n in names:
             lookup(n)
         for n in list(fixed or {}) + list(initial or {}):
@@ -604,8 +596,6 @@ def make_problem(
         # cheap input checks before the speed estimate
         x = np.asarray(rec.channel(channel))
         if not np.all(np.isfinite(x)):
-            from dtwin.errors import RecordError
-
             bad = np.flatnonzero(~np.isfinite(x))
             raise RecordError(f"record {i} holds {bad.size} NaN/inf samples (first at sample "
                               f"{bad[0]}); clean or cut it before identification")
@@ -618,8 +608,6 @@ def make_problem(
             if f0 is None:
                 if nominal is None:
                     raise FitError("no input speed: pass f_sun or a spec with operating.f_sun")
-                from .residuals import _check
-
                 _check(rec, twin, nominal, channel)
                 op = estimate_speed(rec, twin, nominal, channel=channel)
                 f0 = op.f_sun
@@ -637,9 +625,6 @@ def make_problem(
 
 def _sensor_response(spec_or_twin) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
     """The calibrated sensor response ``(frf_hz, frf_db)`` of a spec (None: flat, or a twin)."""
-    from dtwin.spec import Spec, load_spec
-    from dtwin.twin import Twin
-
     if isinstance(spec_or_twin, Twin):
         return None
     spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
@@ -792,8 +777,6 @@ def fit(
 
 def check_free(free: Sequence[str] | str) -> list[str]:
     """Registry names of a `--free` list, checked (unknown → `ParameterError`)."""
-    from dtwin.registry import lookup
-
     names = [s.strip() for s in free.split(",") if s.strip()] if isinstance(free, str) else list(free)
     if not names:
         raise ParameterError("no free parameter given")

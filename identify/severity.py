@@ -42,9 +42,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.errors import ParameterError, SettingsError
+from dtwin.faults import peak_stiffness_loss
+from dtwin.registry import lookup
 
 from .fit import FitResult, fit, make_problem
-from .uncertainty import CHI2_95
+from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT
 
 __all__ = ["RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity",
            "severity_series"]
@@ -112,19 +114,12 @@ class SeverityEstimate:
 
 def _fault_index(twin, location: str) -> int | None:
     """Position in ``twin.parts`` of the local fault at `location` (the one ``<location>_fault``
-    addresses), or None."""
-    from dtwin.parts.local_fault import LocalFault
-
-    for i, p in enumerate(twin.parts):
-        if isinstance(p, LocalFault) and p.fault.location == location:
-            return i
-    return None
+    addresses), or None: that parameter's registry address finds it."""
+    return lookup(_name(location)).address.index(twin)
 
 
 def _peak(twin, i: int, severity: float) -> float:
     """Peak stiffness loss of the twin's fault `i` at `severity` (its own type and ramp)."""
-    from dtwin.faults import peak_stiffness_loss
-
     f = eqx.tree_at(lambda f: f.severity, twin.parts[i].fault,
                     jnp.asarray(min(max(float(severity), 0.0), 1.0), jnp.float64))
     return float(peak_stiffness_loss(f, twin.lp))
@@ -160,8 +155,6 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs):
 
 def _estimate(location: str, shapes) -> SeverityEstimate:
     """The estimate from the fits of one record over the loss shapes (module docstring)."""
-    from .uncertainty import HALF_WIDTH_LIMIT
-
     name = _name(location)
     losses = np.array([res.loss if np.isfinite(res.loss) else np.inf for _, res in shapes])
     b = int(np.argmin(losses))

@@ -15,12 +15,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from dtwin.registry import REGISTRY
+
 __all__ = ["discovery_rows", "fit_dataframe", "fit_rows", "trend_rows", "trends_dataframe"]
 
 
 def _unit(name: str) -> str:
-    from dtwin.registry import REGISTRY
-
     info = REGISTRY.get(name)
     return "?" if info is None else info.unit
 

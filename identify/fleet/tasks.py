@@ -18,6 +18,7 @@ import numpy as np
 from dtwin.build import build_twin
 from dtwin.errors import DtwinError
 from dtwin.io.readers import read_record
+from dtwin.order import shaft_speed, tacho_angle
 from dtwin.registry import ensure_parts, set_value
 from dtwin.spec import load_spec
 
@@ -255,8 +256,6 @@ def runup_range(rec, spec, channel: str | int = 0) -> tuple[float, float] | None
     gs = spec.gear_set()
     to_sun = (gs.z_sun + gs.z_ring) / gs.z_sun
     if rec.tacho is not None and rec.tacho_ppr:
-        from dtwin.order import shaft_speed, tacho_angle
-
         ang = tacho_angle(np.asarray(rec.tacho), fs, int(rec.tacho_ppr))
         sp = np.asarray(shaft_speed(ang, fs), dtype=float)
         if rec.tacho_shaft == "carrier":
