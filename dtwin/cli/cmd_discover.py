@@ -149,7 +149,13 @@ def discover(
         for s in result.steps:
             if s.summary:
                 typer.echo(f"step {s.number}: {s.summary}")
+        set_aside = {c.name: c.rejected for s in result.steps for c in s.candidates
+                     if c.rejected}
+        set_aside.update({c.name: c.rejected for c in result.last_candidates if c.rejected})
+        for name, why in set_aside.items():
+            typer.echo(f"set aside: {name}: {why}")
         typer.echo(f"stopped: {result.stop_reason}")
+
         for r in result.unexplained[:15]:
             typer.echo(f"unexplained: {r.frequency:9.2f} Hz  +{r.excess_db:5.1f} dB  {r.text}")
 
