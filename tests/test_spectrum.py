@@ -243,8 +243,12 @@ def test_cli_spectrum_labels_the_paper_family(tmp_path, capsys):
          + np.random.default_rng(7).normal(scale=0.01, size=t.size))
     path = _write_native(tmp_path, x, fs)
     out = tmp_path / "out"
+    main(["spectrum", str(path), "--preset", "paper-sim", "--f-sun", str(F_SUN), "--json"])
+    rep = json.loads(capsys.readouterr().out)
+    # the default band: the gearbox's mesh harmonics with 12 carrier sidebands each side
+    assert rep["band_hz"] == pytest.approx([FM - 12 * FC, 3 * FM + 12 * FC])
     main(["spectrum", str(path), "--preset", "paper-sim", "--f-sun", str(F_SUN), "--json",
-          "--out", str(out)])
+          "--band", "450", "550", "--out", str(out)])
     rep = json.loads(capsys.readouterr().out)
     assert [p["labels"][0] for p in rep["peaks"]] == ["fm − 7fc", "fm", "fm + fs/3 + fc"]
     assert rep["frequencies_hz"]["f_mesh"] == pytest.approx(FM)
@@ -252,7 +256,7 @@ def test_cli_spectrum_labels_the_paper_family(tmp_path, capsys):
     assert {"spectrum.png", "waveform.png", "spectrum.json", "manifest.json"} <= {
         p.name for p in out.iterdir()}
     # without a gearbox: peaks found, unlabelled; an unknown channel is a clear error
-    main(["spectrum", str(path), "--json"])
+    main(["spectrum", str(path), "--json", "--band", "450", "550"])
     rep = json.loads(capsys.readouterr().out)
     assert len(rep["peaks"]) == 3 and all(p["labels"] == [] for p in rep["peaks"])
     with pytest.raises(SystemExit) as e:

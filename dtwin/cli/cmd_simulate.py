@@ -41,7 +41,8 @@ def simulate(
     seed: int = typer.Option(0, help="noise seed"),
     tacho_ppr: int = typer.Option(None, "--tacho-ppr", help="add a tachometer channel (pulses/rev)"),
     band: tuple[float, float] = typer.Option(None, help="spectrum band LOW HIGH (Hz); default "
-                                             "450 550"),
+                                             "the mesh harmonics fm − 12 fc … 3 fm + 12 fc "
+                                             "(capped at Nyquist)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress output"),
     as_json: bool = opts.json_option(),
     out: Path = opts.out_option("record.dtwin.h5, waveform.png, spectrum.png, simulate.json"),
@@ -73,13 +74,16 @@ def simulate(
     spec = gb.spec
     rate = float(sample_rate) if sample_rate is not None else daq_from_spec(spec).sample_rate
     nyq = rate / 2
-    if band is None:
-        band = (450.0, 550.0)
-        if band[1] > nyq:
-            raise opts.OptionError("--band", f"the default band 450–550 Hz lies above Nyquist "
-                                   f"({nyq:g} Hz at {rate:g} Hz); give --band LOW HIGH below "
-                                   f"{nyq:g} Hz or raise --sample-rate")
-    opts.band("--band", band, nyquist=nyq)
+    if band is not None:
+        opts.band("--band", band, nyquist=nyq)
+    else:  # the default band starts at the mesh frequency: it must lie below Nyquist
+        f_nom = f_sun or spec["operating"].get("f_sun")
+        if f_nom:
+            fm = float(gear_frequencies(spec, float(f_nom))["f_mesh"])
+            if fm >= nyq:
+                raise opts.OptionError("--sample-rate", f"the mesh frequency {fm:.4g} Hz lies "
+                                       f"above Nyquist ({nyq:g} Hz at {rate:g} Hz); raise "
+                                       "--sample-rate or give --band LOW HIGH below Nyquist")
     with opts.progress_line("simulating", enabled=not (quiet or as_json)) as shown:
         record, res, settings = run_simulation(
             spec, faults=fault, f_sun=f_sun, duration=duration, discard=discard, start=start,
@@ -87,6 +91,10 @@ def simulate(
             snr_db=snr_db, seed=seed, tacho_ppr=tacho_ppr, progress=shown,
         )
     freqs = gear_frequencies(spec, settings["f_sun_hz"])
+    if band is None:  # the gearbox's mesh harmonics with their carrier sidebands
+        from ..plotting.levels import mesh_band
+
+        band = mesh_band(freqs["f_mesh"], freqs["f_carrier"], nyq)
     report, data = spectrum_report(record, band=band, frequencies=freqs,
                                    n_planets=spec["gears"]["n_planets"])
     summary = {"settings": settings, "spectrum": report}
