@@ -27,6 +27,11 @@ def _fmt_lines(lines, k=8) -> str:
     return "; ".join(f"{r.frequency:.2f} Hz (+{r.excess_db:.0f} dB, {r.text})" for r in lines[:k])
 
 
+def _unit_text(unit: str) -> str:
+    """A unit as printed: "dimensionless" for 1."""
+    return "dimensionless" if unit in ("1", "") else unit
+
+
 def markdown_report(result, record_name: str) -> str:
     """The readable report (Markdown) of a :class:`dtwin.identify.discover.DiscoveryResult`."""
     out = [f"# Discrepancy discovery: {record_name}", "",
@@ -50,14 +55,14 @@ def markdown_report(result, record_name: str) -> str:
                 f"- held-out gap {s.gap_before.total:.2f} → {s.gap_after.total:.2f} dB "
                 f"(full model confirmed: {s.gap_confirmed.total:.2f} dB); p = {s.p_value:.2g} "
                 f"≤ {s.level:.2g}",
-                f"- {s.main['name']}: {s.main['value']:.4g} {s.main['unit']}, 99 % interval "
+                f"- {s.main['name']}: {s.main['value']:.4g} {_unit_text(s.main['unit'])}, 99 % interval "
                 f"[{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}] (typical on real "
                 f"machines {s.main['typical_range'][0]:g}–{s.main['typical_range'][1]:g}: "
                 f"{s.main['typical_note']})", "",
                 "| parameter | value | 99 % interval | unit |", "|---|---|---|---|"]
         for p in s.parameters:
             out.append(f"| {p['name']} | {p['value']:.4g} | [{p['interval'][0]:.3g}, "
-                       f"{p['interval'][1]:.3g}] | {p['unit']} |")
+                       f"{p['interval'][1]:.3g}] | {_unit_text(p['unit'])} |")
         out += ["", "| candidate refit | group | coverage | p | held-out gap (dB) | identified "
                 "| set aside |", "|---|---|---|---|---|---|---|"]
         for c in s.candidates:
