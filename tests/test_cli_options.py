@@ -104,6 +104,8 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
         ("--preset", "nope"), ("--spec", "{missing}"), ("--f-sun", "0"),
         ("--band", ("-1", "5")), ("--speed-range", ("0", "5")), ("--segment", "2"),
         ("--nat", "-1"), ("--sample-rate", "0"), ("--revs", "0"), ("--scale", "loud"),
+        ("--units", "furlongs"), ("--highpass", "0"),
+
         *OUT_BAD]),
     ("identify", R): (["--preset", "paper-sim", "--free", "sun_fault"], [
         ("RECORD", "{missing}"), ("--free", "sun_faul"), ("--spec", "{missing}"),
