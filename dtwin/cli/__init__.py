@@ -48,6 +48,39 @@ def _interrupt_exit(signum: int) -> SystemExit:
 
 #: True while :func:`main` runs as the console script (no `argv` given), not in-process.
 _CONSOLE_SCRIPT = False
+#: Seconds the main thread gets to unwind after SIGINT/SIGTERM before the watcher ends the
+#: process (a jitted fit or simulation does not return to Python until it has finished).
+UNWIND_GRACE_S = 2.0
+
+
+def _watch_signals() -> None:
+    """A daemon thread woken by the C-level signal handler (``signal.set_wakeup_fd``): Python
+    runs its own handlers only between bytecodes, so Ctrl-C during a long XLA computation would
+    wait for its end. If the main thread has not left within :data:`UNWIND_GRACE_S`, the
+    watcher removes unfinished staged results and exits with 130 / 143."""
+    import time
+
+    r, w = os.pipe()
+    os.set_blocking(w, False)
+    try:
+        signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+    except ValueError:  # not the main thread
+        return
+
+    def watch() -> None:
+        while True:
+            data = os.read(r, 16)
+            sigs = [s for s in data if s in (signal.SIGINT, signal.SIGTERM)]
+            if not sigs:
+                continue
+            time.sleep(UNWIND_GRACE_S)
+            from ..io.output import discard_unfinished
+
+            discard_unfinished()
+            _interrupt_exit(sigs[0])  # prints the line and leaves (console script)
+
+    threading.Thread(target=watch, name="dtwin-signals", daemon=True).start()
+
 
 
 
@@ -72,7 +105,10 @@ def main(argv: list[str] | None = None) -> None:
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             old[sig] = signal.signal(sig, _on_signal)
+        if _CONSOLE_SCRIPT:
+            _watch_signals()
     try:
+
         # typer turns Ctrl-C into `Exit(130)` and, outside standalone mode, *returns* the code
         rv = app(args=argv, standalone_mode=False)
 

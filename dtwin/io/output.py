@@ -28,6 +28,7 @@ import shutil
 import signal
 import sys
 import tempfile
+import threading
 from collections.abc import Iterable, Mapping
 from importlib import metadata
 from pathlib import Path
@@ -59,12 +60,25 @@ def versions() -> dict[str, str]:
     return out
 
 
+#: Staging folders of unfinished staged results, and a lock held while one is committed: a
+#: process that must leave at once (:func:`discard_unfinished`) removes them, never half a move.
+_STAGING: set[Path] = set()
+_COMMIT_LOCK = threading.Lock()
+
+
+def discard_unfinished() -> None:
+    """Remove the staging folders of results not yet committed (waits for a commit under way).
+    For an exit that cannot unwind normally (the CLI's hard exit on Ctrl-C)."""
+    with _COMMIT_LOCK:
+        for p in list(_STAGING):
+            shutil.rmtree(p, ignore_errors=True)
+            _STAGING.discard(p)
+
+
 class _signals_deferred:
     """Hold SIGINT and SIGTERM back inside the block and deliver them after it (main thread)."""
 
     def __enter__(self) -> None:
-        import threading
-
         self._held: list[int] = []
         self._old: dict[int, Any] = {}
         if threading.current_thread() is not threading.main_thread():
@@ -137,6 +151,7 @@ class OutputFolder:
                 if old.is_dir():
                     shutil.rmtree(old, ignore_errors=True)
             self.path = Path(tempfile.mkdtemp(prefix=".partial-", dir=self._final))
+            _STAGING.add(self.path)
             return
         self._write_manifest()
 
@@ -157,13 +172,16 @@ class OutputFolder:
         """
         if not self.staged or self.path == self._final:
             return self._final
-        with _signals_deferred():
+        with _signals_deferred(), _COMMIT_LOCK:
             overwrite = self.force or self._unfinished
             for name in self.manifest["files"]:
                 target = self._final / name
                 if target.exists() and not overwrite:
+                    self.discard()
                     raise OutputExistsError(f"{target} already exists; choose another output "
                                             "folder or pass --force to overwrite")
+            _STAGING.discard(self.path)
+
             for name in self.manifest["files"]:
                 os.replace(self.path / name, self._final / name)
             staging, self.path = self.path, self._final
@@ -174,7 +192,9 @@ class OutputFolder:
     def discard(self) -> None:
         """Remove the staged files (staged folders); the result folder stays as it was."""
         if self.staged and self.path != self._final:
+            _STAGING.discard(self.path)
             shutil.rmtree(self.path, ignore_errors=True)
+
             self.path = self._final
             try:
                 self._final.rmdir()  # only if it is empty (we may have created it)
