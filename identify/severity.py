@@ -25,10 +25,13 @@ spectrum of a loss pulse near ``h f_mesh ± f_sf`` is its Fourier transform at a
 per mesh period, where a flat loss over the contact (1.6 cycles, sharp edges) holds 4–13× more
 than one that fades over a mesh cycle either side, for the same peak. With ``ramps=`` the fit
 is repeated for each shape (one compiled fit serves them all), the shape of least loss is
-reported, and the intervals of severity and peak loss are the union over the shapes the loss
-cannot reject (profile likelihood over the shape: loss within ``χ²₁(95 %)`` of the best, in
-units of the best fit's residual variance, neighbour-correlation and lack-of-fit factors
-included).
+reported, and the intervals of severity and peak loss are the union over the shapes the data
+cannot reject. A shape is rejected when its ``‖r‖²`` exceeds the best one's by more than the
+larger of (a) ``χ²₁(95 %)`` in units of the residual variance (neighbour-correlation and
+lack-of-fit factors included: the profile likelihood over the shape) and (b) what the best
+shape leaves unexplained beyond the noise, ``‖r‖² − E`` (:func:`expected_noise_rss`): a loss
+difference smaller than the model-form error the best fit still carries cannot tell two
+shapes apart.
 """
 
 from __future__ import annotations
@@ -166,13 +169,17 @@ def _estimate(location: str, shapes) -> SeverityEstimate:
     sev = float(best.values[name])
     if unc is None:
         iv = (np.nan, np.nan)
-        scale = np.inf
+        tol = np.inf
     else:
         iv = tuple(map(float, unc.interval[i]))
-        scale = max(unc.s2 * unc.kappa * unc.widened ** 2, 1e-300)
+        # noise: χ²₁ in units of the residual variance (neighbours, lack-of-fit widening);
+        # model form: what the best shape leaves unexplained beyond the noise (module docstring)
+        rss = 2.0 * float(losses[b])
+        excess = rss - rss / unc.lack_of_fit if np.isfinite(unc.lack_of_fit) else 0.0
+        tol = max(CHI2_95 * unc.s2 * unc.kappa * unc.widened ** 2, excess)
     rows, lo, hi, plo, phi = [], iv[0], iv[1], np.inf, -np.inf
     for (r, res), loss in zip(shapes, losses, strict=True):
-        accepted = bool(2.0 * (loss - losses[b]) / scale <= CHI2_95)
+        accepted = bool(2.0 * (loss - losses[b]) <= tol)
         tw = res.problem.twin
         j = _fault_index(tw, location)
         s_j = float(res.values[name])

@@ -1,0 +1,199 @@
+"""Severity in physical terms (peak mesh-stiffness loss) and honest intervals (lack-of-fit
+widening), on records dtwin did not make: ../shared/independent/ (an independent simulator of
+the paper's gearbox; its sun-fault series states the peak stiffness loss, truth.json), after
+calibrating on baseline-1 alone; and the rule's pieces against Monte Carlo."""
+
+from __future__ import annotations
+
+import json
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+IND = Path(__file__).resolve().parents[2] / "shared" / "independent"
+needs_independent = pytest.mark.skipif(not (IND / "baseline-1.csv").exists(),
+                                       reason="../shared/independent/ is not beside the checkout")
+SERIES = ("sun-fault-0.15", "sun-fault-0.30", "sun-fault-0.60", "sun-fault-0.90")
+
+
+def _truth(name: str) -> float:
+    t = json.loads((IND / "truth.json").read_text())
+    return float(t["records"][name]["effects"][0]["peak_stiffness_loss"])
+
+
+# ---------------------------------------------------------------- the lack-of-fit rule's pieces
+def test_noise_mse_matches_monte_carlo():
+    """The mean square log residual the noise alone leaves, by quadrature, against simulated
+    complex Gaussian noise of median amplitude F around lines of several S/F."""
+    from dtwin.identify.uncertainty import _rice_log_mse
+
+    rng = np.random.default_rng(0)
+    sigma = 1.0 / np.sqrt(2.0 * np.log(2.0))
+    for snr in (0.0, 0.5, 1.0, 3.0, 10.0, 100.0):
+        n = sigma * (rng.standard_normal(200_000) + 1j * rng.standard_normal(200_000))
+        mc = np.mean((np.log(np.sqrt(snr ** 2 + 1) + 1) - np.log(np.abs(snr + n) + 1)) ** 2)
+        assert float(_rice_log_mse(np.array(snr))) == pytest.approx(mc, rel=0.02)
+
+
+def test_expected_noise_rss_is_the_loss_of_a_right_model():
+    """A spectrum of lines in noise, compared with the right model (the residual of
+    dtwin.identify.residuals): its loss over the expected loss is 1 within the Monte Carlo
+    scatter, and an amplitude error of 50 % on the lines raises it well above the limit."""
+    from dtwin.identify.uncertainty import LACK_OF_FIT_LIMIT, expected_noise_rss
+
+    rng = np.random.default_rng(1)
+    m = 4000
+    floor = np.full(m, 2.0)
+    sigma = floor / np.sqrt(2.0 * np.log(2.0))
+    lines = np.where(np.arange(m) % 2 == 0, 10 ** rng.uniform(0, 2, m), 0.0) * floor
+    meas = np.abs(lines + sigma * (rng.standard_normal(m) + 1j * rng.standard_normal(m)))
+    obs = types.SimpleNamespace(floor=floor, meas=np.log(meas + floor), weight=1.0,
+                                env_weight=0.0)
+
+    def loss(model):
+        return np.sum((np.log(np.sqrt(model ** 2 + floor ** 2) + floor) - obs.meas) ** 2)
+
+    e = expected_noise_rss([obs])
+    assert loss(lines) / e == pytest.approx(1.0, abs=0.1)
+    assert loss(1.5 * lines) / e > LACK_OF_FIT_LIMIT
+
+
+# ---------------------------------------------------------------- the independent records
+@pytest.fixture(scope="module")
+def calibrated_spec(tmp_path_factory):
+    """The independent gearbox calibrated on baseline-1 alone (about 2 min)."""
+    if not (IND / "baseline-1.csv").exists():
+        pytest.skip("../shared/independent/ is not beside the checkout")
+    from dtwin.identify.calibrate import calibrate
+
+    res = calibrate([IND / "baseline-1.csv"], IND / "gearbox.toml")
+    path = tmp_path_factory.mktemp("cal") / "calibrated.toml"
+    res.write_spec(path)
+    return path
+
+
+def _estimate(name: str, spec, ramps):
+    """The translational twin: a sun tooth fault loads one mesh at a time, and the sun floats
+    on its bearing under it; the torsional twin, whose sun cannot, makes the same loss 4–10×
+    louder (measured: sun-fault-0.60, sharp loss, peak 7.1 % torsional, 28.4 % translational,
+    truth 36 %)."""
+    from dtwin import read_record
+    from dtwin.identify.severity import estimate_severity
+
+    return estimate_severity(read_record(IND / f"{name}.csv"), spec, "sun", ramps=ramps,
+                             initial_severity=0.2, kind="translational")
+
+
+def _assert_honest_table(est):
+    """A fit whose loss stands above the noise never prints 'ok' for the severity."""
+    tab = est.fit.table()
+    if est.widened > 1.0:
+        assert "widened" in est.status and "widened" in tab
+        row = [r for r in tab.splitlines() if r.startswith("sun_fault")][0]
+        assert not row.rstrip().endswith("ok")
+
+
+@needs_independent
+def test_sun_fault_peak_loss_on_independent_record(calibrated_spec):
+    """CI form: sun-fault-0.60 (truth: peak stiffness loss 36 %) within 25 % with the
+    translational twin and the fault's default (sharp) loss. Measured: 28.4 %, 95 %
+    [24.5, 32.6] % (the torsional twin: 7.1 %)."""
+    truth = _truth("sun-fault-0.60")
+    est = _estimate("sun-fault-0.60", calibrated_spec, None)
+    print(est.summary())
+    _assert_honest_table(est)
+    assert abs(est.peak_loss - truth) <= 0.25 * truth
+
+
+@pytest.fixture(scope="module")
+def series(calibrated_spec):
+    """The four sun-fault records, translational twin, default (sharp) loss."""
+    ests = [_estimate(n, calibrated_spec, None) for n in SERIES]
+    for n, e in zip(SERIES, ests, strict=True):
+        print(n, _truth(n), e.summary())
+    return ests
+
+
+@needs_independent
+@pytest.mark.slow
+def test_sun_fault_series_in_order(series):
+    """Full form: the four sun-fault records (peak loss 9, 18, 36, 54 %) come out in order, and
+    no interval is called ok while the loss stands well above the noise."""
+    for e in series:
+        _assert_honest_table(e)
+    peaks = [e.peak_loss for e in series]
+    assert all(a < b for a, b in zip(peaks, peaks[1:], strict=False))
+
+
+@needs_independent
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "measured (translational twin, sharp loss): peak 8.2 % [5.9, 11.2], 17.3 % [14.7, 20.3], "
+    "28.4 % [24.5, 32.6], 75.6 % [72.1, 78.8] for 9/18/36/54 %: 54 % is 40 % over and the "
+    "intervals hold the truth 2 of 4; with the shape profiled (ramps 0.05/0.15/0.3) the loss "
+    "prefers the widest and gives 6.2, 11.7, 17.9, 38.3 %, 1 of 4 covered. The fault's "
+    "sidebands are 25-30 dB below the mesh line and the residual sits at the noise (lack of "
+    "fit 0.92-1.25): the remaining factor ~2 is a model-form error of the sun-mesh path that "
+    "no healthy record calibrates (docs/identification.md)"))
+def test_sun_fault_series_peak_loss_and_coverage(series):
+    """The issue's targets: within 25 % (36, 54 %) or 0.05 absolute (9, 18 %), 95 % intervals
+    holding the truth ≥ 3 of 4."""
+    truths = [_truth(n) for n in SERIES]
+    for e, t in zip(series, truths, strict=True):
+        assert abs(e.peak_loss - t) <= (0.25 * t if t > 0.3 else 0.05)
+    covered = sum(e.peak_interval[0] <= t <= e.peak_interval[1]
+                  for e, t in zip(series, truths, strict=True))
+    assert covered >= 3
+
+
+# ---------------------------------------------------------------- the bundled bench records
+SAMPLES = Path(__file__).resolve().parents[1] / "data" / "samples"
+
+
+@pytest.fixture(scope="module")
+def bench_spec(tmp_path_factory):
+    """paper-bench calibrated on bench_healthy (records made by a translational twin with 20
+    stiffness harmonics, transmission error and planet position errors: not the fitted twin)."""
+    from dtwin.identify.calibrate import calibrate
+    from dtwin.spec import preset
+
+    res = calibrate([SAMPLES / "bench_healthy.dtwin.h5"], preset("paper-bench"))
+    path = tmp_path_factory.mktemp("bench") / "calibrated.toml"
+    res.write_spec(path)
+    return path
+
+
+def _overlap(a, b) -> bool:
+    return a[0] <= b[1] and b[0] <= a[1]
+
+
+@pytest.mark.slow
+def test_bench_identify_severity_and_fleet_agree(bench_spec, tmp_path):
+    """identify (k_sun_planet, zeta_mesh, sun_fault), severity and fleet on bench_sun_fault
+    agree within their intervals; bench_healthy's severity interval holds 0; k_sun_planet,
+    which a 5 kHz record cannot determine (its mode sits at 12 kHz), is flagged."""
+    from dtwin import read_record
+    from dtwin.identify.fit import fit
+    from dtwin.identify.fleet import FleetSettings, run_fleet
+    from dtwin.identify.severity import estimate_severity
+
+    rec = read_record(SAMPLES / "bench_sun_fault.dtwin.h5")
+    ident = fit(rec, bench_spec, ["k_sun_planet", "zeta_mesh", "sun_fault"],
+                initial={"sun_fault": 0.3})
+    print(ident.table())
+    assert ident.status("k_sun_planet") == "NOT DETERMINED"
+    sev = estimate_severity(rec, bench_spec, "sun")
+    print(sev.summary())
+    run_fleet([str(SAMPLES / "bench_sun_fault.dtwin.h5")], bench_spec, tmp_path / "fleet",
+              FleetSettings(free=("sun_fault",)), engine="local", progress=False)
+    entries = [json.loads(p.read_text()) for p in (tmp_path / "fleet").rglob("*.json")]
+    (entry,) = [e for e in entries if isinstance(e, dict) and e.get("kind") == "fit"]
+    fleet_iv = tuple(entry["intervals_95"]["sun_fault"])
+    ivs = [ident.interval("sun_fault"), sev.interval, fleet_iv]
+    print(ivs)
+    assert all(_overlap(a, b) for a in ivs for b in ivs)
+    healthy = estimate_severity(read_record(SAMPLES / "bench_healthy.dtwin.h5"), bench_spec, "sun")
+    print(healthy.summary())
+    assert healthy.interval[0] <= 1e-3
