@@ -30,7 +30,9 @@ def table_rows(results: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str, Any
     """Flat rows of the fleet table, one per record, and the parameter names (union).
 
     Columns: ``record, machine, timestamp, status, converged, loss, gap_db, f_sun,
-    iterations``, per parameter ``<name>, <name>_lo95, <name>_hi95, <name>_determined``, then
+    iterations, lack_of_fit, widened`` (the loss over the loss the noise alone leaves, and the
+    factor every interval was widened by for it, :mod:`dtwin.identify.uncertainty`), per
+    parameter ``<name>, <name>_lo95, <name>_hi95, <name>_determined``, then
     ``effects`` (discovered effects, ``;``-joined), ``discover_gap_initial_db``,
     ``discover_gap_final_db``, ``discover_status``, ``error``, ``key``, ``sha256``."""
     names: list[str] = []
@@ -48,6 +50,9 @@ def table_rows(results: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str, Any
             "loss": _num(r.get("loss")), "gap_db": _num(r.get("gap_db")),
             "f_sun": _num(r.get("f_sun")), "iterations": r.get("iterations"),
         }
+        unc = (r.get("fit") or {}).get("uncertainty") or {}
+        row["lack_of_fit"] = _num(unc.get("lack_of_fit"))
+        row["widened"] = _num(unc.get("widened"))
         iv = r.get("intervals_95", {}) or {}
         nd = r.get("not_determined", {}) or {}
         for n in names:
