@@ -31,7 +31,7 @@ import typer
 from ..errors import SpecError
 from . import options as opts
 from .app import app
-from .logs import is_quiet, note
+from .logs import is_quiet, note, warn
 
 fleet_app = typer.Typer(help="Fleet runs: many records in batch or on a Ray cluster, the "
                         "results table and per-machine trends.", no_args_is_help=True)
@@ -135,6 +135,17 @@ def fleet_identify(
         _echo_json(run.to_dict())
     else:
         _print_run(run, discover)
+        from dtwin.identify.fleet import load_results
+
+        unconverged = [r for r in load_results(out, failed=False)
+                       if r.get("kind", "fit") == "fit" and r.get("converged") is False]
+        if unconverged:
+            warn(f"{len(unconverged)} fitted record(s) did not converge ("
+                 + "; ".join(f"{r.get('record', '?')}: {str(r.get('message', ''))[:80]}"
+                             for r in unconverged[:3])
+                 + ("; …" if len(unconverged) > 3 else "")
+                 + "): their values are not final; raise --max-steps and run again with --force")
+
     failed = run.failed + (run.discover_failed if discover else 0)
     if failed:  # finished records are kept; a re-run retries the failed ones
         note(f"{failed} of {run.records} record(s) failed (exit code 1); the others are in "
