@@ -136,6 +136,12 @@ GAP_NOT_MET = {
                   "stays 18 dB under; a load torque at the carrier reaches the twin's sensor at "
                   "2.1 Hz only through the planet-pass path's high-pass, and the FM sidebands of "
                   "a speed dip under PI control (3fm ± fx, 4fm ± fx) need a speed-fluctuation part",
+    "planet-fault": "18.46 → 11.99 dB (35 % closed): the low-frequency comb k fp (28–33 dB over "
+                    "the twin) stays; the fault on the ring flank closes no more (12.45 dB)",
+    "spacing": "6.69 → 5.45 dB (19 % closed): carrier_sidebands named (load sharing and planet "
+               "position errors tie), 4fm ± fc stay 16 dB over the twin",
+    "sun-ecc": "22.03 → 7.79 dB (65 % closed): sun_eccentricity named, fitted 0.13 µm for 0.3 µm; "
+               "fs/3 − 2fc (11.5 Hz) stays 18 dB over the twin",
 }
 
 

@@ -28,6 +28,9 @@ class LocalFaultEffect(AbstractEffect):
     """
 
     location: str = eqx.field(static=True, default="sun")
+    #: a planet tooth's flank: ``"sun"`` (the one meeting the sun, :class:`Pitting`'s default),
+    #: ``"ring"`` or ``"both"``; ignored for sun and ring faults
+    flank: str = eqx.field(static=True, default="sun")
     description: ClassVar[str] = "a local tooth fault (pitting)"
     main_name: ClassVar[str] = "pitting severity"
     main_unit: ClassVar[str] = "1"
@@ -37,6 +40,8 @@ class LocalFaultEffect(AbstractEffect):
 
     @property
     def name(self) -> str:
+        if self.location == "planet" and self.flank != "sun":
+            return f"planet_local_fault_{self.flank}"
         return f"{self.location}_local_fault"
 
     @property
@@ -44,11 +49,14 @@ class LocalFaultEffect(AbstractEffect):
         return _GROUPS[self.location]
 
     def parameters(self, twin):
-        return (EffectParameter(f"{self.location}_fault", "1", 0.1,
+        suffix = f"_{self.flank}" if self.location == "planet" and self.flank != "sun" else ""
+        return (EffectParameter(f"{self.location}_fault{suffix}", "1", 0.1,
                                 f"severity of the {self.location} local fault", (0.0, 1.0),
                                 nonnegative=True),)
 
     def parts(self, theta, twin, kin):
+        if self.location == "planet":
+            return (LocalFault(Pitting(theta[0], location="planet", flank=self.flank)),)
         return (LocalFault(Pitting(theta[0], location=self.location)),)
 
     def signature(self, kin, f_max):
