@@ -140,6 +140,8 @@ GAP_NOT_MET = {
                     "the twin) stays; the fault on the ring flank closes no more (12.45 dB)",
     "spacing": "6.69 → 5.45 dB (19 % closed): carrier_sidebands named (load sharing and planet "
                "position errors tie), 4fm ± fc stay 16 dB over the twin",
+    "sun-fault-0.15": "14.36 → 4.96 dB (65 % closed): sun_local_fault named; fs/3 − 2fc "
+                      "(11.5 Hz) and fsr stay 14–18 dB over the twin",
     "sun-ecc": "22.03 → 7.79 dB (65 % closed): sun_eccentricity named, fitted 0.13 µm for 0.3 µm; "
                "fs/3 − 2fc (11.5 Hz) stays 18 dB over the twin",
 }
