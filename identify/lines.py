@@ -23,6 +23,14 @@ its Hann peak (error well under 0.1 bin at 20 dB over the floor); a combination 
 ``tolerance_bins`` (default 0.25) bins. :func:`chance_match_probability` gives the probability
 that a tone at a uniformly random frequency in (0, Nyquist) matches *some* combination — the
 false-naming rate the report states next to each description.
+
+**Families** (:func:`find_combs`, :func:`find_modulation`): a fault's impulse comb
+``k g + n fc`` (k up to what the band holds) and a modulation at a located frequency
+(``f_x``, ``L ± j f_x``) are scored as wholes, with the chance that as many of the residual
+lines fall on them at random (binomial tail, Bonferroni over the families tried): twenty lines
+on one comb are strong evidence, not twenty chance matches. Members are labelled
+"14fs/3 − fc (comb)"; mesh harmonics are searched up to Nyquist (:func:`band_bounds`) and
+lines near Nyquist may be described as aliases ("alias of 5fm").
 """
 
 from __future__ import annotations
@@ -36,8 +44,10 @@ from dtwin.kinematics import Kinematics, OrderBounds, combination_text
 from dtwin.spectrum import noise_floor
 
 __all__ = [
-    "Description", "Kinematics", "LineBounds", "ResidualLine", "chance_match_probability",
-    "describe", "estimate_speed", "interpolated_peak", "residual_lines",
+    "Comb", "Description", "Kinematics", "LineBounds", "Modulation", "ResidualLine",
+    "band_bounds", "chance_match_probability", "comb_label", "comb_lines", "describe",
+    "estimate_speed", "find_combs", "find_modulation", "interpolated_peak", "label_combs",
+    "modulation_lines", "residual_lines",
 ]
 
 

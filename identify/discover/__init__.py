@@ -5,7 +5,8 @@ add it, refit, and show the held-out gap shrink (docs/discovery.md).
 base twin simulated over the record; then per step
 
 1. residual lines over 0 … Nyquist (:func:`dtwin.identify.lines.residual_lines`), each with its
-   kinematic description;
+   kinematic description, fault combs and a modulation at a located frequency found as
+   families (:func:`dtwin.identify.lines.find_combs`, :func:`~dtwin.identify.lines.find_modulation`);
 2. candidates ranked by *coverage*: the share of the residual line power (measured over model)
    lying on their signature (:func:`coverage`); the best `max_refit` are refit;
 3. each is refit about the current model (below) and scored on held-out data: statistic ``T``,
