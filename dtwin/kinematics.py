@@ -165,12 +165,14 @@ class OrderBounds:
 
 
 _MULT = re.compile(r"^(\d+)(\D.*)$")
+_FRACTION = re.compile(r"^(\D+)/(\d+)$")
 
 
 def combination_text(terms: Sequence[tuple[str, int]]) -> str:
     """A combination ``sum c_k sym_k`` written like the paper's figures ("fm − 7fc",
     "2fm + fs/3 − fc"), simplified to its shortest equivalent form: like symbols merged (a
-    symbol may carry a multiplier, ``("2fm", 1)`` is ``2fm``), zero terms dropped, terms in
+    symbol may carry a multiplier, ``("2fm", 1)`` is ``2fm``), whole multiples of a fraction
+    written as the symbol (``3fs/3`` is ``fs``), zero terms dropped, terms in
     their first order of appearance; ``"DC"`` when nothing is left."""
     coef: dict[str, int] = {}
     for sym, c in terms:
@@ -178,6 +180,14 @@ def combination_text(terms: Sequence[tuple[str, int]]) -> str:
         if m:
             sym, c = m.group(2), int(m.group(1)) * c
         coef[sym] = coef.get(sym, 0) + int(c)
+    # a whole multiple of a fraction is the whole symbol: 3·fs/3 → fs, −6·fs/3 → −2fs
+    reduced: dict[str, int] = {}
+    for sym, c in coef.items():
+        f = _FRACTION.match(sym)
+        if f and c % int(f.group(2)) == 0:
+            sym, c = f.group(1), c // int(f.group(2))
+        reduced[sym] = reduced.get(sym, 0) + c
+    coef = reduced
     out = ""
     for sym, c in coef.items():
         if c == 0:

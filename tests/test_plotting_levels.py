@@ -73,3 +73,12 @@ def test_view_figures_state_units():
     fig = plot_cepstrum(q, np.zeros(q.size), spacings={"fc": 6.0, "N fc": 18.0})
     texts = [t.get_text() for t in fig.axes[0].texts]
     assert "1/fc" in texts and "3/N fc" in texts  # both shown where they coincide
+
+
+def test_label_text_is_the_shortest_form():
+    # issue #22: "fm − 3fs/3 + fp + fc" is fm − fs + fp + fc (3 · fs/3 = fs)
+    from dtwin.kinematics import combination_text
+
+    assert combination_text([("fm", 1), ("fs/3", -3), ("fp", 1), ("fc", 1)]) == "fm − fs + fp + fc"
+    assert combination_text([("fm", 3), ("fs/3", 2), ("fc", 1)]) == "3fm + 2fs/3 + fc"
+    assert combination_text([("fs", 1), ("fs/3", -3)]) == "DC"
