@@ -204,3 +204,47 @@ def test_bench_identify_severity_and_fleet_agree(bench_spec, tmp_path):
     healthy = estimate_severity(read_record(SAMPLES / "bench_healthy.dtwin.h5"), bench_spec, "sun")
     print(healthy.summary())
     assert healthy.interval[0] <= 1e-3
+
+
+def test_shape_profile_keeps_the_shapes_a_model_form_error_cannot_reject():
+    """The union rule of dtwin.identify.severity on stand-in fits: a shape whose ‖r‖² exceeds
+    the best by less than max(χ²₁ s² κ, ‖r‖² − E) joins the interval; severity and peak loss map
+    through each shape's own ramp (dtwin.faults.peak_stiffness_loss)."""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    from dtwin.build import build_twin
+    from dtwin.faults import peak_stiffness_loss
+    from dtwin.identify.severity import _estimate, _fault_index
+    from dtwin.registry import lookup
+    from dtwin.spec import preset
+
+    tw = lookup("sun_fault").address.ensure(build_twin(preset("paper-sim")))
+    k = _fault_index(tw, "sun")
+
+    def stand_in(ramp, loss, sev, iv, lack):
+        twin = eqx.tree_at(lambda t: t.parts[k].fault.ramp, tw, jnp.asarray(ramp))
+        unc = types.SimpleNamespace(interval=np.array([iv]), s2=0.08, kappa=1.8, widened=1.0,
+                                    lack_of_fit=lack, profiled=(), not_determined={})
+        return (ramp, types.SimpleNamespace(
+            loss=loss, names=("sun_fault",), values={"sun_fault": sev}, uncertainty=unc,
+            problem=types.SimpleNamespace(twin=twin), widened=1.0,
+            status=lambda n: "ok"))
+
+    def peak(ramp, s):
+        f = eqx.tree_at(lambda f: f.fault.ramp, tw.parts[k], jnp.asarray(ramp)).fault
+        return float(peak_stiffness_loss(eqx.tree_at(lambda f: f.severity, f, jnp.asarray(s)),
+                                         tw.lp))
+
+    # at the noise (lack 1): χ²₁ s² κ = 0.55 in ‖r‖²; a shape 2 × 0.5 = 1.0 worse is rejected
+    est = _estimate("sun", [stand_in(0.05, 60.5, 0.17, (0.15, 0.20), 1.0),
+                            stand_in(0.3, 60.0, 0.13, (0.11, 0.16), 1.0)])
+    assert est.ramp == 0.3 and est.interval == pytest.approx((0.11, 0.16))
+    assert est.peak_loss == pytest.approx(peak(0.3, 0.13))
+    assert [r["accepted"] for r in est.shapes] == [False, True]
+    # 25 % above the noise: ‖r‖² − E = 160 (1 − 1/1.25) = 32 > 2 × 6, so the sharp shape stays
+    est = _estimate("sun", [stand_in(0.05, 86.0, 0.75, (0.72, 0.79), 1.3),
+                            stand_in(0.3, 80.0, 0.44, (0.37, 0.50), 1.25)])
+    assert est.interval == pytest.approx((0.37, 0.79))
+    assert est.peak_interval == pytest.approx((peak(0.3, 0.37), peak(0.05, 0.79)))
+    assert est.method == "gaussian + loss shapes"
