@@ -16,9 +16,15 @@ needs_independent = pytest.mark.skipif(not (IND / "baseline-1.csv").exists(),
 
 
 @pytest.fixture(scope="session")
-def independent_calibrated_spec(tmp_path_factory) -> Path:
-    """Path of the spec calibrated on ``baseline-1.csv`` (the user's ``gearbox.toml`` is
-    checked unmodified)."""
+def independent_calibrated_spec(independent_calibration) -> Path:
+    """Path of the spec calibrated on ``baseline-1.csv``."""
+    return independent_calibration[1]
+
+
+@pytest.fixture(scope="session")
+def independent_calibration(tmp_path_factory):
+    """``(CalibrationResult, path of the calibrated spec)`` of the calibration on
+    ``baseline-1.csv`` (the user's ``gearbox.toml`` is checked unmodified)."""
     from dtwin.identify.calibrate import calibrate
 
     if not (IND / "baseline-1.csv").exists():
@@ -29,4 +35,4 @@ def independent_calibrated_spec(tmp_path_factory) -> Path:
     assert hashlib.sha256(spec_file.read_bytes()).hexdigest() == before
     path = tmp_path_factory.mktemp("independent_cal") / "calibrated.toml"
     res.write_spec(path)
-    return path
+    return res, path

@@ -10,6 +10,6 @@ jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 
 # the spec calibrated on the independent records' baseline-1, one per session (tests/_independent.py)
-from _independent import independent_calibrated_spec  # noqa: E402,F401
+from _independent import independent_calibrated_spec, independent_calibration  # noqa: E402,F401
 
 import dtwin  # noqa: E402,F401  (configures the compilation cache)

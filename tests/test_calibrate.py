@@ -4,7 +4,6 @@ closed form."""
 
 from __future__ import annotations
 
-import hashlib
 import math
 from pathlib import Path
 
@@ -15,6 +14,9 @@ from dtwin.parts.transfer_path import window_cosine_coefficients
 from dtwin.sensor_response import apply_frf, frf_gain, knot_basis
 from dtwin.spec import load_spec, preset, spec_to_dict
 from dtwin.spec_writer import spec_to_toml
+
+# one worker calibrates once for every test of the independent records (tests/_independent.py)
+pytestmark = pytest.mark.xdist_group("independent")
 
 IND = Path(__file__).resolve().parents[2] / "shared" / "independent"
 needs_independent = pytest.mark.skipif(not (IND / "baseline-1.csv").exists(),
@@ -57,16 +59,10 @@ def test_spec_toml_round_trip(name, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def calibrated(tmp_path_factory):
-    from dtwin.identify.calibrate import calibrate
-
-    spec_file = IND / "gearbox.toml"
-    before = hashlib.sha256(spec_file.read_bytes()).hexdigest()
-    res = calibrate([IND / "baseline-1.csv"], spec_file)
-    assert hashlib.sha256(spec_file.read_bytes()).hexdigest() == before  # never modified
-    path = tmp_path_factory.mktemp("cal") / "calibrated.toml"
-    res.write_spec(path)
-    return res, path
+def calibrated(independent_calibration):
+    """The session's one calibration on baseline-1 (tests/_independent.py checks that the
+    user's spec file is not modified)."""
+    return independent_calibration
 
 
 @needs_independent

@@ -12,6 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+# one worker calibrates once for every test of the independent records (tests/_independent.py)
+pytestmark = pytest.mark.xdist_group("independent")
+
 IND = Path(__file__).resolve().parents[2] / "shared" / "independent"
 needs_independent = pytest.mark.skipif(not (IND / "baseline-1.csv").exists(),
                                        reason="../shared/independent/ is not beside the checkout")
@@ -62,16 +65,10 @@ def test_expected_noise_rss_is_the_loss_of_a_right_model():
 
 # ---------------------------------------------------------------- the independent records
 @pytest.fixture(scope="module")
-def calibrated_spec(tmp_path_factory):
-    """The independent gearbox calibrated on baseline-1 alone (about 2 min)."""
-    if not (IND / "baseline-1.csv").exists():
-        pytest.skip("../shared/independent/ is not beside the checkout")
-    from dtwin.identify.calibrate import calibrate
-
-    res = calibrate([IND / "baseline-1.csv"], IND / "gearbox.toml")
-    path = tmp_path_factory.mktemp("cal") / "calibrated.toml"
-    res.write_spec(path)
-    return path
+def calibrated_spec(independent_calibrated_spec):
+    """The independent gearbox calibrated on baseline-1 alone (the session's one calibration,
+    tests/_independent.py)."""
+    return independent_calibrated_spec
 
 
 def _estimate(name: str, spec, ramps):

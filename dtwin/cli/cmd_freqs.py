@@ -44,7 +44,7 @@ def freqs(
     planet_fault: str = typer.Option(
         "paper", "--planet-fault", help="paper (f_mesh/Zp) or both_flanks (2 f_mesh/Zp)."),
     json_out: bool = opts.json_option(),
-    out: Path | None = opts.out_option("freqs.json"),
+    out: Path | None = opts.out_option("freqs.json, freqs.csv/.npz"),
     force: bool = opts.force_option(),
 ) -> None:
     """Characteristic frequencies (mesh, carrier, fault, planet pass) of a gearbox."""
@@ -54,9 +54,21 @@ def freqs(
     gb = opts.load_gearbox(preset, spec)  # geometry warnings go to stderr
     report = freqs_report(gb.spec, f_sun, planet_fault, gb.source)
     opts.emit(report, json_out=json_out, table=lambda: _print_table(report), out=out,
-              force=force, files={"freqs.json": report}, gearbox=gb,
+              force=force, files=_files(report), gearbox=gb,
               parameters={"source": gb.source, "f_sun": report["f_sun_hz"],
                           "planet_fault": planet_fault})
+
+
+def _files(report: dict[str, Any]) -> dict[str, Any]:
+    """freqs.json and the frequencies as freqs.csv/.npz (name, Hz, order of the input speed)."""
+    from ..io.export import Columns
+
+    names = list(report["frequencies_hz"])
+    return {"freqs.json": report,
+            "freqs.csv": Columns({"name": names,
+                                  "frequency": [report["frequencies_hz"][n] for n in names],
+                                  "order": [report["orders"][n] for n in names]},
+                                 {"name": None, "frequency": "Hz", "order": "1"})}
 
 
 def _print_table(report: dict[str, Any]) -> None:

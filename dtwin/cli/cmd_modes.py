@@ -6,8 +6,8 @@
 Table on the terminal (one row per distinct frequency: Hz, Lin & Parker type, multiplicity,
 relative sensitivities ``(k/f) df/dk`` to the sun–planet and ring–planet mesh stiffness, and the
 frequency in mesh orders when the gearbox's operating speed is known); ``--json`` prints the
-same as JSON on stdout; ``--out DIR`` writes ``modes.json``, ``modes.png`` and
-``manifest.json``. ``lin-parker`` is Lin & Parker's (1999) example
+same as JSON on stdout; ``--out DIR`` writes ``modes.json``, ``modes.png``, the distinct
+modes as ``modes.csv`` and ``modes.npz`` (named columns with units) and ``manifest.json``. ``lin-parker`` is Lin & Parker's (1999) example
 (``dtwin/presets/lin-parker.toml``); ``--planets N`` replaces the preset's or spec's number of
 planets (equally spaced), e.g. Lin & Parker's N = 4 and 5 cases.
 """
@@ -34,7 +34,7 @@ def modes(
     planets: int | None = typer.Option(
         None, "--planets", help="Override the number of planets (equally spaced)."),
     json_out: bool = opts.json_option(),
-    out: Path | None = opts.out_option("modes.json, modes.png"),
+    out: Path | None = opts.out_option("modes.json, modes.png, modes.csv/.npz"),
     force: bool = opts.force_option(),
 ) -> None:
     """Natural frequencies and Lin & Parker mode types at mean mesh stiffness."""
@@ -55,9 +55,19 @@ def modes(
     def files() -> dict:
         from ..plotting.modes import plot_modes
 
+        from ..io.export import Columns
+
+        rows = report["modes"]
+        cols = {"frequency": [r["frequency_hz"] for r in rows],
+                "multiplicity": [r["multiplicity"] for r in rows],
+                "sensitivity_k_sun_planet": [r["sensitivity_k_sun_planet"] for r in rows],
+                "sensitivity_k_ring_planet": [r["sensitivity_k_ring_planet"] for r in rows]}
+        units = {"frequency": "Hz", "multiplicity": "1", "sensitivity_k_sun_planet": "Hz/(N/m)",
+                 "sensitivity_k_ring_planet": "Hz/(N/m)"}
         return {"modes.json": report,
                 "modes.png": plot_modes(res, f_mesh=f_mesh, sample_rate=sample_rate,
-                                        title=f"{source}: natural frequencies, {model} model")}
+                                        title=f"{source}: natural frequencies, {model} model"),
+                "modes.csv": Columns(cols, units)}
 
     opts.emit(report, json_out=json_out, table=lambda: _print_table(report), out=out,
               force=force, files=files, gearbox=gb,

@@ -11,7 +11,8 @@ a sun fault, ``Zp`` for a planet fault and ``Zr`` for a ring fault, unless ``--c
 Faults come from ``--fault`` (repeatable, e.g. ``--fault sun:missing_tooth:0.5``) and, if none
 is given, from the spec's ``[[faults]]``. Terminal: a table of ``k_mean``, ``c'``, ``1.75 c'``,
 ``eps`` and, with faults, the smallest faulty stiffness of each mesh. ``--json``: the same on
-stdout. ``--out DIR``: ``stiffness.json`` (with the curves), ``stiffness.png``, ``manifest.json``.
+stdout. ``--out DIR``: ``stiffness.json`` (with the curves), ``stiffness.png``, the curves as
+``stiffness.csv`` and ``stiffness.npz`` (named columns with units), ``manifest.json``.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ def stiffness(
         None, "--cycles", help="Mesh cycles shown (default: teeth of the faulty gear, Zs "
         "without faults)."),
     json_out: bool = opts.json_option(),
-    out: Path | None = opts.out_option("stiffness.json, stiffness.png"),
+    out: Path | None = opts.out_option("stiffness.json, stiffness.png, stiffness.csv/.npz"),
     force: bool = opts.force_option(),
 ) -> None:
     """Mesh-stiffness waveform of planet 0's sun and ring meshes, healthy and faulty."""
@@ -88,7 +89,11 @@ def stiffness(
             zoom=zoom, planet=planet, fault_label=" + ".join(r["label"] for r in report["faults"]) or "faulty",
             title=f"{source}: mesh stiffness (Zs={lp.z_sun}, Zp={lp.z_planet}, Zr={lp.z_ring})",
         )
-        return {"stiffness.json": {**report, "curves": curves}, "stiffness.png": fig}
+        from ..io.export import Columns
+
+        units = {k: ("1" if k == "mesh_cycles" else "N/m") for k in curves}
+        return {"stiffness.json": {**report, "curves": curves}, "stiffness.png": fig,
+                "stiffness.csv": Columns(dict(curves), units)}
 
     opts.emit(report, json_out=json_out, table=lambda: _print_table(report), out=out,
               force=force, files=files, gearbox=gb,
