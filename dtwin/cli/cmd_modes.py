@@ -53,9 +53,8 @@ def modes(
     report["source"] = source
 
     def files() -> dict:
-        from ..plotting.modes import plot_modes
-
         from ..io.export import Columns
+        from ..plotting.modes import plot_modes
 
         rows = report["modes"]
         cols = {"frequency": [r["frequency_hz"] for r in rows],
