@@ -550,7 +550,7 @@ def calibrate(
     bands = named_bands(kin, PASSBAND * fs)
     theta0 = jnp.zeros(layout.size)
 
-    # before: the spec's twin with its best response level (one gain), scored per half
+    # the calibrated model fitted on one half (its θ and response), scored on the other
     def amp_at(theta, train_half, score_half):
         tr = half_idx == train_half
         d_train = data_for(rec_idx[tr], half_idx[tr])
@@ -560,6 +560,7 @@ def calibrate(
         Z = d_score.Z0 + jnp.einsum("rbp,p->rb", d_score.JZ, jnp.asarray(theta, d_score.JZ.dtype))
         return np.asarray(10.0 ** ((B @ np.asarray(G)) / 20.0))[None, :] * np.abs(np.asarray(Z))
 
+    # before: the spec's twin with its best response level (one gain), scored per half
     B1 = knot_basis(freqs, knots[:1])
 
     def before_amp(train_half, score_half):
