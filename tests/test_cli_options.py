@@ -299,9 +299,9 @@ def test_out_holds_nothing_after_a_failure_and_a_rerun_starts_cleanly(tmp_path, 
     monkeypatch.setattr(output.OutputFolder, "savefig", real)
     main(["stiffness", "--preset", "paper-sim", "--out", str(out)])
     manifest = json.loads((out / "manifest.json").read_text())
-    assert sorted(manifest["files"]) == ["stiffness.json", "stiffness.png"]
-    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "stiffness.json",
-                                                     "stiffness.png"]
+    assert sorted(manifest["files"]) == ["stiffness.csv", "stiffness.json", "stiffness.npz",
+                                       "stiffness.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", *sorted(manifest["files"])]
 
 
 @pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])

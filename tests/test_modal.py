@@ -415,7 +415,7 @@ def test_cli_table_torsional_and_out_folder(tmp_path):
     r = _invoke(["--preset", "lin-parker", "--planets", "5", "--out", str(out)])
     assert r.exit_code == 0, r.output
     manifest = json.loads((out / "manifest.json").read_text())
-    assert manifest["files"] == ["modes.json", "modes.png"]
+    assert sorted(manifest["files"]) == ["modes.csv", "modes.json", "modes.npz", "modes.png"]
     assert (out / "modes.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     data = json.loads((out / "modes.json").read_text())
     assert sorted({m["multiplicity"] for m in data["modes"] if m["type"] == "planet"}) == [2]

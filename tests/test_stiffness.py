@@ -353,7 +353,9 @@ def test_cli_stiffness_out_folder(tmp_path, capsys):
     _run_cli(["stiffness", "--preset", "paper-bench", "--fault", "planet:missing_tooth:1.0:2:2",
               "--out", str(out)], capsys)
     manifest = json.loads((out / "manifest.json").read_text())
-    assert set(manifest["files"]) == {"stiffness.json", "stiffness.png"}
+    # the table, the arrays (CSV and NPZ, tests/test_cli_arrays.py) and the figure
+    assert set(manifest["files"]) == {"stiffness.json", "stiffness.csv", "stiffness.npz",
+                                      "stiffness.png"}
     data = json.loads((out / "stiffness.json").read_text())
     assert data["planet"] == 2  # the planet of the planet fault is the one shown
     # a whole planet tooth gone: both meshes lose one pair (c') during each contact of the tooth,
