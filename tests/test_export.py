@@ -118,3 +118,24 @@ def test_parquet_table_opens_in_pandas(tmp_path):
     pq.write_table(t, tmp_path / "table.parquet")
     df = pq.read_table(tmp_path / "table.parquet").to_pandas()
     assert df["sun_fault"].iloc[0] == 0.3 and str(df["timestamp"].dt.tz) == "UTC"
+
+
+def test_csv_cells_are_the_shortest_round_trip_text_of_each_value():
+    """Whole columns are written at once; each cell must still read ``repr`` of the value as a
+    Python float (float32 values widened exactly), ``str`` of an integer, and parse back bit
+    for bit, over magnitudes from subnormal to huge and the special values."""
+    from dtwin.io.export import columns_csv
+
+    rng = np.random.default_rng(0)
+    x = np.concatenate([rng.standard_normal(500) * 10.0 ** rng.integers(-300, 300, 500),
+                        [0.0, -0.0, np.nan, np.inf, -np.inf, 1e16, 1e-5, 5e-324]])
+    x32 = rng.standard_normal(x.size).astype(np.float32)
+    k = rng.integers(-10**12, 10**12, x.size)
+    text = columns_csv({"x": x, "x32": x32, "k": k}, {"x": "m", "x32": "m", "k": None})
+    lines = text.splitlines()
+    assert lines[0] == "x [m],x32 [m],k [1]"
+    expected = [f"{float(a)!r},{float(b)!r},{int(c)}" for a, b, c in zip(x, x32, k, strict=True)]
+    assert lines[1:] == expected
+    back = np.array([[float(c) for c in line.split(",")] for line in lines[1:]])
+    np.testing.assert_array_equal(back[:, 0], x)
+    np.testing.assert_array_equal(back[:, 1], x32.astype(np.float64))

