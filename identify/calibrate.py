@@ -190,6 +190,14 @@ class CalibrationResult:
     records: list[str]
 
     @property
+    def improves(self) -> bool:
+        """Whether the calibrated twin is closer to the held-out halves than the spec as written
+        (``gap_heldout`` below ``gap_before``). When it is not, the healthy records hold
+        something the calibrated parameters cannot represent (an effect for discovery), and the
+        calibrated spec should not replace the user's."""
+        return bool(self.gap_heldout.total < self.gap_before.total)
+
+    @property
     def not_determined(self) -> list[str]:
         return [p.name for p in self.parameters if not p.determined]
 
@@ -206,7 +214,8 @@ class CalibrationResult:
         rows = [f"speed {self.f_sun:.4f} Hz (from the records); noise floor rms "
                 f"{self.noise_rms:.3g}",
                 f"gap (dB): before {self.gap_before.total:.2f}, held-out "
-                f"{self.gap_heldout.total:.2f}, confirmed {self.gap_confirmed.total:.2f}",
+                f"{self.gap_heldout.total:.2f}, confirmed {self.gap_confirmed.total:.2f}"
+                + ("" if self.improves else " (NOT closer than the spec as written)"),
                 f"{'parameter':<24} {'value':>12} {'sd':>10} {'unit':<6} status"]
         for p in self.parameters:
             status = "determined" if p.determined else "not determined"
@@ -221,7 +230,7 @@ class CalibrationResult:
             gap_before=self.gap_before.to_dict(), gap_heldout=self.gap_heldout.to_dict(),
             gap_confirmed=self.gap_confirmed.to_dict(),
             parameters=[p.to_dict() for p in self.parameters],
-            not_determined=self.not_determined,
+            not_determined=self.not_determined, improves=self.improves,
         )
 
 

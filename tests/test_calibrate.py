@@ -77,6 +77,9 @@ def test_calibration_closes_the_gap_on_a_held_out_record(calibrated):
     print(f"baseline-2 gap: spec as written {user.total:.2f} dB, calibrated {cal.total:.2f} dB;"
           f" bands {cal.bands}")
     assert res.gap_confirmed.total < 0.6 * res.gap_before.total
+    # the result says the calibrated spec is worth using (held-out halves closer than before)
+    assert res.improves and res.to_dict()["improves"] is True
+    assert "NOT closer" not in res.table()
     assert cal.total < 0.25 * user.total
     for m in (1, 2, 3):
         assert cal.bands[f"mesh{m}"] < 4.0

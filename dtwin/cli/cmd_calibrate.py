@@ -67,6 +67,11 @@ def calibrate(
                  settings=settings, progress=lambda m: log.info("calibrate: %s", m))
     report = result.to_dict()
     report["spec"] = gb.source
+    if not result.improves:
+        log.warning("the calibrated twin is not closer to the held-out halves than the spec as "
+                    "written (gap %.1f dB against %.1f dB): the healthy records hold lines the "
+                    "calibrated parameters cannot represent; run dtwin discover on them before "
+                    "using the calibrated spec", result.gap_heldout.total, result.gap_before.total)
     unit = recs[0].units[_channel_index(recs[0], ch)] or "record unit"
     opts.emit(report, json_out=json_out, table=lambda: typer.echo(result.table()), out=out,
               force=force, files=_files(result, report, unit), inputs=[spec, *records],
