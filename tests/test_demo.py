@@ -39,5 +39,15 @@ def test_demo_quick_writes_report_figures_and_manifest(tmp_path):
 
 @pytest.mark.slow
 def test_demo_full(tmp_path):
-    proc = _run_demo(tmp_path / "demo")
+    from dtwin.spec import load_spec
+
+    out = tmp_path / "demo"
+    proc = _run_demo(out)
     assert proc.returncode == 0, proc.stderr[-3000:]
+    report = (out / "report.md").read_text()
+    # the README's main workflow: calibrate on the healthy record, then identify
+    assert "Calibration on the healthy bundled record" in report
+    cal = load_spec(out / "calibrated.toml")  # a spec every command accepts
+    assert cal["gears"]["z_ring"] == 84 and cal["calibration"]
+    for name in ("calibration_spectra.png", "calibration_gap.png", "identify_sun_fault.png"):
+        assert (out / name).stat().st_size > 1000, name
