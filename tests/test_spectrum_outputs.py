@@ -118,3 +118,28 @@ def test_view_units_g(triax, capsys):
     assert rep["unit"] == "g"
     # Parseval: the PSD's total power is the variance; 3 m/s² / sqrt 2 = 0.2163 g RMS
     assert rep["rms_total"] == pytest.approx(np.std(data[1]) / 9.80665, rel=0.01)
+
+
+def test_long_waveform_is_thinned_for_drawing_only():
+    """A figure of a million samples draws at most MAX_DRAWN points, among them the minimum and
+    the maximum of every run of samples (checked run by run with a plain loop)."""
+    from dtwin.plotting.spectrum import MAX_DRAWN, drawn_points, plot_waveform
+
+    rng = np.random.default_rng(2)
+    n = 1_000_003
+    t = np.arange(n) / 25600.0
+    x = np.sin(2 * np.pi * 3.0 * t) + rng.standard_normal(n)
+    x[123_457] = 40.0  # one impulse: it must show
+    fig = plot_waveform(t, x)
+    line = fig.axes[0].lines[0]
+    xd, yd = line.get_xdata(), line.get_ydata()
+    assert len(xd) <= MAX_DRAWN
+    assert np.all(np.diff(xd) > 0) and yd.max() == 40.0 and yd.min() == x.min()
+    k = -(-n // (MAX_DRAWN // 2))
+    for start in range(0, n, k):
+        run = x[start:start + k]
+        inside = (xd >= t[start]) & (xd <= t[min(start + k, n) - 1])
+        assert yd[inside].min() == run.min() and yd[inside].max() == run.max()
+    # short curves are drawn whole
+    xs, ys = drawn_points(t[:500], x[:500])
+    np.testing.assert_array_equal(ys, x[:500])

@@ -14,7 +14,30 @@ from matplotlib.figure import Figure
 from ..spectrum import LabelledPeak
 from .levels import level_axis, levels, place_labels, set_level_limits, unit_text
 
-__all__ = ["peak_table_rows", "plot_spectrum_peaks", "plot_waveform"]
+__all__ = ["drawn_points", "peak_table_rows", "plot_spectrum_peaks", "plot_waveform"]
+
+#: Points of a curve drawn at most: two per column of a 2000-pixel-wide figure.
+MAX_DRAWN = 4000
+
+
+def drawn_points(x: np.ndarray, y: np.ndarray, max_points: int = MAX_DRAWN
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The points of the curve ``y(x)`` to draw: all of them up to `max_points`, else the
+    minimum and the maximum of each of about ``max_points / 2`` runs of equal length, in their
+    order (every extreme is drawn, so the figure looks the same at up to that many pixel
+    columns). The data written next to a figure stay whole; only the drawing is thinned."""
+    x, y = np.asarray(x), np.asarray(y)
+    n = y.size
+    if n <= max_points:
+        return x, y
+    k = -(-n // (max_points // 2))  # samples per run
+    runs = -(-n // k)
+    pad = runs * k - n
+    lo = np.concatenate([np.where(np.isnan(y), np.inf, y), np.full(pad, np.inf)]).reshape(runs, k)
+    hi = np.concatenate([np.where(np.isnan(y), -np.inf, y), np.full(pad, -np.inf)]).reshape(runs, k)
+    start = np.arange(runs) * k
+    keep = np.unique(np.concatenate([start + np.argmin(lo, axis=1), start + np.argmax(hi, axis=1)]))
+    return x[keep], y[keep]
 
 
 def peak_table_rows(labelled: Sequence[LabelledPeak], unit: str) -> list[list[str]]:
@@ -70,10 +93,10 @@ def plot_spectrum_peaks(
         ax = fig.add_subplot(1, 1, 1)
         tax = None
     y, _ = levels(spec[sel], unit, scale)
-    ax.plot(freqs[sel], y, lw=0.7, color="C0", label="spectrum")
+    ax.plot(*drawn_points(freqs[sel], y), lw=0.7, color="C0", label="spectrum")
     if floor is not None:
-        ax.plot(freqs[sel], levels(np.asarray(floor)[sel], unit, scale)[0], lw=0.8, ls="--",
-                color="0.5", label="noise floor (running median)")
+        ax.plot(*drawn_points(freqs[sel], levels(np.asarray(floor)[sel], unit, scale)[0]),
+                lw=0.8, ls="--", color="0.5", label="noise floor (running median)")
     xs = [lp.peak.frequency for lp in labelled]
     ys = [float(levels(np.array([lp.peak.amplitude]), unit, scale)[0][0]) for lp in labelled]
     if labelled:
@@ -118,7 +141,7 @@ def plot_waveform(
         s = time_stats(np.asarray(x))
         label = (f"RMS {float(s.rms):.3g} {unit}, kurtosis {float(s.kurtosis):.2f}, "
                  f"crest {float(s.crest_factor):.2f}")
-    ax.plot(t, x, lw=0.5, color="C0", label=label)
+    ax.plot(*drawn_points(t, x), lw=0.5, color="C0", label=label)
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"amplitude ({unit})")
     ax.set_title(title)
