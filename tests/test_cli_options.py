@@ -112,11 +112,14 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
         ("--preset", "nope"), ("--model", "quantum"), ("--f-sun", "0"),
         ("--runup", ("50", "10")), ("--solver", "bfgs"), ("--starts", "0"), ("--refine", "0"),
         ("--jac", "central"), ("--max-steps", "0"), ("--channel", "nope"),
+        ("--fit-window", "10"), ("--fit-window", "-1:4"), ("--fit-window", "0:0"),
+        ("--fit-window", "1:4"), ("--fit-window", "0:0.1"),
         ("--sample-rate", "-1"), ("--out", "{done}"), *OUT_BAD]),
     ("severity", R): (["--preset", "paper-sim"], [
         ("RECORD", "{missing}"), ("--spec", "{missing}"), ("--preset", "nope"),
         ("--location", "carrier"), ("--free", "nope"), ("--model", "quantum"),
         ("--f-sun", "0"), ("--channel", "nope"), ("--sample-rate", "-1"), ("--out", "{done}"),
+        ("--fit-window", "start:4"), ("--fit-window", "0:nan"), ("--fit-window", "1.5:1"),
         *OUT_BAD]),
     ("fleet", "identify", R): (["--preset", "paper-sim", "--out", "{done}_fleet"], [
         ("--out", "{file}"), ("--spec", "{missing}"), ("--preset", "nope"),

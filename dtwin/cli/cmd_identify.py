@@ -4,10 +4,12 @@
                    --free k_sun_planet,k_ring_planet,zeta_mesh,sun_fault
                    [--model torsional|translational] [--f-sun HZ] [--runup LOW HIGH]
                    [--solver lm|gauss-newton|dogleg] [--starts N] [--refine K] [--jac fwd|rev]
-                   [--max-steps N] [--channel C] [--json] [--out DIR] [--force]
+                   [--max-steps N] [--channel C] [--fit-window auto|full|START:LENGTH]
+                   [--json] [--out DIR] [--force]
 
     dtwin severity RECORD (--spec FILE | --preset NAME) [--location sun|planet|ring]
-                   [--free extra,names] [--f-sun HZ] [--json] [--out DIR] [--force]
+                   [--free extra,names] [--f-sun HZ] [--fit-window auto|full|START:LENGTH]
+                   [--json] [--out DIR] [--force]
 
 Free names come from the parameter registry (``dtwin.registry``); an unknown name, an
 unreadable record, NaN samples, a rate under 2.5 × f_mesh or a record too short for the carrier
@@ -15,6 +17,13 @@ sidebands fail with a clear message (exit code 2) before anything is simulated. 
 is estimated from each record (mesh harmonics, or its tachometer) unless ``--f-sun`` is given;
 ``--runup LOW HIGH`` (Hz) marks the records as run-ups/coast-downs within that speed range
 (speed profile by order tracking, spectrogram residuals).
+
+A steady record longer than the fit needs is fitted on a window (:mod:`dtwin.identify.segment`):
+by default the steadiest ``max(4 s, 20 carrier periods)``, decimated to the rate its first four
+mesh harmonics need; ``--fit-window START:LENGTH`` (s) places it, ``full`` fits the whole record
+at its own rate. Shorter records are fitted whole, as they are. The report says what was fitted
+(``fit_windows``: "fitted on 4.0 s of 60.0 s …, decimated to 5120 Hz"). Run-ups are fitted
+whole unless ``START:LENGTH`` is given.
 
 Terminal: the parameter table (initial, fitted, 95 % interval, "NOT DETERMINED" flags) and the
 loss. ``--json``: the result on stdout. ``--out DIR``: ``identify.json`` (values, intervals,
@@ -25,6 +34,7 @@ vs fitted levels, peaks labelled; one per record), ``loss.png`` and ``manifest.j
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import typer
@@ -47,6 +57,55 @@ def _records(paths: list[Path], sample_rate: float | None, channel: str | int, s
         opts.check_channel(r, channel)
         opts.checked_record(r, channel, spec, f_sun or _speed_hint(r, spec), fit=True)
     return recs
+
+
+def fit_window_option():
+    return typer.Option("auto", "--fit-window", help="Stretch of each record the fit uses: "
+                        "auto (a steady max(4 s, 20 carrier periods), decimated to the rate "
+                        "four mesh harmonics need; shorter records whole), full (the whole "
+                        "record at its rate) or START:LENGTH in seconds.")
+
+
+def _parse_window(text: str):
+    """``--fit-window`` checked before any work (:class:`dtwin.identify.segment.FitWindow`)."""
+    from dtwin.identify.segment import FitWindow
+
+    from ..errors import SettingsError
+
+    try:
+        return FitWindow.parse(text)
+    except SettingsError as e:
+        raise opts.OptionError("--fit-window", str(e)) from None
+
+
+def _windows(recs: list, spec, f_sun: float | None, window, channel) -> list:
+    """The segment of each record that its fit uses
+    (:func:`dtwin.identify.segment.segment_for_fit`); a window that does not fit a record is an
+    ``--fit-window`` error."""
+    from dtwin.identify.segment import segment_for_fit
+
+    from ..errors import SettingsError
+
+    segs = []
+    for r in recs:
+        try:
+            segs.append(segment_for_fit(r, spec, f_sun, window, channel=channel))
+        except SettingsError as e:
+            raise opts.OptionError("--fit-window", str(e)) from None
+    return segs
+
+
+def _window_report(segs: list) -> dict:
+    """``fit_windows`` for the report when a fit saw less than a whole record."""
+    if not any(s.windowed for s in segs):
+        return {}
+    return {"fit_windows": [s.to_dict() for s in segs]}
+
+
+def _echo_windows(segs: list) -> None:
+    for s in segs:
+        if s.windowed:
+            typer.echo(s.describe())
 
 
 def _speed_hint(record, spec) -> float | None:
@@ -114,6 +173,7 @@ def identify(
     jac: str = typer.Option("fwd", "--jac", help="fwd (forward mode) or rev (reverse)."),
     max_steps: int = typer.Option(40, "--max-steps", help="Solver steps."),
     channel: str = opts.channel_option(),
+    fit_window: str = fit_window_option(),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("identify.json, spectrum_fit.png, loss.png"),
@@ -134,6 +194,9 @@ def identify(
         raise opts.OptionError("--refine", f"refines the best of the --starts: at most {starts}, "
                                f"got {refine}")
     opts.at_least("--max-steps", max_steps, 1)
+    window = _parse_window(fit_window)
+    if runup is not None and window.start is None:
+        window = dataclasses.replace(window, whole=True)  # a run-up is fitted whole by default
     if runup is not None:
         opts.band("--runup", runup)
         if runup[0] <= 0:
@@ -142,6 +205,8 @@ def identify(
     gb = opts.load_gearbox(preset, spec, why="identification needs the gearbox")
     ch = opts.channel_token(channel)
     recs = _records(records, sample_rate, ch, gb.spec, f_sun)
+    segs = _windows(recs, gb.spec, f_sun, window, ch)
+    recs = [sg.record for sg in segs]
     if f_sun is not None and runup is None:
         for p, r in zip(records, recs, strict=True):
             _check_given_speed(r, gb.spec, f_sun, ch, p)
@@ -151,11 +216,17 @@ def identify(
                   refine=refine, jac=jac, max_steps=max_steps, channel=ch,
                   progress=progress and not _quiet())
     report = {"records": [str(p) for p in records], "gearbox": gb.source,
-              "model": model, **res.to_dict()}
-    opts.emit(report, json_out=json_out, table=lambda: typer.echo(res.table()), out=out,
+              "model": model, **_window_report(segs), **res.to_dict()}
+
+    def table() -> None:
+        _echo_windows(segs)
+        typer.echo(res.table())
+
+    opts.emit(report, json_out=json_out, table=table, out=out,
               force=force, files=_files(res, "identify.json", report), inputs=records,
               gearbox=gb, parameters={"free": names, "solver": solver, "starts": starts,
-                                      "refine": refine, "jac": jac, "model": model})
+                                      "refine": refine, "jac": jac, "model": model,
+                                      "fit_window": window.text()})
 
 
 def _quiet() -> bool:
@@ -206,6 +277,7 @@ def severity(
     model: str = typer.Option("torsional", "--model", help="torsional or translational twin."),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz)."),
     channel: str = opts.channel_option(),
+    fit_window: str = fit_window_option(),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("severity.json, spectrum_fit.png, loss.png"),
@@ -219,21 +291,27 @@ def severity(
     extra = opts.free_names("--free", free) if free.strip() else []
     check_free([f"{location}_fault"])
     _check_common(model, f_sun, out, force)
+    window = _parse_window(fit_window)
     gb = opts.load_gearbox(preset, spec, why="severity estimation needs the gearbox")
     ch = opts.channel_token(channel)
     (rec,) = _records([record], sample_rate, ch, gb.spec, f_sun)
+    segs = _windows([rec], gb.spec, f_sun, window, ch)
+    rec = segs[0].record
     if f_sun is not None:
         _check_given_speed(rec, gb.spec, f_sun, ch, record)
     with opts.working("fitting the severity"):
         est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
                                 channel=ch)
 
-    report = {"record": str(record), "gearbox": gb.source, **est.to_dict()}
+    report = {"record": str(record), "gearbox": gb.source, **_window_report(segs),
+              **est.to_dict()}
 
     def table() -> None:
+        _echo_windows(segs)
         typer.echo(est.summary())  # severity and peak stiffness loss, 95 %, status
         typer.echo(est.fit.table())
 
     opts.emit(report, json_out=json_out, table=table, out=out, force=force,
               files=_files(est.fit, "severity.json", report), inputs=[record], gearbox=gb,
-              parameters={"location": location, "free": extra})
+              parameters={"location": location, "free": extra,
+                          "fit_window": window.text()})
