@@ -44,6 +44,7 @@ from .statistics import (
     null_statistics,
     p_value,
     residual_variance,
+    screen_score,
     theta_of,
 )
 
@@ -70,6 +71,14 @@ def _log_gain(Y, Z0, floor, thr_db, n_lines: int = 20) -> float:
             break
         g = float(np.median(np.log(Y[sel] / a0[sel])))
     return g
+
+
+def _set_score(cr: CandidateResult, scores: dict, i: int, covering: list) -> None:
+    """Copy candidate `i`'s screening score and rank into `cr` (nothing without screening)."""
+    if i not in scores:
+        return
+    cr.score, cr.score_df, cr.score_log10p = scores[i]
+    cr.score_rank = 1 + [j for _, j, _ in covering].index(i)
 
 
 def _labelled(lines, kin, tol, f_max):
@@ -187,7 +196,6 @@ def discover(
     # the level of the parameter intervals and of the identification decision
     z = normal_quantile(settings.confidence)
     chi2 = chi2_quantile(settings.confidence)
-    rng = np.random.default_rng(settings.seed)
     seg_len = n // settings.n_folds
 
     def fold_gains(Z0):
@@ -226,8 +234,8 @@ def discover(
             break
         say(f"step {step_no}: held-out gap {gap_now.total:.2f} dB, "
             f"{sum(r.side == 'measured' for r in lines)} residual lines")
-        # 3. rank by coverage
-        ranked = []
+        # 3. candidates covering the residual lines, ranked by coverage
+        covering = []
         cov_all: dict[str, float] = {}
         for i, e in enumerate(candidates):
             if e.name in added:
@@ -235,37 +243,71 @@ def discover(
             cov, matched = coverage(e, kin, lines, tol_full, f_max)
             cov_all[e.name] = cov
             if cov >= settings.min_coverage:
-                ranked.append((cov, i, matched))
-        ranked.sort(key=lambda t: -t[0])
-        ranked = ranked[: settings.max_refit]
-        if not ranked:
+                covering.append((cov, i, matched))
+        covering.sort(key=lambda t: -t[0])
+        if not covering:
             stop = "no candidate covers the residual lines"
             last_cands = []
             break
-        K_tried = len(ranked)
+        model_line = _dilate(np.abs(Z0) * np.exp(lg0)[:, None]
+                             > floor * 10 ** (settings.threshold_db / 20.0))
+        spectra: dict[int, np.ndarray] = {}
+
+        def response_spectra(i, spectra=spectra):
+            if i not in spectra:
+                _, Jc = segment_spectra(model.response(i).T, fs, settings.n_folds)  # (p, F, K)
+                spectra[i] = np.moveaxis(Jc, 0, -1)  # (F, K, p)
+            return spectra[i]
+
+        def signature_bins(e, model_line=model_line):
+            sig_lines = [s.frequency for s in e.signature(kin, f_max)]
+            sig = np.broadcast_to(_bins_of(sig_lines, df, nb), Y.shape)
+            if not getattr(e, "modifies_model_lines", False):
+                sig = sig & ~model_line
+            return sig
+
+        scores: dict[int, tuple[float, int, float]] = {}
+        if settings.screen == "score":
+            # 3b. score every covering candidate at zero amplitude (one response column per
+            # parameter, no refit), on one bin set shared by all: their signature bins and the
+            # model's lines; refit the best max_refit
+            model.ensure_responses([i for _, i, _ in covering])
+            common = model_line.copy()
+            for _, i, _ in covering:
+                common = common | signature_bins(candidates[i])
+            for _, i, _ in covering:
+                scores[i] = screen_score(Z0, response_spectra(i), Y, floor, lg0, common)
+            covering.sort(key=lambda t: (scores[t[1]][2], -t[0]))
+            K_tried = len(covering)
+        ranked = covering[: settings.max_refit]
+        screened_out = covering[settings.max_refit:]
+        if settings.screen == "coverage":
+            K_tried = len(ranked)
+        for k, (cov, i, _) in enumerate(covering):
+            if i in scores:
+                say(f"  score {candidates[i].name}: {scores[i][0]:.1f} ({scores[i][1]} df, "
+                    f"log10 p {scores[i][2]:.1f}), rank {k + 1}, coverage {cov:.2f}")
         level = settings.alpha / K_tried
         # the smallest attainable p-value 1/(B+1) must lie below the level alpha/K
         n_boot = max(settings.n_boot, int(np.ceil(K_tried / settings.alpha)))
         model.ensure_responses([i for _, i, _ in ranked])
-        model_line = _dilate(np.abs(Z0) * np.exp(lg0)[:, None]
-                             > floor * 10 ** (settings.threshold_db / 20.0))
+        # one padded bin count for every candidate refit in the step: one compilation of the
+        # fits and the bootstrap serves them all
+        n_bins = max(int((signature_bins(candidates[i]) | model_line).any(axis=0).sum())
+                     for _, i, _ in ranked)
         results: list[CandidateResult] = []
         for cov, i, matched in ranked:
             e = candidates[i]
             cr = CandidateResult(e.name, e.group, cov, matched)
+            _set_score(cr, scores, i, covering)
             try:  # one candidate never ends the run: a failure sets it aside
                 say(f"  refit {e.name} (coverage {cov:.2f})")
-                Jt = model.response(i)  # (n, p)
-                _, Jc = segment_spectra(Jt.T, fs, settings.n_folds)  # (p, F, K)
-                Jc = np.moveaxis(Jc, 0, -1)  # (F, K, p)
-                sig_lines = [s.frequency for s in e.signature(kin, f_max)]
-                sig = np.broadcast_to(_bins_of(sig_lines, df, nb), Y.shape)
-                if not getattr(e, "modifies_model_lines", False):
-                    sig = sig & ~model_line
+                Jc = response_spectra(i)  # (F, K, p)
+                sig = signature_bins(e)
                 ps = model.parameters[i]
                 p = Jc.shape[-1]
                 inp, sel, K = candidate_inputs(Z0, Jc, Y, floor, sig, model_line,
-                                               [q.nonnegative for q in ps], lg0)
+                                               [q.nonnegative for q in ps], lg0, n_bins)
                 nonneg = np.asarray(inp.nonneg)
                 active = np.asarray(inp.active)
                 T, fold_params = heldout_statistic(inp)
@@ -281,8 +323,12 @@ def discover(
                 cr.gap_after = heldout_gap(a_lin).total
                 cr.statistic = T
                 # bootstrap null
-                t_null = null_statistics(inp, rng, n_boot, Z0, floor, sel, seg_len)
-                cr.p_value = p_value(T, t_null, rng)
+                # the draws stop once the decision p > level is certain; each candidate has
+                # its own stream of draws (the same whichever candidates are refit before it)
+                rng_c = np.random.default_rng([settings.seed, step_no, i])
+                t_null = null_statistics(inp, rng_c, n_boot, Z0, floor, sel, seg_len,
+                                         stop=(T, level))
+                cr.p_value = p_value(T, t_null, rng_c)
                 cr.significant = cr.p_value <= level and cr.gap_after < gap_now.total
                 # joint fit and intervals
                 val, loss, jac, r = fit_joint(inp, fold_params)
@@ -326,6 +372,14 @@ def discover(
                 cr.significant = cr.identified = False
                 say(f"    set aside: {cr.rejected}")
             results.append(cr)
+        tried = {c.name: c for c in results}
+        for cov, i, matched in screened_out:
+            e = candidates[i]
+            cr = CandidateResult(e.name, e.group, cov, matched)
+            _set_score(cr, scores, i, covering)
+            cr.screened = (f"screened out, score {cr.score:.3g} ({cr.score_df} df), "
+                           f"rank {cr.score_rank}")
+            results.append(cr)
         last_cands = results
         ok = [c for c in results if c.significant and c.identified]
         if not ok:
@@ -334,7 +388,6 @@ def discover(
         best = min(ok, key=lambda c: c.gap_after)
         i_best = next(i for i, e in enumerate(candidates) if e.name == best.name)
         members = [e.name for e in candidates if e.group == best.group and e.name != best.name]
-        tried = {c.name: c for c in results}
         # a member not refit is told apart only when its signature covers (almost) none of
         # the residual lines; one that covers them but was not refit may fit as well
         ties = [nm for nm in members

@@ -34,6 +34,14 @@ class CandidateResult:
     #: why the candidate was set aside (a fitted value outside its physical range, a refit that
     #: failed); None when it was judged on its statistics
     rejected: str | None = None
+    #: score statistic at zero amplitude (screening), its degrees of freedom, log10 of its χ²
+    #: tail and its rank among the candidates scored in the step (1 = most significant)
+    score: float = float("nan")
+    score_df: int = 0
+    score_log10p: float = float("nan")
+    score_rank: int = 0
+    #: "screened out, score …, rank k" for a candidate scored but not refit; None when refit
+    screened: str | None = None
 
     def to_dict(self) -> dict:
         return dict(name=self.name, group=self.group, coverage=self.coverage,
@@ -41,7 +49,9 @@ class CandidateResult:
                     identified=self.identified, significant=self.significant,
                     main=self.main, main_sigma=self.main_sigma,
                     main_interval=list(self.main_interval), evidence=self.evidence,
-                    rejected=self.rejected)
+                    rejected=self.rejected, score=self.score, score_df=self.score_df,
+                    score_log10p=self.score_log10p, score_rank=self.score_rank,
+                    screened=self.screened)
 
 
 

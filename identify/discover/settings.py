@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from dtwin.errors import SettingsError
 from dtwin.simulate import SolverOptions
 
 
@@ -16,7 +17,14 @@ class DiscoverySettings:
     - `n_boot`: bootstrap draws of the null statistic per candidate (raised to K / alpha so that
       the smallest attainable p-value lies below the level).
     - `threshold_db`, `excess_db`, `tolerance_bins`: residual-line detection (dtwin.identify.lines).
-    - `max_steps`: budget of effects added; `max_refit`: candidates refit per step (by coverage).
+    - `max_steps`: budget of effects added; `max_refit`: candidates refit per step.
+    - `screen`: how the candidates to refit are chosen among those covering `min_coverage`:
+      ``"score"`` (default) ranks every one of them by its score statistic at zero amplitude
+      (:func:`dtwin.identify.discover.statistics.screen_score`: one response column per
+      parameter, no refit) and refits the best `max_refit`; the Bonferroni correction is then
+      over every candidate scored, so the family-wise level `alpha` holds whatever the
+      screening picks. ``"coverage"`` refits the `max_refit` of largest coverage, Bonferroni
+      over those refit.
     - `min_coverage`: a candidate must cover this fraction of the residual line power.
     - `tie_db`: members of one look-alike group whose held-out gaps differ by less are not told
       apart (the group is named).
@@ -34,7 +42,8 @@ class DiscoverySettings:
     excess_db: float = 6.0
     tolerance_bins: float = 0.25
     max_steps: int = 3
-    max_refit: int = 4
+    max_refit: int = 2
+    screen: str = "score"
     min_coverage: float = 0.05
     tie_db: float = 0.2
     confidence: float = 0.99
@@ -42,6 +51,12 @@ class DiscoverySettings:
     rtol: float = 1e-4
     atol: float = 1e-4
     response: str = "fd"
+
+    def __post_init__(self):
+        if self.screen not in ("score", "coverage"):
+            raise SettingsError(f"screen must be 'score' or 'coverage', got {self.screen!r}")
+        if self.max_refit < 1:
+            raise SettingsError(f"max_refit must be at least 1, got {self.max_refit!r}")
 
     def solver(self):
         """Solver options of the model simulations (forward-mode responses)."""
