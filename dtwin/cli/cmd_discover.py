@@ -32,12 +32,21 @@ def _unit_text(unit: str) -> str:
     return "dimensionless" if unit in ("1", "") else unit
 
 
+def _score(c) -> str:
+    """A candidate's screening score at zero amplitude, its degrees of freedom and rank."""
+    if c.score != c.score:  # not scored (screen="coverage")
+        return ""
+    return f"{c.score:.3g} ({c.score_df}), rank {c.score_rank}"
+
+
 def markdown_report(result, record_name: str) -> str:
     """The readable report (Markdown) of a :class:`dtwin.identify.discover.DiscoveryResult`."""
     out = [f"# Discrepancy discovery: {record_name}", "",
            f"Input speed {result.f_sun:.4f} Hz (from the data); fm {result.kinematics.f_mesh:.2f} "
            f"Hz, fc {result.kinematics.f_carrier:.3f} Hz. Family-wise level per step "
-           f"{result.settings.alpha:g} (Bonferroni over the candidates refit). Chance that a "
+           f"{result.settings.alpha:g} (Bonferroni over the candidates "
+           f"{'scored' if result.settings.screen == 'score' else 'refit'}). "
+           f"Chance that a "
            f"random tone matches some kinematic combination at this resolution and order bound: "
            f"{100 * result.chance_match_probability:.1f} %.", "",
            f"Held-out gap of the base model: **{result.initial_gap.total:.2f} dB**; final: "
@@ -63,20 +72,22 @@ def markdown_report(result, record_name: str) -> str:
         for p in s.parameters:
             out.append(f"| {p['name']} | {p['value']:.4g} | [{p['interval'][0]:.3g}, "
                        f"{p['interval'][1]:.3g}] | {_unit_text(p['unit'])} |")
-        out += ["", "| candidate refit | group | coverage | p | held-out gap (dB) | identified "
-                "| set aside |", "|---|---|---|---|---|---|---|"]
+        out += ["", "| candidate | group | coverage | score (df) | p | held-out gap (dB) "
+                "| identified | set aside |", "|---|---|---|---|---|---|---|---|"]
         for c in s.candidates:
-            out.append(f"| {c.name} | {c.group} | {c.coverage:.2f} | {c.p_value:.3g} | "
-                       f"{c.gap_after:.2f} | {c.identified} | {c.rejected or ''} |")
+            out.append(f"| {c.name} | {c.group} | {c.coverage:.2f} | {_score(c)} | "
+                       f"{c.p_value:.3g} | {c.gap_after:.2f} | {c.identified} | "
+                       f"{c.rejected or c.screened or ''} |")
         out += ["", f"![step {s.number}](spectrum_step{s.number}.png)", ""]
     kept = {id(c) for s in result.steps for c in s.candidates}
     last = [c for c in result.last_candidates if id(c) not in kept]
     if last:
         out += ["## Candidates refit in the last step (none kept)", "",
-                "| candidate | group | coverage | p | held-out gap (dB) | identified | set aside |",
-                "|---|---|---|---|---|---|---|"]
-        out += [f"| {c.name} | {c.group} | {c.coverage:.2f} | {c.p_value:.3g} | "
-                f"{c.gap_after:.2f} | {c.identified} | {c.rejected or ''} |" for c in last] + [""]
+                "| candidate | group | coverage | score (df) | p | held-out gap (dB) | identified "
+                "| set aside |", "|---|---|---|---|---|---|---|---|"]
+        out += [f"| {c.name} | {c.group} | {c.coverage:.2f} | {_score(c)} | {c.p_value:.3g} | "
+                f"{c.gap_after:.2f} | {c.identified} | {c.rejected or c.screened or ''} |"
+                for c in last] + [""]
     fams = list(result.combs) + ([result.modulation] if result.modulation is not None else [])
     if fams:
         out += ["## Line families in the last residual (scored as a whole)", ""]
