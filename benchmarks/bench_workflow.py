@@ -11,13 +11,16 @@ process so far, the load average before and after, and the stage's outcome (gaps
 named). Without the independent records it prints nothing (``[]`` with ``--json``).
 
 Usage: ``python benchmarks/bench_workflow.py [--records sun-fault-0.60 load-fluct]
-[--max-steps 3] [--quick] [--json]``; ``--quick``: sun-fault-0.60 only, one step.
+[--max-steps 3] [--quick] [--json] [--log-compiles]``; ``--quick``: sun-fault-0.60 only, one
+step; ``--log-compiles``: the ten costliest compiled functions of each stage by name.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import logging
+import re
 import resource
 import tempfile
 from pathlib import Path
@@ -32,6 +35,20 @@ _COMPILE_EVENTS = ("/jax/core/compile/jaxpr_trace_duration",
                    "/jax/core/compile/jaxpr_to_mlir_module_duration",
                    "/jax/core/compile/backend_compile_duration")
 _compile = {"s": 0.0, "n": 0}
+#: XLA compilations by function name (``--log-compiles``): name -> [count, seconds]
+_by_name: dict[str, list] = {}
+
+
+class _CompileLog(logging.Handler):
+    """Collects JAX's "Finished XLA compilation of NAME in T sec" lines (jax_log_compiles)."""
+
+    def emit(self, record):
+        m = re.match(r"Finished XLA compilation of (.+) in ([0-9.eE+-]+) sec",
+                     record.getMessage())
+        if m:
+            e = _by_name.setdefault(m.group(1), [0, 0.0])
+            e[0] += 1
+            e[1] += float(m.group(2))
 
 
 def _on_event(event: str, duration: float, **_) -> None:
@@ -45,8 +62,11 @@ def _stage(fn):
     """Run `fn()`; its result and the figures of the stage."""
     load0 = _timing.load_average()
     c_s, c_n = _compile["s"], _compile["n"]
+    _by_name.clear()
     out, wall, cpu = _timing.timed(fn)
+    top = sorted(_by_name.items(), key=lambda kv: -kv[1][1])[:10]
     return out, dict(run_s=wall, cpu_s=cpu, compile_s=_compile["s"] - c_s,
+                     compiled=[dict(name=k, count=v[0], s=round(v[1], 2)) for k, v in top],
                      compilations=_compile["n"] - c_n,
                      peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
                      load_before=list(load0), load_after=list(_timing.load_average()),
@@ -66,6 +86,8 @@ def main(argv=None) -> int:
     p.add_argument("--max-steps", type=int, default=3)
     p.add_argument("--quick", action="store_true", help="sun-fault-0.60 only, one step")
     p.add_argument("--json", action="store_true", help="one JSON list on stdout (run_all.py)")
+    p.add_argument("--log-compiles", action="store_true",
+                   help="name the functions compiled in each stage (the ten costliest)")
     args = p.parse_args(argv)
     if args.quick:
         args.records, args.max_steps = ["sun-fault-0.60"], 1
@@ -76,6 +98,12 @@ def main(argv=None) -> int:
     import jax
 
     jax.monitoring.register_event_duration_secs_listener(_on_event)
+    if args.log_compiles:
+        jax.config.update("jax_log_compiles", True)
+        for name in ("jax._src.interpreters.pxla", "jax._src.dispatch"):
+            lg = logging.getLogger(name)
+            lg.addHandler(_CompileLog())
+            lg.propagate = False
     from dtwin.identify.calibrate import calibrate
     from dtwin.identify.discover import DiscoverySettings, discover
     from dtwin.io.readers import read_record
@@ -106,6 +134,8 @@ def main(argv=None) -> int:
                   f"{r['cpu_s']:7.1f} s CPU, compile {r['compile_s']:6.1f} s "
                   f"({r['compilations']}), peak RSS {r['peak_rss_mb']:.0f} MB, load "
                   f"{r['load_before'][0]:.1f} → {r['load_after'][0]:.1f}; {what}", flush=True)
+            for c in r["compiled"]:
+                print(f"    compiled {c['count']:3d}× {c['s']:6.2f} s  {c['name']}")
     return 0
 
 

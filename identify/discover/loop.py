@@ -209,6 +209,7 @@ def discover(
         return v[::-1]
 
     steps: list[Step] = []
+    n_bins = 0
     models, residual_sets = [], []
     added: set[str] = set()
     stop = "budget"
@@ -291,10 +292,10 @@ def discover(
         # the smallest attainable p-value 1/(B+1) must lie below the level alpha/K
         n_boot = max(settings.n_boot, int(np.ceil(K_tried / settings.alpha)))
         model.ensure_responses([i for _, i, _ in ranked])
-        # one padded bin count for every candidate refit in the step: one compilation of the
-        # fits and the bootstrap serves them all
-        n_bins = max(int((signature_bins(candidates[i]) | model_line).any(axis=0).sum())
-                     for _, i, _ in ranked)
+        # one padded bin count for every candidate refit in the step, never below the previous
+        # step's: one compilation of the fits and the bootstrap serves them all
+        n_bins = max([n_bins] + [int((signature_bins(candidates[i]) | model_line).any(axis=0)
+                                     .sum()) for _, i, _ in ranked])
         results: list[CandidateResult] = []
         for cov, i, matched in ranked:
             e = candidates[i]
