@@ -68,6 +68,7 @@ from .lumped import LumpedParameters
 from .stiffness import mesh_stiffness_waveform, single_pair_from_mean
 
 __all__ = [
+    "REFERENCES",
     "WINDOW_EDGE",
     "AbstractFault",
     "MissingTooth",
@@ -94,6 +95,9 @@ __all__ = [
 WINDOW_EDGE = 0.05
 #: Largest `ramp` of a fault (mesh cycles): a loss rising over ``4.4 × 0.5 ≈ 2`` cycles.
 MAX_RAMP = 0.5
+#: Largest `spread` of a fault (mesh cycles): how far beyond its own contact interval, either
+#: side, a tooth's loss may still be felt by the mesh.
+MAX_SPREAD = 3.0
 
 _LOCATIONS = ("sun", "planet", "ring")
 _FLANKS = ("sun", "ring", "both")
@@ -276,6 +280,7 @@ class AbstractFault(eqx.Module):
     planet: eqx.AbstractVar[int]
     flank: eqx.AbstractVar[str]
     ramp: eqx.AbstractVar[Float[Array, ""]]
+    spread: eqx.AbstractVar[Float[Array, ""]]
 
     def __check_init__(self):
         if self.location not in _LOCATIONS:
@@ -300,6 +305,12 @@ class AbstractFault(eqx.Module):
         if not isinstance(ramp, jax.core.Tracer) and not (0.0 < float(ramp) <= MAX_RAMP):
             raise SpecError([("faults.ramp", f"the loss's rise and fall must take 0 < ramp <= "
                               f"{MAX_RAMP} mesh cycles, got {float(ramp)}")])
+        spread = self.spread
+        if jnp.shape(spread) != ():
+            raise SpecError([("faults.spread", f"must be a scalar, got shape {jnp.shape(spread)}")])
+        if not isinstance(spread, jax.core.Tracer) and not (0.0 <= float(spread) <= MAX_SPREAD):
+            raise SpecError([("faults.spread", f"the loss may extend 0 <= spread <= {MAX_SPREAD} "
+                              f"mesh cycles beyond the contact, got {float(spread)}")])
 
     @abc.abstractmethod
     def loss_fraction(
@@ -311,6 +322,12 @@ class AbstractFault(eqx.Module):
         contact); `eps`: contact ratio of that mesh. **Returns:** ``f(severity, u)`` (1); it is
         multiplied by the contact window and ``c'``; it must be exactly 0 when severity is 0.
         """
+
+    def window(self, u: Float[Array, "..."], eps: Float[Array, ""]) -> Float[Array, "..."]:
+        """The loss's window (0…1) at `u` cycles after the tooth entered contact: a smooth box
+        from ``-spread`` to ``eps + spread`` with edges of width `ramp` (module docstring,
+        "The loss's shape")."""
+        return _smooth_box(u, -self.spread, eps + self.spread, self.ramp)
 
     def stiffness_loss(
         self,
@@ -343,7 +360,7 @@ class AbstractFault(eqx.Module):
 
         def loss(count, period, eps, c1):
             u = _contact_time(count - self.tooth, period, eps)
-            return c1 * _smooth_box(u, 0.0, eps, self.ramp) * self.loss_fraction(u, eps)
+            return c1 * self.window(u, eps) * self.loss_fraction(u, eps)
 
         if self.location == "sun":
             phase_sp, _ = mesh_phases(lp, theta_s, theta_c, theta_r)
@@ -374,6 +391,7 @@ class MissingTooth(AbstractFault):
     planet: int = eqx.field(static=True, default=0)
     flank: str = eqx.field(static=True, default="both")
     ramp: Float[Array, ""] = eqx.field(converter=_severity, default=WINDOW_EDGE)
+    spread: Float[Array, ""] = eqx.field(converter=_severity, default=0.0)
 
     def loss_fraction(self, u, eps):
         return self.severity * jnp.ones_like(u)
@@ -397,6 +415,7 @@ class Pitting(AbstractFault):
     band_centre: float = eqx.field(static=True, default=0.5)
     band_width: float = eqx.field(static=True, default=0.4)
     ramp: Float[Array, ""] = eqx.field(converter=_severity, default=WINDOW_EDGE)
+    spread: Float[Array, ""] = eqx.field(converter=_severity, default=0.0)
 
     def __check_init__(self):
         lo = self.band_centre - 0.5 * self.band_width
@@ -429,6 +448,7 @@ class RootCrack(AbstractFault):
     w_bending: float = eqx.field(static=True, default=0.30)
     w_shear: float = eqx.field(static=True, default=0.09)
     ramp: Float[Array, ""] = eqx.field(converter=_severity, default=WINDOW_EDGE)
+    spread: Float[Array, ""] = eqx.field(converter=_severity, default=0.0)
 
     def __check_init__(self):
         if not (self.w_bending > 0.0 and self.w_shear >= 0.0 and self.w_bending + self.w_shear < 1.0):
@@ -575,8 +595,26 @@ def _contact_ratio(fault: AbstractFault, lp_or_eps) -> Float[Array, ""]:
     return _f64(lp_or_eps)
 
 
+#: Healthy mesh stiffness a loss is taken relative to (:func:`stiffness_loss_profile`), in
+#: units of the single-pair stiffness ``c'`` of the ISO 6336 waveform.
+REFERENCES = ("instant", "mean", "max", "min")
+
+
+def _healthy(reference: str, u, eps):
+    """Healthy stiffness (units of ``c'``) at `u` for `reference` (:data:`REFERENCES`)."""
+    if reference == "instant":
+        return jnp.where(jnp.mod(u, 1.0) < eps - 1.0, 1.0 + 0.75, 1.0)
+    if reference == "mean":
+        return (0.75 * eps + 0.25) * jnp.ones_like(u)
+    if reference == "max":
+        return 1.75 * jnp.ones_like(u)
+    if reference == "min":
+        return jnp.ones_like(u)
+    raise SpecError([("reference", f"must be one of {REFERENCES}, got {reference!r}")])
+
+
 def stiffness_loss_profile(
-    fault: AbstractFault, lp_or_eps, u: Float[ArrayLike, " n"]
+    fault: AbstractFault, lp_or_eps, u: Float[ArrayLike, " n"], reference: str = "instant"
 ) -> Float[Array, " n"]:
     r"""Fractional drop of the mesh stiffness at `u` mesh cycles after the faulty tooth enters
     contact, relative to the healthy mesh stiffness there.
@@ -584,41 +622,51 @@ def stiffness_loss_profile(
     .. math:: \frac{\Delta k(u)}{k_{healthy}(u)} = \frac{w(u)\, f(\text{severity}, u)}
               {1 + 0.75\,[\operatorname{frac}(u) < \varepsilon - 1]}
 
-    with ``w`` the fault's smooth contact window (edges of width `fault.ramp`), ``f`` its
+    with ``w`` the fault's smooth window (:meth:`AbstractFault.window`: edges of width
+    `fault.ramp`, `fault.spread` beyond the contact), ``f`` its
     :meth:`AbstractFault.loss_fraction` and the healthy stiffness the ideal ISO 6336 waveform in
     units of ``c'``: ``1.75`` in double contact, ``1`` in single contact (the tooth enters at the
     start of a double-contact zone, docs/conventions.md).
 
+    `reference` (:data:`REFERENCES`) chooses the healthy stiffness: ``instant`` (the formula
+    above), ``mean`` (the mean mesh stiffness ``c_γ = (0.75 ε + 0.25) c'``, ISO 6336-1: a
+    reference that does not depend on the waveform's shape), ``max`` (``1.75 c'``, the
+    waveform's largest value) or ``min`` (``c'``, its smallest). Any healthy waveform between
+    the single-pair and double-contact values gives a fraction between the ``max`` and ``min``
+    ones.
+
     **Arguments:** `fault`; `lp_or_eps`: the gear set's :class:`LumpedParameters` (the contact
-    ratio of the fault's mesh is taken from it) or that contact ratio; `u` (mesh cycles).
-    **Returns:** the fractional loss (1) at each `u`.
+    ratio of the fault's mesh is taken from it) or that contact ratio; `u` (mesh cycles);
+    `reference`. **Returns:** the fractional loss (1) at each `u`.
     """
     eps = _contact_ratio(fault, lp_or_eps)
     u = _f64(u)
-    healthy = jnp.where(jnp.mod(u, 1.0) < eps - 1.0, 1.0 + 0.75, 1.0)
-    window = _smooth_box(u, 0.0, eps, fault.ramp)
-    return window * fault.loss_fraction(u, eps) / healthy
+    return fault.window(u, eps) * fault.loss_fraction(u, eps) / _healthy(reference, u, eps)
 
 
-def peak_stiffness_loss(fault: AbstractFault, lp_or_eps, n_grid: int = 2001) -> Float[Array, ""]:
+def peak_stiffness_loss(fault: AbstractFault, lp_or_eps, n_grid: int = 2001,
+                        reference: str = "instant") -> Float[Array, ""]:
     r"""Peak mesh-stiffness loss of a fault: the largest fractional drop of the mesh stiffness
     while the faulty tooth is in mesh (:func:`stiffness_loss_profile`, maximised over the tooth's
-    passage, ``-4 ramp … eps + 4 ramp`` cycles on `n_grid` points).
+    passage, ``-4 ramp - spread … eps + spread + 4 ramp`` cycles on `n_grid` points).
 
     The quantity comparable across fault models, benches and twins: severity is what a fault
     type's own geometry measures (face width removed, pitted area, crack depth), the peak loss
     what the mesh feels. A missing tooth of severity ``s`` with a sharp ramp has peak loss ``s``
     (the whole pair, in single contact, where the healthy mesh has ``c'``); a root crack
     ``g(s)`` (:func:`crack_loss_fraction`); a wide `ramp` lowers the peak of a short contact.
-    Differentiable in the severity and the ramp.
+    With ``reference="mean"`` the loss is taken relative to the mean mesh stiffness instead
+    (``s / (0.75 ε + 0.25)`` for the sharp missing tooth). Differentiable in the severity and
+    the ramp.
 
     **Arguments:** `fault`; `lp_or_eps` (lumped parameters or the contact ratio of the fault's
-    mesh); `n_grid`. **Returns:** peak loss (1, a fraction; × 100 for %).
+    mesh); `n_grid`; `reference` (:func:`stiffness_loss_profile`). **Returns:** peak loss (1, a
+    fraction; × 100 for %).
     """
     eps = _contact_ratio(fault, lp_or_eps)
     s = jnp.linspace(0.0, 1.0, n_grid, dtype=jnp.float64)
-    u = -4.0 * fault.ramp + s * (eps + 8.0 * fault.ramp)
-    return jnp.max(stiffness_loss_profile(fault, eps, u))
+    u = -4.0 * fault.ramp - fault.spread + s * (eps + 8.0 * fault.ramp + 2.0 * fault.spread)
+    return jnp.max(stiffness_loss_profile(fault, eps, u, reference))
 
 
 def severity_for_peak_loss(fault: AbstractFault, lp_or_eps, peak: float) -> float:
