@@ -4,6 +4,8 @@
 
     res = fit(records, "bench.toml", ["k_sun_planet", "k_ring_planet", "zeta_mesh", "sun_fault"],
               starts=9, refine=3)
+    seg = segment_for_fit(long_record, "bench.toml")   # a steady window of a long record
+    res = fit(seg.record, "bench.toml", ["sun_fault"]); print(seg.describe())
     print(res.table())           # values, 95 % intervals, "NOT DETERMINED" flags
     res.to_dict()                # JSON-ready (values, intervals, correlations, loss history)
 
@@ -33,6 +35,9 @@ from .residuals import Features as Features
 from .residuals import Observation as Observation
 from .residuals import drive_at as drive_at
 from .residuals import observe as observe
+from .segment import FitWindow as FitWindow
+from .segment import Segment as Segment
+from .segment import segment_for_fit as segment_for_fit
 from .severity import SeverityEstimate as SeverityEstimate
 from .severity import SeveritySeries as SeveritySeries
 from .severity import estimate_severity as estimate_severity
@@ -41,10 +46,10 @@ from .uncertainty import Uncertainty as Uncertainty
 from .uncertainty import analyse as analyse
 
 __all__ = [
-    "SOLVERS", "Features", "FitResult", "Observation", "OperatingPoint", "ParameterSet",
-    "Problem", "SeverityEstimate", "SeveritySeries", "SpeedProfileEstimate", "Uncertainty",
+    "SOLVERS", "Features", "FitResult", "FitWindow", "Observation", "OperatingPoint",
+    "ParameterSet", "Problem", "Segment", "SeverityEstimate", "SeveritySeries", "SpeedProfileEstimate", "Uncertainty",
     "analyse", "drive_at", "estimate_severity", "estimate_speed", "estimate_speed_profile",
-    "fit", "fit_batch", "make_problem", "stack_problems", "observe", "plot_fit", "plot_severity_series", "severity_series",
+    "fit", "fit_batch", "make_problem", "stack_problems", "observe", "plot_fit", "plot_severity_series", "segment_for_fit", "severity_series",
 ]
 
 
