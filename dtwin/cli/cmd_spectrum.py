@@ -159,10 +159,12 @@ def spectrum(
     reports, datas = [], []
     for i in rows:
         one = _channel_record(record, i, units, highpass, units_mod)
-        rep, data = spectrum_report(
-            one, channel=0, band=band, window=window, frequencies=freqs, n_planets=n_planets,
-            threshold_db=threshold_db, min_spacing_hz=min_spacing, max_peaks=max_peaks,
-            floor_width=floor_width, welch=(segment, overlap) if welch else None)
+        with opts.working(f"spectrum of {record.channels[i]}"):
+            rep, data = spectrum_report(
+                one, channel=0, band=band, window=window, frequencies=freqs,
+                n_planets=n_planets, threshold_db=threshold_db, min_spacing_hz=min_spacing,
+                max_peaks=max_peaks, floor_width=floor_width,
+                welch=(segment, overlap) if welch else None)
         if units is not None and units_mod.quantity(units) != units_mod.quantity(record.units[i]):
             rep["integration"] = {"highpass_hz": highpass, "highpass_order": 4,
                                   "method": "frequency domain, zero phase (dtwin.units)"}

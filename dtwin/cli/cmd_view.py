@@ -404,8 +404,9 @@ def view(
             x = units_mod.convert_signal(x, record.sample_rate, unit, units,
                                          highpass_hz=highpass)
             unit = units_mod.normalise_unit(units)
-        rep, one = _one_view(kind, record, x, unit, gearbox, freqs, fsun, speed_range, band,
-                             segment, nat, revs, scale)
+        with opts.working(f"{kind} view of {name}"):  # a line on stderr while it runs
+            rep, one = _one_view(kind, record, x, unit, gearbox, freqs, fsun, speed_range,
+                                 band, segment, nat, revs, scale)
         reports.append({"channel": name, "unit": unit, **rep})
         sfx = "" if len(rows) == 1 else f"_{''.join(c if c.isalnum() or c in '-_' else '_' for c in name)}"
         for fname, v in one.items():
