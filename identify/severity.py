@@ -15,23 +15,43 @@ paper's degradation-model idea).
 **Peak stiffness loss.** Severity is what the fault type's own geometry measures (face width
 removed, pitted area, crack depth); every estimate is also reported as the fault's peak
 mesh-stiffness loss at the faulty tooth (:func:`dtwin.faults.peak_stiffness_loss`), the quantity
-comparable across benches, fault models and twins, with its interval mapped through the same
-function (monotone in the severity).
+comparable across benches, fault models and twins. The fit sees the stiffness a fault removes
+(N/m); the fraction that is of "the mesh stiffness" depends on the healthy waveform at the
+faulty tooth's contact, which one housing sensor does not determine (the sun meshes'
+excitation is not separable from the ring's, :mod:`dtwin.identify.calibrate`). So the reported
+peak is taken relative to the **mean** mesh stiffness (ISO 6336-1 ``c_γ``, a reference every
+model shares), and its interval runs from the lower severity bound taken relative to the
+waveform's largest value (``1.75 c'``) to the upper bound taken relative to its smallest
+(``c'``): any healthy waveform between the single-pair and double-contact stiffness gives a
+peak inside it.
 
 **The loss's shape.** How sharply the loss rises and falls as the faulty tooth enters and
-leaves the mesh (``fault.ramp``, mesh cycles) is not known on a real machine, and at 5 kHz it
-sets the level of the fault's sidebands near the mesh harmonics as much as the peak does: the
-spectrum of a loss pulse near ``h f_mesh ± f_sf`` is its Fourier transform at about one cycle
-per mesh period, where a flat loss over the contact (1.6 cycles, sharp edges) holds 4–13× more
-than one that fades over a mesh cycle either side, for the same peak. With ``ramps=`` the fit
-is repeated for each shape (one compiled fit serves them all), the shape of least loss is
-reported, and the intervals of severity and peak loss are the union over the shapes the data
-cannot reject. A shape is rejected when its ``‖r‖²`` exceeds the best one's by more than the
-larger of (a) ``χ²₁(95 %)`` in units of the residual variance (neighbour-correlation and
-lack-of-fit factors included: the profile likelihood over the shape) and (b) what the best
-shape leaves unexplained beyond the noise, ``‖r‖² − E`` (:func:`expected_noise_rss`): a loss
-difference smaller than the model-form error the best fit still carries cannot tell two
-shapes apart.
+leaves the mesh (``fault.ramp``) and how far beyond its own contact it is felt
+(``fault.spread``), in mesh cycles, are not known on a real machine, and at 5 kHz they set the
+level of the fault's sidebands near the mesh harmonics as much as the peak does. With
+``ramps=`` the fit is repeated for each shape (one compiled fit serves them all; ``"grid"``:
+:data:`RAMP_GRID`, ``"shapes"``: :data:`SHAPE_GRID`), the shape of least loss is reported, and
+the intervals of severity and peak loss are the union over the shapes the data cannot reject.
+A shape is rejected when its ``‖r‖²`` exceeds the best one's by more than the larger of (a)
+``χ²₁(95 %)`` in units of the residual variance (neighbour-correlation and lack-of-fit factors
+included: the profile likelihood over the shape) and (b) what the best shape leaves
+unexplained beyond the noise, ``‖r‖² − E`` (:func:`expected_noise_rss`): a loss difference
+smaller than the model-form error the best fit still carries cannot tell two shapes apart.
+
+**The low band** (``low_band=True``, :func:`with_low_band`). The residuals of
+:mod:`dtwin.identify.residuals` look at bands around the mesh harmonics, where a tooth fault's
+sidebands at a low sampling rate stand only a few dB above the noise and depend on the loss's
+shape. Below the first mesh band a local fault makes its strongest lines: the comb of the
+faulty tooth's passes (``k f_sf``; with ``± f_s`` for a sun fault, whose force turns with the
+sun when the sun floats on its bearing), tens of dB above the floor. The low band adds every
+bin from ``0.8 N f_c`` (the lowest knot of a calibrated sensor response) to the first mesh
+band as band 0, with the planet-pass lines that calibration fits.
+
+**Band jackknife** (``jackknife=True``). Each accepted shape's interval is also the hull with
+the delete-one-band jackknife interval (:func:`dtwin.identify.uncertainty.band_jackknife`):
+when the bands disagree about the severity beyond their noise — a model-form error that the
+loss, at the noise level, need not show — the interval grows with the disagreement, and the
+status says "widened by the band jackknife".
 """
 
 from __future__ import annotations
@@ -46,10 +66,13 @@ import numpy as np
 
 from dtwin.errors import ParameterError, SettingsError
 from dtwin.faults import peak_stiffness_loss
+from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
+from dtwin.spectrum import noise_floor
 
-from .fit import FitResult, fit, make_problem
-from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT
+from .fit import FitResult, _jacobian, fit, make_problem
+from .residuals import _STRONG_DB, _amplitude, point_groups
+from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, band_jackknife
 
 __all__ = ["RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity",
            "severity_series"]
@@ -58,6 +81,14 @@ __all__ = ["RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity
 #: loss over the tooth's contact (0.05, the default fault's: 10–90 % in 0.22 cycles) to one
 #: that rises and falls over about a mesh cycle either side (0.3: 10–90 % in 1.3 cycles).
 RAMP_GRID = (0.05, 0.15, 0.3)
+
+#: Shapes of the loss tried with ``ramps="shapes"``, as ``(ramp, spread)`` (mesh cycles): the
+#: sharp loss over the contact, a soft one, and one that extends a mesh cycle beyond the
+#: contact either side and fades over it.
+SHAPE_GRID = ((0.05, 0.0), (0.3, 0.0), (0.3, 1.0))
+#: Start of the low band (units of the planet-pass frequency ``N f_c``): the lowest knot of a
+#: calibrated sensor response (:mod:`dtwin.identify.calibrate`).
+LOW_BAND_START = 0.8
 
 _LOCATIONS = ("sun", "planet", "ring")
 
@@ -87,22 +118,29 @@ class SeverityEstimate:
     peak_loss: float = float("nan")
     peak_interval: tuple[float, float] = (float("nan"), float("nan"))
     ramp: float = float("nan")
+    spread: float = 0.0
     widened: float = 1.0
     shapes: tuple[dict[str, Any], ...] = ()
 
     @property
     def status(self) -> str:
-        """``NOT DETERMINED``, ``widened ×k for lack of fit``, ``unconverged`` or ``ok``."""
+        """``NOT DETERMINED``, ``widened ×k for lack of fit``, ``unconverged``, ``widened by
+        the band jackknife`` (the bands disagree beyond their noise: a model-form error, and
+        the interval covers it) or ``ok``."""
         if not self.determined:
             return "NOT DETERMINED"
-        return self.fit.status(f"{self.location}_fault")
+        st = self.fit.status(f"{self.location}_fault")
+        if st == "ok" and "band jackknife" in self.method:
+            return "widened by the band jackknife"
+        return st
 
     def to_dict(self) -> dict[str, Any]:
         return {"location": self.location, "severity": self.severity,
                 "interval_95": list(self.interval), "determined": self.determined,
                 "interval_method": self.method, "peak_stiffness_loss": self.peak_loss,
                 "peak_stiffness_loss_interval_95": list(self.peak_interval),
-                "ramp_mesh_cycles": self.ramp, "widened_for_lack_of_fit": self.widened,
+                "ramp_mesh_cycles": self.ramp, "spread_mesh_cycles": self.spread,
+                "widened_for_lack_of_fit": self.widened,
                 "status": self.status, "shapes": [dict(x) for x in self.shapes],
                 "fit": self.fit.to_dict()}
 
@@ -121,11 +159,13 @@ def _fault_index(twin, location: str) -> int | None:
     return lookup(_name(location)).address.index(twin)
 
 
-def _peak(twin, i: int, severity: float) -> float:
-    """Peak stiffness loss of the twin's fault `i` at `severity` (its own type and ramp)."""
+def _peak(twin, i: int, severity: float, reference: str = "mean") -> float:
+    """Peak stiffness loss of the twin's fault `i` at `severity` (its own type and shape),
+    relative to the healthy mesh's `reference` stiffness
+    (:func:`dtwin.faults.peak_stiffness_loss`; module docstring, "Peak stiffness loss")."""
     f = eqx.tree_at(lambda f: f.severity, twin.parts[i].fault,
                     jnp.asarray(min(max(float(severity), 0.0), 1.0), jnp.float64))
-    return float(peak_stiffness_loss(f, twin.lp))
+    return float(peak_stiffness_loss(f, twin.lp, reference=reference))
 
 
 def _split_kwargs(fit_kwargs: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -137,31 +177,107 @@ def _split_kwargs(fit_kwargs: dict[str, Any]) -> tuple[dict[str, Any], dict[str,
             {k: v for k, v in fit_kwargs.items() if k not in mp or k == "jac"})
 
 
-def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs):
-    """``[(ramp, FitResult)]``: one fit per loss shape (``ramps``), or one fit of the twin's own
-    fault as it is (``ramps=None``)."""
-    if ramps is None:
-        return [(None, fit(record, spec_or_twin, names, initial=initial, **fit_kwargs))]
-    ramps = RAMP_GRID if isinstance(ramps, str) and ramps == "grid" else tuple(ramps)
+def with_low_band(obs, record, *, channel: int | str = 0, floor_bins: int = 31,
+                  start: float = LOW_BAND_START, n_planets: int = 3, f_carrier: float):
+    """`obs` (a steady spectrum :class:`dtwin.identify.residuals.Observation`) with the low band
+    added as band 0: every DFT bin from ``start × N f_c`` (Hz) up to the first mesh band, with
+    its measured level and noise floor computed as :func:`dtwin.identify.residuals.observe`
+    does. A local tooth fault's strongest lines at a low sampling rate lie there: the impulse
+    comb of the faulty tooth's passes (``k f_sf``), with the sun's rotation ``± f_s`` when the
+    sun floats (module docstring, "The low band")."""
+    if obs.kind != "spectrum" or obs.ramp or obs.order_domain:
+        raise SettingsError("the low band is for steady spectrum observations (grid='hz')")
+    x = np.asarray(record.channel(channel), dtype=np.float64)[: obs.n_samples]
+    amp = np.asarray(_amplitude(x, obs.n_samples))
+    floor_all = noise_floor(amp, floor_bins)
+    freqs = np.fft.rfftfreq(obs.n_samples, 1.0 / obs.sample_rate)
+    f_hi = float(np.min(np.asarray(obs.freqs)))
+    sel = np.flatnonzero((freqs >= start * n_planets * f_carrier) & (freqs < f_hi))
+    if sel.size == 0:
+        return obs
+    a, fl = amp[sel], floor_all[sel]
+    strong = (a > fl * 10 ** (_STRONG_DB / 20)).astype(np.float64)
+    cat = lambda new, old: jnp.concatenate([jnp.asarray(new, dtype=jnp.asarray(old).dtype),  # noqa: E731
+                                            jnp.asarray(old)])
+    return dataclasses.replace(
+        obs, k=cat(sel, obs.k), w=cat(np.zeros(sel.size), obs.w),
+        meas=cat(np.log(a + fl), obs.meas), floor=cat(fl, obs.floor),
+        strong=cat(strong, obs.strong), group=cat(np.zeros(sel.size), obs.group),
+        freqs=cat(freqs[sel], obs.freqs))
+
+
+def _shapes(ramps) -> tuple[tuple[float, float], ...]:
+    """``ramps`` as ``((ramp, spread), …)``: ``"grid"`` (:data:`RAMP_GRID`, no spread),
+    ``"shapes"`` (:data:`SHAPE_GRID`), or a sequence of ramps or ``(ramp, spread)`` pairs."""
+    if isinstance(ramps, str):
+        if ramps == "grid":
+            return tuple((float(r), 0.0) for r in RAMP_GRID)
+        if ramps == "shapes":
+            return SHAPE_GRID
+        raise SettingsError(f"ramps must be 'grid', 'shapes' or a sequence, got {ramps!r}")
+    return tuple((float(r[0]), float(r[1])) if isinstance(r, (tuple, list)) else (float(r), 0.0)
+                 for r in ramps)
+
+
+def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band=False):
+    """``[(shape, FitResult)]``: one fit per loss shape (``ramps``; shape ``(ramp, spread)``), or
+    one fit of the twin's own fault as it is (``ramps=None``, shape None); with `low_band` the
+    observation holds the low band too (:func:`with_low_band`)."""
     pk, fk = _split_kwargs(dict(fit_kwargs))
     problem, ops = make_problem(record, spec_or_twin, names, initial=initial, **pk)
+    if low_band:
+        obs = problem.observations[0]
+        kin = Kinematics.from_gears(int(problem.twin.lp.z_sun), int(problem.twin.lp.z_planet),
+                                    int(problem.twin.lp.z_ring), int(problem.twin.lp.n_planets),
+                                    float(obs.speed[0]))
+        new = with_low_band(obs, record, channel=pk.get("channel", 0),
+                            n_planets=int(problem.twin.lp.n_planets), f_carrier=kin.f_carrier)
+        problem = dataclasses.replace(problem, observations=(new,) + problem.observations[1:])
+    if ramps is None:
+        res = fit(record, spec_or_twin, names, problem=problem, **fk)
+        res.operating_points = ops
+        return [(None, res)]
     i = _fault_index(problem.twin, names[0].removesuffix("_fault"))
     out = []
-    for r in ramps:
+    for r, sp in _shapes(ramps):
         prob = eqx.tree_at(lambda p: p.twin.parts[i].fault.ramp, problem,
-                           jnp.asarray(float(r), jnp.float64))
+                           jnp.asarray(r, jnp.float64))
+        prob = eqx.tree_at(lambda p: p.twin.parts[i].fault.spread, prob,
+                           jnp.asarray(sp, jnp.float64))
         res = fit(record, spec_or_twin, names, problem=prob, **fk)
         res.operating_points = ops
-        out.append((float(r), res))
+        out.append(((r, sp), res))
     return out
 
 
-def _estimate(location: str, shapes) -> SeverityEstimate:
+def _jackknife_interval(res: FitResult, name: str) -> tuple[float, float]:
+    """95 % interval of `name` from the delete-one-band jackknife of fit `res`
+    (:func:`dtwin.identify.uncertainty.band_jackknife`; the Jacobian is recomputed at the
+    optimum), mapped through the parameter's transform; (nan, nan) without enough bands."""
+    prob = res.problem
+    theta = jnp.asarray(res.theta)
+    r, J = _jacobian(theta, prob)
+    n_prior = len(prob.pset.priors)
+    groups = np.concatenate([point_groups(prob.observations), -1 - np.arange(n_prior)])
+    half, _ = band_jackknife(np.asarray(theta), np.asarray(r), np.asarray(J), groups)
+    i = res.names.index(name)
+    if not np.isfinite(half[i]):
+        return (float("nan"), float("nan"))
+    th = np.asarray(theta, dtype=float)
+    lo_t, hi_t = th.copy(), th.copy()
+    lo_t[i] -= half[i]
+    hi_t[i] += half[i]
+    a = float(np.asarray(prob.pset.values(np.clip(lo_t, -50, 50)))[i])
+    b = float(np.asarray(prob.pset.values(np.clip(hi_t, -50, 50)))[i])
+    return (min(a, b), max(a, b))
+
+
+def _estimate(location: str, shapes, jackknife: bool = False) -> SeverityEstimate:
     """The estimate from the fits of one record over the loss shapes (module docstring)."""
     name = _name(location)
     losses = np.array([res.loss if np.isfinite(res.loss) else np.inf for _, res in shapes])
     b = int(np.argmin(losses))
-    ramp_b, best = shapes[b]
+    _, best = shapes[b]
     i = best.names.index(name)
     unc = best.uncertainty
     twin_b = best.problem.twin
@@ -178,17 +294,28 @@ def _estimate(location: str, shapes) -> SeverityEstimate:
         excess = rss - rss / unc.lack_of_fit if np.isfinite(unc.lack_of_fit) else 0.0
         tol = max(CHI2_95 * unc.s2 * unc.kappa * unc.widened ** 2, excess)
     rows, lo, hi, plo, phi = [], iv[0], iv[1], np.inf, -np.inf
-    for (r, res), loss in zip(shapes, losses, strict=True):
+    jk_wider = False
+    for (_, res), loss in zip(shapes, losses, strict=True):
         accepted = bool(2.0 * (loss - losses[b]) <= tol)
         tw = res.problem.twin
         j = _fault_index(tw, location)
         s_j = float(res.values[name])
-        row = {"ramp": r if r is not None else float(tw.parts[j].fault.ramp), "loss": float(loss),
+        row = {"ramp": float(tw.parts[j].fault.ramp), "spread": float(tw.parts[j].fault.spread),
+               "loss": float(loss),
                "severity": s_j, "peak_stiffness_loss": _peak(tw, j, s_j), "accepted": accepted}
         if res.uncertainty is not None:
             a, c = map(float, res.uncertainty.interval[res.names.index(name)])
             row["interval_95"] = [a, c]
-            row["peak_interval_95"] = [_peak(tw, j, a), _peak(tw, j, c)]
+            if jackknife and accepted:
+                ja, jc = _jackknife_interval(res, name)
+                row["jackknife_95"] = [ja, jc]
+                if np.isfinite(ja) and (ja < a or jc > c):
+                    a, c = min(a, ja), max(c, jc)
+                    row["interval_95"] = [a, c]
+                    jk_wider = True
+            # the healthy waveform at the faulty tooth is not known: from its largest to its
+            # smallest value (module docstring, "Peak stiffness loss")
+            row["peak_interval_95"] = [_peak(tw, j, a, "max"), _peak(tw, j, c, "min")]
             if accepted:
                 lo, hi = min(lo, a), max(hi, c)
                 plo, phi = min(plo, row["peak_interval_95"][0]), max(phi, row["peak_interval_95"][1])
@@ -198,18 +325,21 @@ def _estimate(location: str, shapes) -> SeverityEstimate:
     method = "profile" if unc is not None and name in unc.profiled else "gaussian"
     if sum(r["accepted"] for r in rows) > 1:
         method += " + loss shapes"
+    if jk_wider:
+        method += " + band jackknife"
     det = unc is not None and name not in unc.not_determined and \
         0.5 * (hi - lo) <= HALF_WIDTH_LIMIT * max(abs(sev), 0.1)
-    ramp = float(twin_b.parts[k].fault.ramp) if ramp_b is None else ramp_b
     return SeverityEstimate(location, sev, (float(lo), float(hi)), bool(det), method, best,
                             peak_loss=_peak(twin_b, k, sev), peak_interval=(float(plo), float(phi)),
-                            ramp=ramp, widened=best.widened, shapes=tuple(rows))
+                            ramp=float(twin_b.parts[k].fault.ramp),
+                            spread=float(twin_b.parts[k].fault.spread), widened=best.widened,
+                            shapes=tuple(rows))
 
 
 def estimate_severity(
     record, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     initial_severity: float = 0.3, ramps: Sequence[float] | str | None = None,
-    **fit_kwargs: Any,
+    low_band: bool = False, jackknife: bool = False, **fit_kwargs: Any,
 ) -> SeverityEstimate:
     """Severity of the fault at `location` from one record, and its peak stiffness loss
     (module docstring).
@@ -225,7 +355,7 @@ def estimate_severity(
     initial = dict(fit_kwargs.pop("initial", {}) or {})
     initial.setdefault(name, initial_severity)
     return _estimate(location, _fit_shapes(record, spec_or_twin, names, initial, ramps,
-                                           fit_kwargs))
+                                           fit_kwargs, low_band), jackknife)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -267,7 +397,8 @@ class SeveritySeries:
 def severity_series(
     records: Sequence, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     labels: Sequence[str] | None = None, initial_severity: float = 0.3, warm_start: bool = False,
-    ramps: Sequence[float] | str | None = None, **fit_kwargs: Any,
+    ramps: Sequence[float] | str | None = None, low_band: bool = False, jackknife: bool = False,
+    **fit_kwargs: Any,
 ) -> SeveritySeries:
     """Fit every record of a series (module docstring).
 
@@ -287,7 +418,7 @@ def severity_series(
     ests = []
     for rec in records:
         est = _estimate(location, _fit_shapes(rec, spec_or_twin, names, init, ramps,
-                                              dict(fit_kwargs)))
+                                              dict(fit_kwargs), low_band), jackknife)
         ests.append(est)
         if warm_start:
             init = dict(est.fit.values)

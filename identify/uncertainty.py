@@ -46,6 +46,18 @@ multiplied by ``R`` (every interval widened by ``k = √R``), the widening is re
 (``Uncertainty.widened``) and the fit's table says "widened ×k for lack of fit" instead of "ok";
 identifiability flags are judged on the widened intervals.
 
+**Band jackknife** (:func:`band_jackknife`). The lack-of-fit rule widens only when the loss
+stands above the noise; a model-form error can also hide at the noise level and still move an
+estimate (a wrong fault shape shifts every sideband of one band together, and each band by a
+different amount). The bands are then the independent blocks: each is left out in turn, the
+optimum moved by one Gauss–Newton step, and the spread of those estimates gives a jackknife
+variance and a Student-t interval with ``B − 1`` degrees of freedom (Quenouille 1956; Tukey
+1958). Under noise alone it estimates the sampling variance; when the bands disagree beyond
+their noise it grows with the disagreement, and it keeps its coverage where intervals that
+count independent points lose it (Monte Carlo in ``tests/test_severity_rules.py``).
+:mod:`dtwin.identify.severity` uses it on request (``jackknife=True``) and takes the hull with
+the sandwich interval.
+
 **Profile likelihood** for severities (``*_fault``) within ``2σ`` of 0 or 1: the severity is
 stepped over a grid, the other parameters follow by one Gauss–Newton step from the optimum (with
 ``J`` at the optimum), and the interval is where ``(‖r‖² - ‖r*‖²)/(s² κ_i) ≤ 3.84`` (χ²₁, 95 %);
@@ -335,8 +347,8 @@ def band_jackknife(theta, r, J, groups, *, level: float = 0.95):
 
     A model-form error is coherent over a whole band (a wrong loss shape moves every sideband
     of one mesh harmonic together), so the bands, not the points, are the independent
-    blocks (the delete-a-group jackknife: Quenouille 1956, Tukey 1958; blocks as in Künsch
-    1989). Each band ``b`` is left out in turn and the optimum moved by one Gauss–Newton step,
+    blocks (the delete-a-group jackknife; blocks as in Künsch, Ann. Statist. 17 (1989)
+    1217–1241). Each band ``b`` is left out in turn and the optimum moved by one Gauss–Newton step,
     ``θ_(−b) = θ* − (J_{−b}ᵀ J_{−b})⁻¹ J_{−b}ᵀ r_{−b}`` (``J``, ``r`` at the optimum; prior
     rows, ``groups < 0``, are kept); the jackknife variance is
     ``V = (B − 1)/B Σ_b (θ_(−b) − θ̄)²`` and the interval ``θ* ± t_{B−1} √V`` (Student's t
