@@ -352,6 +352,17 @@ def main(argv=None) -> int:
     if args.diagnose:
         out["diagnose"] = diagnose(tw, y0, f_sun, code, args.kept)
     out["load_end"] = load_average()
+    # top-level figures for run_all.py's table: CPU time over the full twin's, and the largest
+    # level difference of the mesh family's lines within 40 dB of the strongest
+    for nk in args.kept:
+        f = out[f"condensed_{nk}"]
+        out[f"cpu_over_full_{nk}_kept"] = f["cpu_s"] / out["full"]["cpu_s"]
+        mesh = f["lines"].get("h fm + k fc, within 40 dB")
+        if mesh:
+            out[f"mesh_lines_max_db_{nk}_kept"] = mesh["max_abs_db"]
+    if args.implicit_span > 0:
+        out["kvaerno5_cpu_over_tsit5"] = (out["implicit_kvaerno5_span"]["cpu_s"]
+                                          / out["implicit_tsit5_span"]["cpu_s"])
 
     if args.json:
         print(json.dumps([out], default=float))
