@@ -12,7 +12,7 @@ fit benchmark's 1e-4). Three models:
   `Twin.linear_stiffness(modal=False)` plus the drive shaft's stiffness, coordinates `z` of
   `dtwin.twin`) split into the `n` lowest, integrated (Tsit5, same controller), and the others,
   given their quasi-static response (modal truncation with a static correction: Craig, Structural
-  Dynamics, 1981, ch. 14; the "mode-acceleration" idea of Cornwell, Craig & Johnson 1983)::
+  Dynamics, 1981; the "mode-acceleration" idea of Cornwell, Craig & Johnson 1983)::
 
       z = z_ref(t) + Φ_k η + Φ_t ξ,   η'' = M_kk⁻¹ Φ_kᵀ F_z(t, z, z', aux),   0 = Φ_tᵀ F_z(...)
 
