@@ -31,11 +31,16 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
   number of simulations: (steps + 1) × (1 + p), the LM steps taken from the JAX fit (stated as
   an assumption: SciPy's LM on the same problem takes a similar number of steps).
 
+`--periodic` fits with ``periodic="auto"`` (`dtwin.simulate.SolverOptions.periodic`: the record
+simulated over a 0.1 s settling time and one hunting period, 1.13 s here, and tiled; issue #21
+lever 2) when the library has it (a library without it fits in full: `benchmarks/compare.py`
+then puts the two side by side); `periodic` in the JSON says which was used.
+
 `--rtol` sets the simulation tolerance of the fit (``rtol = atol``, `dtwin.identify.fit.make_problem`;
 library default 1e-5), for JAX and SciPy alike.
 
 Usage: ``python benchmarks/bench_fit.py [--case determined|stiffness] [--duration 4]
-[--rtol 1e-5] [--tol TOL] [--scipy-span 0.35] [--cache] [--json] [--quick]``
+[--rtol 1e-5] [--tol TOL] [--scipy-span 0.35] [--periodic] [--cache] [--json] [--quick]``
 """
 
 from __future__ import annotations
@@ -68,6 +73,8 @@ def main(argv=None) -> int:
     p.add_argument("--tol", type=float, default=None,
                    help="the fit's Cauchy tolerance (dtwin.identify.fit.fit's `tol`; default: fit's)")
     p.add_argument("--cache", action="store_true", help="keep the persistent compile cache")
+    p.add_argument("--periodic", action="store_true",
+                   help="fit with periodic='auto' (one hunting period, tiled) where supported")
     p.add_argument("--quick", action="store_true", help="0.5 s record, 0.03 s SciPy span")
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
@@ -100,10 +107,16 @@ def main(argv=None) -> int:
     # a free sensor gain replaces the profiled one (dtwin.identify.residuals, "Gain")
     feats = Features(gain="fixed" if "sensor_gain" in free else "profile")
     kw = dict(f_sun=f_sun, features=feats, rtol=args.rtol, atol=args.rtol)
+    import inspect
+
+    periodic = args.periodic and "periodic" in inspect.signature(make_problem).parameters
+    if periodic:
+        kw["periodic"] = "auto"
     starts = [{n: truth[n] * f for n, f in zip(free, (0.8, 1.2, 0.8), strict=True)},
               {n: truth[n] * f for n, f in zip(free, (1.2, 0.8, 1.2), strict=True)}]
     out = {"kind": "fit", "case": args.case, "duration": args.duration, "free": list(free),
-           "rtol": args.rtol, "tol": args.tol, "truth": truth, "load_start": load_start}
+           "rtol": args.rtol, "tol": args.tol, "truth": truth, "load_start": load_start,
+           "periodic": bool(periodic)}
 
     # --- JAX fit, twice (compile + run, then run)
     fits = []
@@ -218,7 +231,7 @@ def main(argv=None) -> int:
         return 0
     f = out["jax_fit"]
     print(f"case {args.case}: record {args.duration:g} s at 5 kHz, free {', '.join(free)}, "
-          f"rtol = atol = {args.rtol:g}; load {load_start} → {out['load_end']}")
+          f"rtol = atol = {args.rtol:g}, {'periodic' if periodic else 'full'} simulation; load {load_start} → {out['load_end']}")
     print(f"JAX fit: {f['wall_s']:.1f} s wall ({f['cpu_s']:.1f} s CPU), {f['steps']} LM steps, "
           f"{f['evaluations']} evaluations, converged {f['converged']}; first call (with "
           f"compilation) {out['compile_and_fit_s']:.1f} s wall "

@@ -73,6 +73,15 @@ class SolverOptions:
     - `unrolled`: True (default) → `dtwin.integrator.UnrolledTsit5`, the same method as
       `diffrax.Tsit5` with the stages written out (~5–20 % less time per step on a CPU); False →
       `diffrax.Tsit5` itself (same steps and solution to rounding).
+    - `periodic`: ``"off"`` (default): the whole record is integrated. ``"auto"``: when the twin
+      runs at constant speed and its response is periodic (`dtwin.periodic.hunting_cycles`),
+      only `periodic_settle` s of start-up transient and one hunting period are integrated and
+      the record's later samples are taken at their phases in that period (reference §6,
+      "Periodic steady state"); used when `periodic_settle` + the period + a probe window fit
+      in at most `periodic_max_fraction` of the simulated span, otherwise the whole record is
+      integrated. `simulate` checks the periodicity (the signal one period later over a probe
+      window, relative rms difference `SimResult.periodic_defect`) and integrates the whole
+      record when it exceeds `periodic_tol`; `SimResult.method` says which was used.
     """
 
     rtol: float = 1e-5
@@ -84,9 +93,18 @@ class SolverOptions:
     max_steps: int | None = None
     adjoint: str = "forward"
     unrolled: bool = True
+    periodic: str = "off"
+    periodic_settle: float = 0.1
+    periodic_tol: float = 1e-3
+    periodic_max_fraction: float = 0.75
 
     def __post_init__(self):
-        for name in ("rtol", "atol", "rate_scale_hz"):
+        if self.periodic not in ("off", "auto"):
+            raise ValueError(f"SolverOptions.periodic must be 'off' or 'auto', got {self.periodic!r}")
+        if not (0.0 <= self.periodic_settle < math.inf and 0.0 < self.periodic_max_fraction <= 1.0):
+            raise ValueError("SolverOptions.periodic_settle must be >= 0 s and "
+                             "periodic_max_fraction in (0, 1]")
+        for name in ("rtol", "atol", "rate_scale_hz", "periodic_tol"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"SolverOptions.{name} must be a positive number, got {v!r}")
@@ -153,6 +171,10 @@ class SimResult(eqx.Module):
       `deflection_ring_planet` (m), dissipated powers (W), drive and load outputs (torques N·m,
       currents A, powers W …);
     - `num_steps`: accepted solver steps; `f_sun`: nominal input speed (Hz).
+    - `method`: ``"full"`` (the whole record integrated) or ``"periodic"`` (one hunting period
+      after a settling time, tiled: `SolverOptions.periodic`), with the reason when
+      ``periodic="auto"`` fell back; `periodic_defect`: the measured relative rms change of the
+      signal over one period (None when not tiled).
     """
 
     time: Float[Array, " n"]
@@ -162,6 +184,8 @@ class SimResult(eqx.Module):
     num_steps: Any
     sample_rate: float = eqx.field(static=True)
     quantity: str = eqx.field(static=True)
+    method: str = eqx.field(static=True, default="full")
+    periodic_defect: Any = None
 
     def to_record(self, metadata: dict | None = None):
         """The result as a `dtwin.io.Record` (channel ``vibration``, optional tachometer)."""
@@ -356,6 +380,100 @@ def _solve(twin: Twin, y0, t0, t1, ts, quantity: str, rtol, atol, dtmax, max_ste
     return obs, sol.result, sol.stats["num_accepted_steps"]
 
 
+#: High-rate samples of the window, just after the tiled period, over which the signal is
+#: compared with the same phases one period earlier (`periodic_defect`).
+PERIODIC_PROBE = 256
+
+
+def periodic_plan(twin: Twin, f_sun: float, t0: float, t_end: float, solver: SolverOptions,
+                  fs_hi: float, start: str = "steady") -> tuple[float | None, str]:
+    """Whether a record over ``[t0, t_end]`` (s) is integrated over one hunting period:
+    ``(period_estimate_s, "periodic")`` or ``(None, reason)`` (the reason it is integrated in
+    full). `f_sun` (Hz, static) estimates the period for the decision."""
+    from .periodic import hunting_cycles, mesh_frequency, periodic_reason
+
+    if solver.periodic == "off":
+        return None, "full"
+    if start != "steady":
+        return None, "full (periodic: a start from rest is a run-up)"
+    cycles = hunting_cycles(twin)
+    if cycles is None:
+        return None, f"full (periodic: {periodic_reason(twin)})"
+    T = cycles / float(mesh_frequency(twin, float(f_sun)))
+    need = solver.periodic_settle + T + PERIODIC_PROBE / fs_hi
+    if need > solver.periodic_max_fraction * (t_end - t0):
+        return None, (f"full (periodic: settle {solver.periodic_settle:g} s + hunting period "
+                      f"{T:.3g} s is more than {solver.periodic_max_fraction:g} of the "
+                      f"{t_end - t0:.3g} s simulated)")
+    return T, "periodic"
+
+
+def _solve_tiled(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, settle: float,
+                 quantity: str, rtol, atol, dtmax, max_steps: int, adjoint: str, progress: bool,
+                 pcoeff, icoeff, unrolled: bool, rate_scale_hz: float):
+    """`_solve` over `settle` s and one hunting period only, the observables gathered back onto
+    the whole grid `ts_np` (s): a sample at ``t >= t_ref + T`` (``t_ref = t0 + settle``) is the
+    sample at ``t_ref + (t - t_ref) mod T`` (`dtwin.periodic.tiled_times`), unwrapped shaft
+    angles advanced by the whole turns over the periods removed. Differentiable (the period
+    follows the drive's set point, traced or not). **Returns** ``(observables, result, steps,
+    defect)`` with `defect` the rms of the signal's change over one period on a window of
+    `PERIODIC_PROBE` samples after the period, over the signal's rms."""
+    from .periodic import hunting_cycles, hunting_period, shaft_turns, tiled_times
+
+    period = hunting_period(twin)
+    sun_turns, car_turns = shaft_turns(twin, hunting_cycles(twin))
+    t_ref = t0 + settle
+    n = ts_np.shape[0]
+    grid, _, inverse, turns = tiled_times(ts_np, t_ref, period)
+    probe = jnp.arange(PERIODIC_PROBE, dtype=jnp.float64) / fs_hi
+    mapped = grid[inverse]
+    every = jnp.concatenate([mapped, t_ref + probe, t_ref + period + probe])
+    order = jnp.argsort(every)
+    back = jnp.argsort(order)
+    save = every[order]
+    t1 = t_ref + period + probe[-1]
+    obs, result, nsteps = _solve(twin, y0, t0, t1, save, quantity, rtol, atol, dtmax, max_steps,
+                                 adjoint, progress, pcoeff, icoeff, unrolled, rate_scale_hz)
+    obs = {k: v[back] for k, v in obs.items()}
+    sig = obs["signal"]
+    a, b = sig[n : n + PERIODIC_PROBE], sig[n + PERIODIC_PROBE :]
+    body = sig[:n]
+    defect = jnp.sqrt(jnp.mean((b - a) ** 2) / jnp.mean((body - jnp.mean(body)) ** 2))
+    two_pi = 2.0 * jnp.pi
+    out = {}
+    for k, v in obs.items():
+        v = v[:n]
+        if k in ("theta_sun", "theta_motor"):
+            v = v + turns * two_pi * sun_turns
+        elif k == "theta_carrier":
+            v = v + turns * two_pi * car_turns
+        out[k] = v
+    return out, result, nsteps, defect
+
+
+def _observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, f_sun: float,
+                 quantity: str, solver: SolverOptions, dtmax, progress: bool = False,
+                 start: str = "steady"):
+    """The observables on the high-rate grid `ts_np` (s) from `t0` (s), integrated in full or
+    over one hunting period (`periodic_plan`). **Returns** ``(observables, result, steps,
+    method, defect)``; `defect` None when integrated in full."""
+    t1 = float(ts_np[-1])
+    T, method = periodic_plan(twin, f_sun, t0, t1, solver, fs_hi, start)
+    common = (quantity, solver.rtol, solver.atol, dtmax)
+    rest = (solver.adjoint, progress, solver.pcoeff, solver.icoeff, solver.unrolled,
+            solver.rate_scale_hz)
+    if T is None:
+        max_steps = solver.max_steps or int(400_000 * (t1 - t0) + 10_000)
+        ys, result, nsteps = _solve(twin, y0, t0, t1, jnp.asarray(ts_np), *common, max_steps,
+                                    *rest)
+        return ys, result, nsteps, method, None
+    span = solver.periodic_settle + 1.01 * T + PERIODIC_PROBE / fs_hi
+    max_steps = solver.max_steps or int(400_000 * span + 10_000)
+    ys, result, nsteps, defect = _solve_tiled(twin, y0, t0, ts_np, fs_hi, solver.periodic_settle,
+                                              *common, max_steps, *rest)
+    return ys, result, nsteps, method, defect
+
+
 def _check_finite(twin: Twin) -> None:
     """Refuse NaN/inf parameters before solving, naming the field."""
     leaves, _ = jax.tree_util.tree_flatten_with_path(eqx.filter(twin, eqx.is_array))
@@ -441,20 +559,24 @@ def simulate(
     ts_np = t_start + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
     t0 = float(ts_np[0]) if start == "steady" else min(0.0, float(ts_np[0]))
     t1 = float(ts_np[-1])
-    ts = jnp.asarray(ts_np)
     y0 = _initial_state_compiled(twin, f_sun, start)
     rs, _ = twin.kinematic_ratios
     f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
     dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
-    max_steps = solver.max_steps or int(400_000 * (t1 - t0) + 10_000)
-    ys, result, nsteps = _solve(
-        twin, y0, t0, t1, ts, daq.quantity, solver.rtol, solver.atol, dtmax, max_steps,
-        solver.adjoint, progress, solver.pcoeff, solver.icoeff, solver.unrolled, solver.rate_scale_hz,
-    )
+    ys, result, nsteps, method, defect = _observables(twin, y0, t0, ts_np, fs_hi, f_sun,
+                                                      daq.quantity, solver, dtmax, progress, start)
+    if check and defect is not None and not float(defect) <= solver.periodic_tol:
+        # the transient has not decayed (or the response is not periodic): integrate in full
+        method = (f"full (periodic: signal changes by {float(defect):.2g} of its rms over one "
+                  f"period, above periodic_tol = {solver.periodic_tol:g})")
+        ys, result, nsteps, _, defect = _observables(
+            twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity,
+            dataclasses.replace(solver, periodic="off"), dtmax, progress, start)
     if check:
         _raise_for(result, t1)
     # compiled as one program (op by op, its first call compiles each operation separately)
-    return _daq_jit(ys, taps, daq, fs_out, nsteps, jnp.asarray(seed), jnp.asarray(t_start))
+    res = _daq_jit(ys, taps, daq, fs_out, nsteps, jnp.asarray(seed), jnp.asarray(t_start))
+    return dataclasses.replace(res, method=method, periodic_defect=defect)
 
 
 def _daq(ys, taps, daq: DAQ, fs_out, nsteps, seed, t_start) -> SimResult:

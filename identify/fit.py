@@ -92,9 +92,11 @@ class Problem(eqx.Module):
     rtol: float = eqx.field(static=True, default=1e-5)
     atol: float = eqx.field(static=True, default=1e-5)
     adjoint: str = eqx.field(static=True, default="forward")
+    periodic: str = eqx.field(static=True, default="off")
 
     def solver_options(self):
-        return SolverOptions(rtol=self.rtol, atol=self.atol, adjoint=self.adjoint)
+        return SolverOptions(rtol=self.rtol, atol=self.atol, adjoint=self.adjoint,
+                             periodic=self.periodic)
 
     def signals(self, theta):
         values = self.pset.values(theta)
@@ -557,10 +559,13 @@ def make_problem(
     rtol: float = 1e-5,
     atol: float = 1e-5,
     jac: str = "fwd",
+    periodic: str = "off",
 ) -> tuple[Problem, list[dict[str, float]]]:
     """Checks, operating points and observations → a :class:`Problem` (no simulation yet).
 
-    Arguments as :func:`fit`. **Returns:** ``(problem, operating_points)``.
+    Arguments as :func:`fit`; `periodic`: ``"off"`` or ``"auto"`` (constant-speed records
+    simulated over one hunting period and tiled, ``dtwin.simulate.SolverOptions.periodic``).
+    **Returns:** ``(problem, operating_points)``.
     """
     if isinstance(free, ParameterSet):
         pset = free
@@ -618,8 +623,10 @@ def make_problem(
         ob = observe(rec, twin, f_sun=f0, f_end=f1, features=feat_list[i], channel=channel,
                      weight=w_list[i], discard=discard, oversample=oversample)
         obs.append(dataclasses.replace(ob, frf_hz=frf[0], frf_db=frf[1]) if frf else ob)
+    if periodic not in ("off", "auto"):
+        raise SettingsError(f"periodic must be 'off' or 'auto', got {periodic!r}")
     problem = Problem(twin, pset, tuple(obs), rtol=rtol, atol=atol,
-                      adjoint="forward" if jac == "fwd" else "reverse")
+                      adjoint="forward" if jac == "fwd" else "reverse", periodic=periodic)
     return problem, ops
 
 
@@ -686,7 +693,7 @@ def fit(
     - `throw`: raise `FitError` when not converged or at a bound.
     - keyword arguments of :func:`make_problem`: ``f_sun``, ``runup``, ``features``,
       ``weights``, ``initial``, ``fixed``, ``bounds``, ``priors``, ``channel``, ``discard``,
-      ``oversample``, ``kind``, ``rtol``, ``atol``.
+      ``oversample``, ``kind``, ``rtol``, ``atol``, ``periodic``.
 
     **Returns:** :class:`FitResult`.
     """

@@ -60,7 +60,7 @@ import numpy as np
 from dtwin.errors import RecordError, SettingsError
 from dtwin.parts.drive import DrivePart
 from dtwin.parts.speed_source import SpeedProfile
-from dtwin.simulate import DAQ, SolverOptions, _daq, _solve, daq_filter, initial_state
+from dtwin.simulate import DAQ, SolverOptions, _daq, _observables, daq_filter, initial_state
 from dtwin.spectrum import analytic_signal, get_window, noise_floor
 
 from .operating_point import gear_orders
@@ -445,15 +445,14 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     n_out = int(round(duration * fs_out))
     n_hi = n_out * daq.oversample
     ts_np = float(discard) + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
-    t0, t1 = float(ts_np[0]), float(ts_np[-1])
+    t0 = float(ts_np[0])
     y0 = initial_state(twin, f_sun if f_init is None else f_init, "steady")
     rs, _ = twin.kinematic_ratios
     f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
     dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
-    max_steps = solver.max_steps or int(400_000 * (t1 - t0) + 10_000)
-    ys, _, nsteps = _solve(twin, y0, t0, t1, jnp.asarray(ts_np), daq.quantity, solver.rtol,
-                           solver.atol, dtmax, max_steps, solver.adjoint, False,
-                           solver.pcoeff, solver.icoeff, solver.unrolled, solver.rate_scale_hz)
+    # in full, or over one hunting period when `solver.periodic` allows (dtwin.simulate)
+    ys, _, nsteps, _, _ = _observables(twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity, solver,
+                                       dtmax)
     return _daq(ys, taps, daq, fs_out, nsteps, 0, float(discard)).signal
 
 

@@ -1,0 +1,172 @@
+"""Periodic steady state at constant speed: the hunting period and the tiled sampling grid.
+
+At constant input speed every excitation of the twin is a function of the gears' relative
+positions: the mesh stiffness and transmission error of each planet's meshes repeat every mesh
+cycle; a local fault on the sun repeats when the sun is back in the same place relative to the
+carrier (`Zs` mesh cycles), one on the ring or the planet-pass window of a sensor on the ring
+when the carrier is back relative to the ring (`Zr` mesh cycles), one on a planet when the
+planet is back relative to the carrier (`Zp` mesh cycles). The forced response of the damped
+twin therefore repeats after the **hunting period**
+
+    T = lcm(Zs, Zr[, Zp]) / f_mesh,   f_mesh = Zr f_carrier = Zr Zs f_sun / (Zs + Zr),
+
+with `Zp` included only when a part depends on a planet's own angle (a planet fault, a planet
+bearing defect). Over `T` the sun turns `lcm · (Zs + Zr) / (Zs Zr)` times and the carrier
+`lcm / Zr` times, both integers, so the shaft angles are back modulo 2π as well
+(:func:`shaft_turns`). For the paper's 21/30/81 gearbox at 30 Hz, `T = 567 / 500.3 Hz = 1.13 s`;
+with a planet fault on 21/31/84,
+`T = 2604 / 504 Hz = 5.17 s`.
+
+A record of a constant-speed run after the start-up transient is then the periodic response
+sampled at the phases ``(t_k - t_ref) mod T``: :func:`tiled_times` maps a sampling grid onto one
+period and gives the permutation that brings the sorted phases back into record order
+(`dtwin.simulate.simulate` with ``SolverOptions(periodic="auto")``).
+
+:func:`hunting_cycles` knows which parts keep the response periodic; a part it does not know,
+a drive other than a constant ideal speed source (a motor's slip makes the speed differ from
+the set point) or a time-varying load make the twin not periodic (None, with the reason from
+:func:`periodic_reason`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["hunting_cycles", "hunting_period", "periodic_reason", "shaft_turns", "tiled_times"]
+
+
+def _lcm(*ns: int) -> int:
+    out = 1
+    for n in ns:
+        out = out * int(n) // math.gcd(out, int(n))
+    return out
+
+
+def _planet_dependence(twin) -> tuple[bool, str | None]:
+    """(whether a part depends on a planet's own angle, reason the twin is not periodic)."""
+    from .parts.bearing_defect import PlanetBearingDefect
+    from .parts.drive import DrivePart, LoadPart
+    from .parts.imperfections import (
+        CarrierEccentricity,
+        MeshOffsets,
+        PlanetPositionErrors,
+        SunEccentricity,
+        TransmissionError,
+    )
+    from .parts.loads import ConstantLoad
+    from .parts.local_fault import LocalFault
+    from .parts.mesh_excitation import MeshExcitation
+    from .parts.speed_source import IdealSpeedSource
+    from .parts.supports import Supports
+    from .parts.transfer_path import AbstractTransferPath
+
+    # parts whose forces depend on the mesh phases, the sun or carrier angle only
+    angle_only = (Supports, MeshExcitation, AbstractTransferPath, PlanetPositionErrors,
+                  SunEccentricity, CarrierEccentricity, MeshOffsets, TransmissionError)
+    planet = False
+    drives = 0
+    for p in twin.parts:
+        if isinstance(p, DrivePart):
+            drives += 1
+            if not isinstance(p.drive, IdealSpeedSource):
+                return planet, (f"drive {type(p.drive).__name__}: a motor's speed differs from "
+                                "its set point (slip, control), the period is not known")
+            if p.drive.speed.kind != "constant":
+                return planet, f"speed profile {p.drive.speed.kind!r} is not constant"
+        elif isinstance(p, LoadPart):
+            if not isinstance(p.load, ConstantLoad):
+                return planet, f"load {type(p.load).__name__} varies in time"
+        elif isinstance(p, LocalFault):
+            planet = planet or p.fault.location == "planet"
+        elif isinstance(p, PlanetBearingDefect):
+            if float(p.defect_order) != int(p.defect_order) or (
+                    float(p.modulation_order) != int(p.modulation_order)):
+                return planet, "planet bearing defect of non-integer order"
+            planet = True
+        elif not isinstance(p, angle_only):
+            return planet, f"part {type(p).__name__} is not known to be periodic"
+    if drives == 0:
+        return planet, "no drive part"
+    return planet, None
+
+
+def periodic_reason(twin) -> str | None:
+    """Why `twin`'s response at constant speed is not (known to be) periodic; None when it is."""
+    return _planet_dependence(twin)[1]
+
+
+def hunting_cycles(twin) -> int | None:
+    """Mesh cycles of the hunting period: ``lcm(Zs, Zr)``, times what `Zp` adds when a part
+    depends on a planet's own angle; None when the twin is not periodic (:func:`periodic_reason`)."""
+    planet, reason = _planet_dependence(twin)
+    if reason is not None:
+        return None
+    lp = twin.lp
+    zs, zr, zp = int(lp.z_sun), int(lp.z_ring), int(lp.z_planet)
+    return _lcm(zs, zr, zp) if planet else _lcm(zs, zr)
+
+
+def mesh_frequency(twin, f_sun):
+    """Mesh frequency (Hz) at input speed `f_sun` (Hz; may be traced): ``Zr f_sun / (1 + Zr/Zs)``."""
+    lp = twin.lp
+    return f_sun * lp.z_ring / (1.0 + lp.z_ring / lp.z_sun)
+
+
+def hunting_period(twin, f_sun=None):
+    """Hunting period (s) at input speed `f_sun` (Hz; default: the drive's constant set point,
+    may be traced); None when the twin is not periodic."""
+    cycles = hunting_cycles(twin)
+    if cycles is None:
+        return None
+    if f_sun is None:
+        from .parts.drive import DrivePart
+
+        drive = next(p.drive for p in twin.parts if isinstance(p, DrivePart))
+        f_sun = drive.speed.final / (2.0 * jnp.pi)
+    return cycles / mesh_frequency(twin, f_sun)
+
+
+def shaft_turns(twin, cycles: int) -> tuple[int, int]:
+    """Whole turns ``(sun, carrier)`` over `cycles` mesh cycles (both integers for a hunting
+    period): the carrier turns ``cycles / Zr`` times, the sun ``cycles (Zs + Zr) / (Zs Zr)``."""
+    lp = twin.lp
+    zs, zr = int(lp.z_sun), int(lp.z_ring)
+    sun = cycles * (zs + zr) / (zs * zr)
+    car = cycles / zr
+    if abs(sun - round(sun)) > 1e-9 or abs(car - round(car)) > 1e-9:
+        raise ValueError(f"{cycles} mesh cycles are not whole turns of sun and carrier")
+    return int(round(sun)), int(round(car))
+
+
+def tiled_times(ts, t_ref, period):
+    """Map sampling times onto one period of the steady state.
+
+    **Arguments:** `ts` (s, nondecreasing), `t_ref` (s, start of the reference period), `period`
+    (s; may be traced).
+
+    **Returns:** ``(phase_times, order, inverse, turns)``: times ``t`` before ``t_ref + period``
+    are kept, later ones replaced by ``t_ref + (t - t_ref) mod period``; `phase_times` are those
+    sorted (a valid `diffrax.SaveAt(ts=...)`), ``phase_times[inverse]`` is the mapped grid in the
+    order of `ts`, and `turns` the whole periods removed from each time (integers as floats).
+    """
+    ts = jnp.asarray(ts)
+    late = ts >= t_ref + period
+    turns = jnp.where(late, jnp.floor((ts - t_ref) / period), 0.0)
+    mapped = ts - turns * period
+    order = jnp.argsort(mapped)
+    inverse = jnp.argsort(order)
+    return mapped[order], order, inverse, turns
+
+
+def span_needed(settle: float, period: float, probe: float) -> float:
+    """Simulated span (s) of the tiled solve: `settle` + one `period` + the `probe` window."""
+    return float(settle) + float(period) + float(probe)
+
+
+def np_hunting_period(twin, f_sun: float) -> float | None:
+    """:func:`hunting_period` as a Python float at a concrete `f_sun` (Hz)."""
+    T = hunting_period(twin, float(f_sun))
+    return None if T is None else float(np.asarray(T))
