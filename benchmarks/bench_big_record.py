@@ -87,8 +87,11 @@ def run_one(args: list[str], timeout: float) -> dict:
     env = {**os.environ, "JAX_ENABLE_X64": "1", "MPLBACKEND": "Agg"}
     t0 = time.perf_counter()
     err = tempfile.TemporaryFile()
+    # run outside the repository: ``python -m`` puts the working directory first on sys.path,
+    # which would load the checkout's dtwin even when PYTHONPATH names another (compare.py)
     p = subprocess.Popen([sys.executable, "-m", "dtwin", "--quiet", *args],
-                         stdout=subprocess.DEVNULL, stderr=err, env=env)
+                         stdout=subprocess.DEVNULL, stderr=err, env=env,
+                         cwd=tempfile.gettempdir())
     deadline = t0 + timeout
     status, usage = 0, None
     while True:
