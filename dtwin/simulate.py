@@ -389,8 +389,9 @@ def periodic_plan(twin: Twin, f_sun: float, t0: float, t_end: float, solver: Sol
                   fs_hi: float, start: str = "steady") -> tuple[float | None, str]:
     """Whether a record over ``[t0, t_end]`` (s) is integrated over one hunting period:
     ``(period_estimate_s, "periodic")`` or ``(None, reason)`` (the reason it is integrated in
-    full). `f_sun` (Hz, static) estimates the period for the decision."""
-    from .periodic import hunting_cycles, mesh_frequency, periodic_reason
+    full). The period follows the drive's set point; where that is traced, `f_sun` (Hz,
+    static) estimates it for the decision."""
+    from .periodic import hunting_cycles, hunting_period, mesh_frequency, periodic_reason
 
     if solver.periodic == "off":
         return None, "full"
@@ -399,7 +400,9 @@ def periodic_plan(twin: Twin, f_sun: float, t0: float, t_end: float, solver: Sol
     cycles = hunting_cycles(twin)
     if cycles is None:
         return None, f"full (periodic: {periodic_reason(twin)})"
-    T = cycles / float(mesh_frequency(twin, float(f_sun)))
+    T = hunting_period(twin)
+    T = (cycles / float(mesh_frequency(twin, float(f_sun))) if isinstance(T, jax.core.Tracer)
+         else float(T))
     need = solver.periodic_settle + T + PERIODIC_PROBE / fs_hi
     if need > solver.periodic_max_fraction * (t_end - t0):
         return None, (f"full (periodic: settle {solver.periodic_settle:g} s + hunting period "
