@@ -120,12 +120,15 @@ def test_parquet_table_opens_in_pandas(tmp_path):
     assert df["sun_fault"].iloc[0] == 0.3 and str(df["timestamp"].dt.tz) == "UTC"
 
 
-def test_csv_cells_are_the_shortest_round_trip_text_of_each_value():
-    """Whole columns are written at once; each cell must still read ``repr`` of the value as a
+@pytest.mark.parametrize("chunk", [7, 1 << 16])
+def test_csv_cells_are_the_shortest_round_trip_text_of_each_value(chunk, monkeypatch):
+    """Columns are written many rows at once; each cell must still read ``repr`` of the value as a
     Python float (float32 values widened exactly), ``str`` of an integer, and parse back bit
     for bit, over magnitudes from subnormal to huge and the special values."""
+    from dtwin.io import export
     from dtwin.io.export import columns_csv
 
+    monkeypatch.setattr(export, "_CHUNK", chunk)  # rows formatted at once: 7 crosses chunks
     rng = np.random.default_rng(0)
     x = np.concatenate([rng.standard_normal(500) * 10.0 ** rng.integers(-300, 300, 500),
                         [0.0, -0.0, np.nan, np.inf, -np.inf, 1e16, 1e-5, 5e-324]])
