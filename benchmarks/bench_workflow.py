@@ -4,7 +4,7 @@ Calibrates the user's spec of the independent records (``../shared/independent/g
 beside the checkout) on ``baseline-1`` (:func:`dtwin.identify.calibrate.calibrate`), then runs
 discovery (:func:`dtwin.identify.discover.discover`, the default settings) with the calibrated
 spec on faulty records of the same machine, one after the other in this process. Per stage: wall
-and CPU time, the time JAX spent compiling (tracing, lowering and XLA compilation, from
+and CPU time, the wall time JAX spent compiling (tracing, lowering and XLA compilation, from
 ``jax.monitoring``; the persistent compilation cache follows ``DTWIN_JAX_CACHE``, off under
 ``benchmarks/compare.py``) and the number of compilations, the peak resident memory of the
 process so far, the load average before and after, and the stage's outcome (gaps, groups
@@ -112,14 +112,14 @@ def main(argv=None) -> int:
     cal, row = _stage(lambda: calibrate([IND / "baseline-1.csv"], IND / "gearbox.toml"))
     spec = Path(tempfile.mkdtemp()) / "calibrated.toml"
     cal.write_spec(spec)
-    row.update(kind="workflow", stage="calibrate", record="baseline-1",
+    row.update(kind="calibrate", stage="calibrate", record="baseline-1",
                gap_heldout_db=cal.gap_heldout.total, gap_confirmed_db=cal.gap_confirmed.total)
     rows.append(row)
     for name in args.records:
         res, row = _stage(lambda name=name: discover(
             read_record(IND / f"{name}.csv"), spec,
             settings=DiscoverySettings(max_steps=args.max_steps)))
-        row.update(kind="workflow", stage="discover", record=name, named=res.named,
+        row.update(kind=f"discover {name}", stage="discover", record=name, named=res.named,
                    gap_before_db=res.initial_gap.total, gap_after_db=res.final_gap.total,
                    stop=res.stop_reason, refit=_n_refit(res))
         rows.append(row)
