@@ -103,11 +103,14 @@ def _name(location: str) -> str:
 class SeverityEstimate:
     """Severity (1) at `location` with its 95 % `interval`, whether it is `determined`, the
     method of the interval (``gaussian`` in the logit coordinate or ``profile``), and the fit;
-    `peak_loss` (fraction; × 100 for %) and `peak_interval`: the peak mesh-stiffness loss at
-    the faulty tooth (:func:`dtwin.faults.peak_stiffness_loss`) and its 95 % interval;
-    `ramp`: the loss's edge width (mesh cycles) of the reported fit; `widened`: the factor
-    the intervals were widened by for lack of fit (1: none); `shapes`: per shape tried
-    (``ramps=``), its ramp, loss, severity, peak loss and whether the loss accepts it."""
+    `peak_loss` (fraction; × 100 for %): the peak mesh-stiffness loss at the faulty tooth
+    relative to the mean mesh stiffness (:func:`dtwin.faults.peak_stiffness_loss`), and
+    `peak_interval`, its 95 % interval over any healthy waveform (module docstring); `ramp`,
+    `spread`: the loss's edge width and its extent beyond the contact (mesh cycles) of the
+    reported fit; `widened`: the factor the intervals were widened by for lack of fit (1:
+    none); `shapes`: per shape tried (``ramps=``), its ramp, spread, loss, severity, peak loss,
+    whether the loss accepts it and its intervals (``jackknife_95`` with the band
+    jackknife)."""
 
     location: str
     severity: float
@@ -149,8 +152,9 @@ class SeverityEstimate:
         lo, hi = self.interval
         plo, phi = self.peak_interval
         return (f"{self.location} fault severity {self.severity:.3f} 95 % [{lo:.3f}, {hi:.3f}]"
-                f" ({self.method}); peak stiffness loss {100 * self.peak_loss:.1f} % 95 % "
-                f"[{100 * plo:.1f}, {100 * phi:.1f}] %; {self.status}")
+                f" ({self.method}); peak stiffness loss {100 * self.peak_loss:.1f} % of the mean "
+                f"mesh stiffness, 95 % [{100 * plo:.1f}, {100 * phi:.1f}] % (any healthy "
+                f"waveform); {self.status}")
 
 
 def _fault_index(twin, location: str) -> int | None:
