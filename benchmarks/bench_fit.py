@@ -33,8 +33,9 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
 
 `--periodic` fits with ``periodic="auto"`` (`dtwin.simulate.SolverOptions.periodic`: the record
 simulated over a 0.1 s settling time and one hunting period, 1.13 s here, and tiled; issue #21
-lever 2) when the library has it (a library without it fits in full: `benchmarks/compare.py`
-then puts the two side by side); `periodic` in the JSON says which was used.
+lever 2) when the library has it; without it the fit simulates the whole record
+(``periodic="off"``, or a library without the option: `benchmarks/compare.py` then puts the
+two side by side); `periodic` in the JSON says which was used.
 
 `--rtol` sets the simulation tolerance of the fit (``rtol = atol``, `dtwin.identify.fit.make_problem`;
 library default 1e-5), for JAX and SciPy alike.
@@ -109,9 +110,10 @@ def main(argv=None) -> int:
     kw = dict(f_sun=f_sun, features=feats, rtol=args.rtol, atol=args.rtol)
     import inspect
 
-    periodic = args.periodic and "periodic" in inspect.signature(make_problem).parameters
-    if periodic:
-        kw["periodic"] = "auto"
+    has_periodic = "periodic" in inspect.signature(make_problem).parameters
+    periodic = args.periodic and has_periodic
+    if has_periodic:
+        kw["periodic"] = "auto" if periodic else "off"
     starts = [{n: truth[n] * f for n, f in zip(free, (0.8, 1.2, 0.8), strict=True)},
               {n: truth[n] * f for n, f in zip(free, (1.2, 0.8, 1.2), strict=True)}]
     out = {"kind": "fit", "case": args.case, "duration": args.duration, "free": list(free),

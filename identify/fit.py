@@ -559,12 +559,14 @@ def make_problem(
     rtol: float = 1e-5,
     atol: float = 1e-5,
     jac: str = "fwd",
-    periodic: str = "off",
+    periodic: str = "auto",
 ) -> tuple[Problem, list[dict[str, float]]]:
     """Checks, operating points and observations → a :class:`Problem` (no simulation yet).
 
-    Arguments as :func:`fit`; `periodic`: ``"off"`` or ``"auto"`` (constant-speed records
-    simulated over one hunting period and tiled, ``dtwin.simulate.SolverOptions.periodic``).
+    Arguments as :func:`fit`; `periodic`: ``"auto"`` (default: a constant-speed record whose
+    settling time (0.1 s) and hunting period fit in 3/4 of it is simulated over those only and
+    tiled, ``dtwin.simulate.SolverOptions.periodic``; run-ups and twins whose response is not
+    periodic are simulated in full) or ``"off"`` (always in full).
     **Returns:** ``(problem, operating_points)``.
     """
     if isinstance(free, ParameterSet):

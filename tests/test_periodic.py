@@ -172,9 +172,12 @@ def test_falls_back(spec, twins, records):
                                 faults=(MissingTooth(0.5, location="planet"),)), 21, 31, 84)
     T, why = periodic_plan(pl, 30.0, 0.0, 4.0, PERIODIC, fs_hi)
     assert T is None and "hunting period" in why
-    # short record through simulate: integrated in full, and says so
-    short = simulate(tw, duration=0.5, f_sun=F_SUN, discard=DISCARD, solver=PERIODIC)
-    assert short.method.startswith("full (periodic") and short.periodic_defect is None
+    # a record too short for the settling time and one period (0.57 s at 60 Hz)
+    T, why = periodic_plan(tw, F_SUN, 0.0, 0.5, PERIODIC, fs_hi)
+    assert T is None and "hunting period" in why
+    # the plan of the records above: tiled
+    T, why = periodic_plan(tw, F_SUN, 0.0, DURATION, PERIODIC, fs_hi)
+    assert why == "periodic" and T == pytest.approx(float(hunting_period(tw)))
     # a periodicity check that fails: integrated in full, the record is the full one
     strict = dataclasses.replace(PERIODIC, periodic_tol=1e-12)
     r = simulate(tw, duration=DURATION, f_sun=F_SUN, discard=DISCARD, solver=strict)
