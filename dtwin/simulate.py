@@ -7,7 +7,9 @@ Pipeline (docs/references.md §6):
 2. adaptive explicit Runge–Kutta (Tsit5 with its stages unrolled, `dtwin.integrator`; PID
    step-size control) on scaled integration
    coordinates (`dtwin.twin`), the state saved on a grid `oversample` times finer than the DAQ
-   rate; the sensor signal is computed from the states with the model's own equations
+   rate (at constant speed, with `SolverOptions(periodic="auto")`, only a settling time and one
+   hunting period are integrated and the grid's later samples taken at their phases in it:
+   `dtwin.periodic`); the sensor signal is computed from the states with the model's own equations
    (accelerations from the vector field, batched with `vmap` over the saved times: no
    differentiation of sampled output);
 3. DAQ: a linear-phase FIR low-pass (Kaiser window, cut-off 0.4 × the output rate, ≥ 80 dB
