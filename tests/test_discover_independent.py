@@ -30,7 +30,7 @@ _RESULTS: dict = {}
 
 
 #: CI form: the first step, two candidates refit, 200 bootstrap draws (the slow form: the
-#: default settings, n_boot 400, four refit)
+#: default settings, n_boot 400, the two best of the covering candidates by score refit)
 QUICK = dict(max_steps=1, max_refit=2, n_boot=200)
 FULL = dict(max_steps=1)
 

@@ -8,7 +8,7 @@ stiffness harmonics (not the truth's structure: no inverse crime), fitted withou
 
 CI form: one record per look-alike group, 5 null records, the unexplained tone and the
 plug-in effect, the paper-like preset (200 bootstrap draws); `slow`: two hidden effects,
-20 null records, the paper-like preset (500 draws, 4 candidates refit).
+20 null records, the paper-like preset (500 draws, the default `max_refit`).
 Set ``DTWIN_DISCOVER_CACHE=/some/dir`` to keep the base simulation and the responses between
 runs.
 """

@@ -7,11 +7,13 @@ base twin simulated over the record; then per step
 1. residual lines over 0 … Nyquist (:func:`dtwin.identify.lines.residual_lines`), each with its
    kinematic description, fault combs and a modulation at a located frequency found as
    families (:func:`dtwin.identify.lines.find_combs`, :func:`~dtwin.identify.lines.find_modulation`);
-2. candidates ranked by *coverage*: the share of the residual line power (measured over model)
-   lying on their signature (:func:`coverage`); the best `max_refit` are refit;
+2. the candidates whose signature covers at least `min_coverage` of the residual line power
+   (measured over model; :func:`coverage`) are each scored at zero amplitude by a score test
+   (:func:`~dtwin.identify.discover.statistics.screen_score`: one response column per
+   parameter, no refit) and the best `max_refit` by score are refit;
 3. each is refit about the current model (below) and scored on held-out data: statistic ``T``,
    bootstrap p-value, held-out gap (:mod:`dtwin.identify.gap`) and parameter intervals;
-4. kept: among candidates with ``p <= alpha / K`` (Bonferroni over the K refit; family-wise level
+4. kept: among candidates with ``p <= alpha / K`` (Bonferroni over the K scored; family-wise level
    `alpha` = 1 % per step) whose main parameter's interval excludes zero, the one with the
    smallest held-out gap. Members of its look-alike group that fit as well (within `tie_db`) or
    were not refit make the step name the *group*; otherwise the member is named;
