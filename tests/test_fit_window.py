@@ -150,3 +150,35 @@ def test_identify_and_severity_fit_the_window(spec, tmp_path, monkeypatch, capsy
     assert seen[0].metadata["fit_window"]["start_s"] == pytest.approx(6.0)
     assert seen[2].metadata["fit_window"]["start_s"] == pytest.approx(2.0)
     capsys.readouterr()
+
+
+def test_fleet_fits_the_window_of_a_long_record(spec, tmp_path, monkeypatch):
+    """A fleet task hands the fit the same window (its problem is built from 4 s at 5120 Hz
+    of a steady 12 s, 25.6 kHz record); a short record reaches it whole. (A record whose speed
+    ramps is a run-up to the fleet, fitted whole as one.)"""
+    from importlib import import_module
+
+    from dtwin.errors import FitError
+    from dtwin.identify.fleet import FleetSettings
+    from dtwin.io.readers import write_record
+
+    tasks = import_module("dtwin.identify.fleet.tasks")
+    long_path = tmp_path / "long.dtwin.h5"
+    write_record(_run(12.0, 1e-3, spec, tacho=True), long_path)  # steady
+    seen = []
+
+    def fake(rec, *a, **k):
+        seen.append(rec)
+        raise FitError("stop: the test only looks at what the fit was given")
+
+    monkeypatch.setattr(tasks._fit, "make_problem", fake)
+    jobs = [{"path": p, "key": k, "machine": "m", "timestamp": None, "identity_source": "test",
+             "sha256": ""} for k, p in (("long", str(long_path)),
+                                        ("short", "data/samples/bench_healthy.dtwin.h5"))]
+    out = tasks.fit_task(jobs, preset("paper-bench").data, FleetSettings(free=("sun_fault",)),
+                         fingerprint="test")
+    assert [e["status"] for e in out] == ["failed", "failed"]
+    assert (seen[0].duration, seen[0].sample_rate) == (4.0, 5120.0)
+    assert seen[0].metadata["fit_window"]["chosen"] == "steadiest"
+    assert (seen[1].duration, seen[1].sample_rate) == (4.0, 5000.0)
+    assert "fit_window" not in seen[1].metadata

@@ -23,6 +23,7 @@ from dtwin.registry import ensure_parts, set_value
 from dtwin.spec import load_spec
 
 from ..discover import DiscoverySettings, discover
+from ..segment import segment_for_fit
 from .settings import FAIL_ENV, SCHEMA, FleetSettings
 from .store import _now
 
@@ -144,6 +145,7 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
     free = list(settings.free)
     entries: dict[str, dict[str, Any]] = {}
     ready: list[tuple[Mapping[str, Any], Any, Any]] = []
+    windows: dict[str, dict[str, Any]] = {}  # a long steady record is fitted on a window
     for job in jobs:
         _inject(job, inject, attempts_dir, engine == "ray")
         try:
@@ -153,6 +155,9 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
                 entries[job["key"]] = _runup_entry(job, rec, spec, free, settings, kw, runup,
                                                    fingerprint, engine)
                 continue
+            seg = segment_for_fit(rec, spec, settings.f_sun, channel=settings.channel)
+            if seg.windowed:  # dtwin.identify.segment: a steady stretch at the rate needed
+                rec, windows[job["key"]] = seg.record, seg.to_dict()
             prob, _ = _fit.make_problem(rec, spec, free, **{k: v for k, v in kw.items()
                                                       if k not in ("solver", "max_steps", "tol")})
             ready.append((job, rec, prob))
@@ -196,6 +201,9 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
         for (job, _, _), res in zip(g, results, strict=True):
             entries[job["key"]] = _fit_entry(job, res, fingerprint=fingerprint, engine=engine,
                                              batched=len(g), wall=wall)
+    for key, w in windows.items():
+        if entries[key].get("status") == "ok":
+            entries[key]["fit_window"] = w
     return [entries[j["key"]] for j in jobs]
 
 
