@@ -13,7 +13,9 @@ How the base's code is loaded: the worktree goes first on ``PYTHONPATH`` with a
 ``sitecustomize`` that removes the editable install's import finder from ``sys.meta_path``, and
 ``dtwin/identify`` in the worktree links to its top-level ``identify/`` (the package-dir mapping
 of ``pyproject.toml``); processes the script starts (``run_all.py`` starts one per script)
-inherit the environment, so they load the base too. The persistent compilation cache is off for
+inherit the environment, so they load the base too. Base runs start in the worktree (a
+``python -m dtwin`` puts the working directory first on ``sys.path``), current runs in the
+repository root; relative paths in the script's arguments resolve there. The persistent compilation cache is off for
 both (``DTWIN_JAX_CACHE=off``) unless ``--cache`` is given, so compile times compare.
 
 Usage::
@@ -123,7 +125,9 @@ def run_once(script: Path, args: list[str], tree: Path | None, boot: Path | None
     load0 = _loadavg()
     t0 = time.perf_counter()
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        proc = subprocess.Popen([sys.executable, str(script), *args], cwd=ROOT, env=env,
+        # the base runs inside its worktree: a `python -m dtwin` the script starts puts the
+        # working directory first on sys.path, so it must be the base's
+        proc = subprocess.Popen([sys.executable, str(script), *args], cwd=tree or ROOT, env=env,
                                 stdout=out, stderr=err, text=True)
         deadline = t0 + timeout
         status, usage = 0, None
