@@ -390,3 +390,25 @@ def test_unwritable_out_refused_before_work(tmp_path, monkeypatch, no_work, caps
     assert e.value.code == 2
     assert "not writable" in capsys.readouterr().err
     assert not (tmp_path / "ro").exists()
+
+
+def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
+    """`dtwin severity --low-band --jackknife` asks the library for the low band and the band
+    jackknife (dtwin.identify.severity.estimate_severity); without them, neither."""
+    from dtwin.identify import severity
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(*a, **k):
+        seen.append((k.get("low_band"), k.get("jackknife")))
+        raise Stop
+
+    monkeypatch.setattr(severity, "estimate_severity", capture)
+    for extra, want in (([], (False, False)), (["--low-band", "--jackknife"], (True, True))):
+        with pytest.raises(SystemExit):  # the stand-in stops the command once it was called
+            main(["severity", files["rec"], "--preset", "paper-sim", *extra])
+        assert seen[-1] == want
+    capsys.readouterr()

@@ -278,6 +278,14 @@ def severity(
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz)."),
     channel: str = opts.channel_option(),
     fit_window: str = fit_window_option(),
+    low_band: bool = typer.Option(
+        False, "--low-band",
+        help="Also fit the fault's impulse comb below the first mesh band (band 0): on records "
+             "of a gearbox the twin did not simulate it carries the fault's strongest lines."),
+    jackknife: bool = typer.Option(
+        False, "--jackknife",
+        help="Widen the interval by the delete-one-band jackknife when the bands disagree "
+             "beyond their noise (a model-form error); the status says so."),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("severity.json, spectrum_fit.png, loss.png"),
@@ -301,7 +309,7 @@ def severity(
         _check_given_speed(rec, gb.spec, f_sun, ch, record)
     with opts.working("fitting the severity"):
         est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
-                                channel=ch)
+                                channel=ch, low_band=low_band, jackknife=jackknife)
 
     report = {"record": str(record), "gearbox": gb.source, **_window_report(segs),
               **est.to_dict()}
@@ -314,4 +322,5 @@ def severity(
     opts.emit(report, json_out=json_out, table=table, out=out, force=force,
               files=_files(est.fit, "severity.json", report), inputs=[record], gearbox=gb,
               parameters={"location": location, "free": extra,
-                          "fit_window": window.text()})
+                          "fit_window": window.text(), "low_band": low_band,
+                          "jackknife": jackknife})
