@@ -216,13 +216,13 @@ def _case_record(case, spec, kin):
 #: around them pull the fitted depth low. Measured: 8.13e-8 before the residual-line work of
 #: issue 19 changed the refit's bins, 7.97e-8 (20.3 % low, interval 7.65-8.29e-8) after it;
 #: with a 16-harmonic search twin the same record gives 9.53e-8.
-BEARING_OUTER_BIAS = pytest.mark.xfail(
-    strict=True, reason="model-form bias of the 8-harmonic search twin: outer-race depth 20.3 % "
-    "low (7.97e-8 for 1e-7; 9.53e-8 with 16 harmonics), just past the 20 % claim")
+#: Every other claim of the case is checked; the depth alone is reported as an expected failure
+#: while it stays outside 20 %.
+BEARING_OUTER_BIAS = ("model-form bias of the 8-harmonic search twin: outer-race depth "
+                      "{:.3g} for 1e-7 (9.53e-8 with 16 harmonics), outside the 20 % claim")
 
 
-@pytest.mark.parametrize("case", [pytest.param("bearing_outer", marks=BEARING_OUTER_BIAS),
-                                  "bearing_inner", "bearing_ball",
+@pytest.mark.parametrize("case", ["bearing_outer", "bearing_inner", "bearing_ball",
                                   "housing_resonance", "time_varying_path"])
 def test_more_groups_named_gap_shrinks(case, spec, kin):
     sp, base, x, name, true_main, group = _case_record(case, spec, kin)
@@ -232,12 +232,15 @@ def test_more_groups_named_gap_shrinks(case, spec, kin):
     assert first.group == group
     assert first.named in (group, name)
     assert first.gap_after.total <= 0.5 * first.gap_before.total
-    if first.named == name:
-        assert first.main["value"] == pytest.approx(true_main, rel=0.2)
     if case.startswith("bearing_"):
         # the bearing frequencies label the matched lines (the effect's own signature)
         sym = BEARING_SYMBOL[case.removeprefix("bearing_")]
         assert any(sym in lab for lab in first.matched_labels), first.matched_labels
+    if first.named == name:
+        value = first.main["value"]
+        if case == "bearing_outer" and value != pytest.approx(true_main, rel=0.2):
+            pytest.xfail(BEARING_OUTER_BIAS.format(value))
+        assert value == pytest.approx(true_main, rel=0.2)
 
 
 @pytest.mark.parametrize("seed", range(5))
