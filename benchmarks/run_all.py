@@ -6,7 +6,9 @@ lists, per script and record, the headline figures found in the records; the loa
 before and after each script is printed with it (timings on a shared machine are inflated by
 the load). ``make bench`` calls this script.
 
-Usage: ``python benchmarks/run_all.py [--quick] [--only NAME ...]``
+Usage: ``python benchmarks/run_all.py [--quick] [--only NAME ...] [--json]``; with ``--json``
+the table goes to stderr and stdout carries ``{script: {"records": [...], "wall_s": ...}}``
+(what ``benchmarks/compare.py`` puts side by side).
 """
 
 from __future__ import annotations
@@ -60,6 +62,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="pass --quick to every script")
     p.add_argument("--only", nargs="+", default=None, help="script names (without .py) to run")
+    p.add_argument("--json", action="store_true",
+                   help="print every script's records as JSON on stdout, the table on stderr")
     args = p.parse_args(argv)
     scripts = sorted(HERE.glob("bench_*.py"))
     if args.only:
@@ -67,7 +71,7 @@ def main(argv=None) -> int:
     if not scripts:
         print("no benchmark scripts found", file=sys.stderr)
         return 1
-    rows, failed = [], []
+    rows, failed, results = [], [], {}
     for script in scripts:
         cmd = [sys.executable, str(script), "--json"] + (["--quick"] if args.quick else [])
         load_before = _loadavg()
@@ -97,17 +101,21 @@ def main(argv=None) -> int:
                 for key, v in rec.items():
                     if isinstance(v, (int, float)) and not isinstance(v, bool):
                         rows.append((script.stem, str(rec.get("kind", "")), key, f"{v:.4g}"))
+        results[script.stem] = {"records": records, "wall_s": wall}
         rows.append((script.stem, "", "script wall time", f"{wall:.0f} s"))
         rows.append((script.stem, "", "load average before / after",
                      f"{load_before} / {_loadavg()}"))
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
     header = ("script", "case", "figure", "value")
     widths = [max(w, len(h)) for w, h in zip(widths, header, strict=True)]
+    table = sys.stderr if args.json else sys.stdout
     line = "  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True))
-    print(line)
-    print("-" * len(line))
+    print(line, file=table)
+    print("-" * len(line), file=table)
     for r in rows:
-        print("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)))
+        print("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)), file=table)
+    if args.json:
+        print(json.dumps(results))
     return 1 if failed else 0
 
 

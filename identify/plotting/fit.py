@@ -11,6 +11,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from dtwin.plotting.levels import level_axis, levels, place_labels, set_level_limits
 
@@ -105,11 +106,18 @@ def plot_fit_spectrum(
 
 
 def plot_loss_history(history: Sequence[float], *, title: str = "Loss over solver evaluations") -> Figure:
-    """½‖r‖² at every residual evaluation of the solver (log scale)."""
+    """½‖r‖² at every residual evaluation of the solver: log scale when it spans more than a
+    factor of 3, otherwise linear with the values written out (a short or flat history)."""
     h = np.asarray(history, dtype=float)
     fig = Figure(figsize=(6, 3.6))
     ax = fig.add_subplot(111)
-    ax.semilogy(np.arange(1, h.size + 1), h, "o-", ms=3, label="½‖r‖² (log-spectrum residuals)")
+    pos = h[np.isfinite(h) & (h > 0)]
+    if pos.size > 1 and pos.max() > 3.0 * pos.min():
+        ax.set_yscale("log")
+    else:
+        ax.ticklabel_format(axis="y", style="plain", useOffset=False)
+    ax.plot(np.arange(1, h.size + 1), h, "o-", ms=3, label="½‖r‖² (log-spectrum residuals)")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("residual evaluation (count)")
     ax.set_ylabel("loss ½‖r‖² (dimensionless)")
     ax.set_title(title)
