@@ -29,7 +29,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from _timing import load_average  # noqa: E402
+from _timing import load_average, wait_measured  # noqa: E402
 
 F_SUN = 29.7
 ZS, ZR = 21, 84
@@ -92,24 +92,12 @@ def run_one(args: list[str], timeout: float) -> dict:
     p = subprocess.Popen([sys.executable, "-m", "dtwin", "--quiet", *args],
                          stdout=subprocess.DEVNULL, stderr=err, env=env,
                          cwd=tempfile.gettempdir())
-    deadline = t0 + timeout
-    status, usage = 0, None
-    while True:
-        pid, status, usage = os.wait4(p.pid, os.WNOHANG)
-        if pid:
-            break
-        if time.perf_counter() > deadline:
-            p.kill()
-            pid, status, usage = os.wait4(p.pid, 0)
-            break
-        time.sleep(0.05)
-    wall = time.perf_counter() - t0
+    m = wait_measured(p, t0, timeout)
     err.seek(0)
     lines = err.read().decode(errors="replace").strip().splitlines()
-    code = os.waitstatus_to_exitcode(status)
-    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime,
-            "peak_rss_mb": usage.ru_maxrss / 1024.0, "exit_code": code,
-            "timed_out": wall > timeout, "stderr_tail": lines[-1] if lines else ""}
+    return {"wall_s": m["wall_s"], "cpu_s": m["cpu_s"], "peak_rss_mb": m["peak_rss_mb"],
+            "exit_code": m["returncode"], "timed_out": m["timed_out"],
+            "stderr_tail": lines[-1] if lines else ""}
 
 
 def main(argv=None) -> int:

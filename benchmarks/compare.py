@@ -39,6 +39,9 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+
+from _timing import wait_measured  # noqa: E402
 
 _SITECUSTOMIZE = '''\
 import sys
@@ -129,28 +132,16 @@ def run_once(script: Path, args: list[str], tree: Path | None, boot: Path | None
         # working directory first on sys.path, so it must be the base's
         proc = subprocess.Popen([sys.executable, str(script), *args], cwd=tree or ROOT, env=env,
                                 stdout=out, stderr=err, text=True)
-        deadline = t0 + timeout
-        status, usage = 0, None
-        while True:
-            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-            if pid:
-                break
-            if time.perf_counter() > deadline:
-                proc.kill()
-                pid, status, usage = os.wait4(proc.pid, 0)
-                break
-            time.sleep(0.05)
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        wall = time.perf_counter() - t0
+        m = wait_measured(proc, t0, timeout)
         out.seek(0)
         err.seek(0)
         stdout, stderr = out.read(), err.read()
     return {
         "code": "base" if tree is not None else "current",
-        "returncode": proc.returncode,
-        "wall_s": wall,
-        "cpu_s": usage.ru_utime + usage.ru_stime,
-        "peak_rss_mb": usage.ru_maxrss / 1024.0,
+        "returncode": m["returncode"],
+        "wall_s": m["wall_s"],
+        "cpu_s": m["cpu_s"],
+        "peak_rss_mb": m["peak_rss_mb"],
         "load_before": load0,
         "load_after": _loadavg(),
         "figures": flatten(_last_json(stdout)),
