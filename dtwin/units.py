@@ -60,6 +60,7 @@ __all__ = [
     "G",
     "ISO20816Zones",
     "UNITS",
+    "UNSTATED_UNIT",
     "broadband_velocity_rms",
     "convert_signal",
     "convert_spectrum",
@@ -69,6 +70,7 @@ __all__ = [
     "normalise_unit",
     "quantity",
     "to_db",
+    "unit_name",
 ]
 
 #: Standard gravity (m/s²), ISO 80000-3 / CGPM 1901: 1 g = 9.80665 m/s².
@@ -191,13 +193,23 @@ def convert_signal(
     return np.fft.irfft(spec * h, n=n, axis=-1) / UNITS[tu][1]
 
 
+#: How a unit the record does not state (None, "" or "-") is written on axes and in dB references.
+UNSTATED_UNIT = "record unit"
+
+
+def unit_name(unit: str | None) -> str:
+    """`unit` as written for a reader: :data:`UNSTATED_UNIT` when the record states none."""
+    return UNSTATED_UNIT if unit in (None, "", "-") else unit
+
+
 def db_reference(unit: str | None) -> tuple[float, str]:
     """The reference of levels in dB for `unit`: ``(value in unit, text)``. SI vibration units use
     ISO 1683:2015 (1 µm/s², 1 nm/s, 1 pm, expressed in `unit`); ``g`` uses 1 g; anything else
-    1 `unit`. E.g. ``db_reference("mm/s") == (1e-6, "1 nm/s")``."""
+    1 `unit` (``"1 record unit"`` when the record states none). E.g.
+    ``db_reference("mm/s") == (1e-6, "1 nm/s")``."""
     u = normalise_unit(unit)
     if u is None:
-        return 1.0, f"1 {unit or 'unit'}"
+        return 1.0, f"1 {unit_name(unit)}"
     q, factor, text = UNITS[u]
     if u == "g":
         return 1.0, "1 g"

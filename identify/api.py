@@ -53,9 +53,11 @@ __all__ = [
 ]
 
 
-def plot_fit(result: FitResult, record_index: int = 0, *, label_peaks: bool = True):
+def plot_fit(result: FitResult, record_index: int = 0, *, label_peaks: bool = True,
+             unit: str | None = "m/s^2"):
     """Figure of measured vs fitted levels of one record of `result`, peaks labelled with their
-    gear-frequency combinations (:func:`dtwin.spectrum.label_frequency`)."""
+    gear-frequency combinations (:func:`dtwin.spectrum.label_frequency`); levels in dB re the
+    reference of the record's `unit` (None: a unit the record does not state)."""
     from .plotting.fit import plot_fit_spectrum  # at call time: matplotlib only for figures
 
     freqs, meas, model = result.spectra()[record_index]
@@ -65,7 +67,7 @@ def plot_fit(result: FitResult, record_index: int = 0, *, label_peaks: bool = Tr
             labels = _labels(result, record_index, freqs, meas)
         except Exception as e:  # noqa: BLE001 — labels are decoration; say why they are missing
             labels = [(float(freqs[int(np.argmax(meas))]), f"(labels unavailable: {e})")]
-    return plot_fit_spectrum(freqs, meas, model, labels=labels)
+    return plot_fit_spectrum(freqs, meas, model, labels=labels, unit=unit)
 
 
 def _labels(result: FitResult, i: int, freqs, meas, n: int = 8):

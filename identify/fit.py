@@ -729,7 +729,10 @@ def fit(
     order = np.argsort(np.where(np.isfinite(losses), losses, np.inf)) if thetas.shape[0] > 1 \
         else np.arange(1)
     chosen = thetas[np.asarray(order[: max(1, refine)])]
-    say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
+    if thetas.shape[0] > 1:
+        say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
+    else:
+        say("one start: refining it (its loss is the first of the history)")
     _HISTORY.clear()
     th, ok, steps, fl, rs, Js = _refine(chosen, problem, solver, tol, tol, jac, max_steps,
                                         sigma_tol, mode)

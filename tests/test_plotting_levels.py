@@ -52,6 +52,31 @@ def test_close_labels_do_not_overlap():
     assert ax.texts[2].xyann[0] == 90.0  # a lone point keeps its label over it
 
 
+def test_labels_after_a_pushed_cluster_keep_their_distance():
+    # the discover figure's residual lines (Hz, 0–2500 Hz axis): a cluster pushed right must not
+    # leave the next lone point's text against its last one ("11" "12" read as "1112")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.text import Text
+
+    xs = [30.0, 41.5, 60.0, 101.5, 112.9, 131.5, 172.9, 184.4, 244.4, 255.9, 315.9, 327.4]
+    fig = Figure(figsize=(9, 3))
+    ax = fig.add_subplot()
+    ax.set_xlim(0, 2500)
+    ax.set_ylim(-90, 10)
+    place_labels(ax, xs, [-30.0] * len(xs), [str(k) for k in range(1, len(xs) + 1)])
+    r = FigureCanvasAgg(fig).get_renderer()
+    boxes = sorted((Text.get_window_extent(t, r) for t in ax.texts), key=lambda b: b.x0)
+    gaps = [b.x0 - a.x1 for a, b in zip(boxes, boxes[1:], strict=False)]
+    assert min(gaps) > 2.0, gaps  # pixels of white between neighbouring texts on one line
+    assert len(ax.texts) == len(xs)
+
+
+def test_unstated_unit_reads_record_unit():
+    assert level_axis("amplitude", None, "db") == "amplitude (dB re 1 record unit)"
+    assert level_axis("amplitude", "-", "linear") == "amplitude (record unit)"
+
+
 def test_mesh_band():
     # fm 499 Hz, fc 4.87 Hz, Nyquist 2500 Hz: fm - 12 fc ... 3 fm + 12 fc
     lo, hi = mesh_band(499.0, 4.87, 2500.0)
@@ -82,3 +107,15 @@ def test_label_text_is_the_shortest_form():
     assert combination_text([("fm", 1), ("fs/3", -3), ("fp", 1), ("fc", 1)]) == "fm − fs + fp + fc"
     assert combination_text([("fm", 3), ("fs/3", 2), ("fc", 1)]) == "3fm + 2fs/3 + fc"
     assert combination_text([("fs", 1), ("fs/3", -3)]) == "DC"
+
+
+def test_fit_and_discover_figures_name_an_unstated_unit():
+    # a CSV record states no unit: its levels are not dB re 1 µm/s²
+    from dtwin.identify.plotting.fit import plot_fit_spectrum
+
+    f = np.linspace(400.0, 600.0, 201)
+    a = np.full(f.shape, 1e-3)
+    fig = plot_fit_spectrum(f, a, a, unit=None)
+    assert fig.axes[0].get_ylabel() == "level (dB re 1 record unit)"
+    fig = plot_fit_spectrum(f, a, a, unit="m/s^2")
+    assert fig.axes[0].get_ylabel() == "level (dB re 1 µm/s²)"

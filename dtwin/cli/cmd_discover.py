@@ -18,6 +18,7 @@ from pathlib import Path
 
 import typer
 
+from ..units import unit_name
 from . import options as opts
 from .app import app
 from .logs import is_quiet, note
@@ -177,7 +178,7 @@ def discover(
 
     def files() -> dict:
         return discover_files(result, report, record_file, channel,
-                              record.units[record.index(ch)] or "-")
+                              record.units[record.index(ch)])
 
     opts.emit(to_jsonable(report), json_out=json_out, table=table, out=out, force=force,
               files=files, inputs=[record_file], gearbox=gb,
@@ -185,7 +186,7 @@ def discover(
                           "alpha": alpha, "n_boot": n_boot, "seed": seed})
 
 
-def discover_files(result, report: dict, record_file: Path, channel, unit: str) -> dict:
+def discover_files(result, report: dict, record_file: Path, channel, unit: str | None) -> dict:
     """The files of ``dtwin discover --out``: report JSON and Markdown, figures, the spectra
     (``spectra.csv``/``.npz``) and ``report.html``."""
     from dtwin.identify.plotting.discover import plot_gap_bars, plot_step_spectra
@@ -206,7 +207,7 @@ def discover_files(result, report: dict, record_file: Path, channel, unit: str) 
 
     cols = {"frequency": result.freqs, "measured": result.measured}
     cols.update({f"model_step{k}": m for k, m in enumerate(result.models)})
-    out_files["spectra.csv"] = Columns(cols, {c: ("Hz" if c == "frequency" else unit)
+    out_files["spectra.csv"] = Columns(cols, {c: ("Hz" if c == "frequency" else unit_name(unit))
                                               for c in cols})
     figures = {"Held-out gap, step by step": "gap.png"}
     for k in range(len(result.models)):

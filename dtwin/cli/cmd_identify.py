@@ -39,6 +39,7 @@ from pathlib import Path
 
 import typer
 
+from ..units import unit_name
 from . import options as opts
 from .app import app
 
@@ -114,8 +115,14 @@ def _speed_hint(record, spec) -> float | None:
     return input_speed(record, spec, None)[0]
 
 
-def _files(result, name: str, report: dict):
-    """The files of a fit result: the report, one spectrum figure per record, the loss."""
+def _unit(recs: list, channel) -> str | None:
+    """The unit of the fitted channel as the first record states it (None when it does not)."""
+    return recs[0].units[recs[0].index(channel)]
+
+
+def _files(result, name: str, report: dict, unit: str | None):
+    """The files of a fit result: the report, one spectrum figure per record (levels in the
+    records' `unit`; ``record unit`` when they state none), the loss."""
     def files() -> dict:
         from dtwin.identify.api import plot_fit
         from dtwin.identify.plotting.fit import plot_loss_history
@@ -129,10 +136,10 @@ def _files(result, name: str, report: dict):
         figures = {}
         for i, (f, meas, fitted) in enumerate(result.spectra()):
             stem = f"spectrum_fit{'' if n == 1 else f'_{i}'}"
-            out[f"{stem}.png"] = plot_fit(result, i)
+            out[f"{stem}.png"] = plot_fit(result, i, unit=unit)
             out[f"{stem}.csv"] = Columns({"frequency": f, "measured": meas, "fitted": fitted},
-                                         {"frequency": "Hz", "measured": "m/s^2",
-                                          "fitted": "m/s^2"})
+                                         {"frequency": "Hz", "measured": unit_name(unit),
+                                          "fitted": unit_name(unit)})
             figures[f"Measured vs fitted spectrum, record {i}"] = f"{stem}.png"
         out["loss.png"] = plot_loss_history(result.loss_history)
         out["loss.csv"] = Columns({"evaluation": list(range(1, len(result.loss_history) + 1)),
@@ -223,7 +230,8 @@ def identify(
         typer.echo(res.table())
 
     opts.emit(report, json_out=json_out, table=table, out=out,
-              force=force, files=_files(res, "identify.json", report), inputs=records,
+              force=force, files=_files(res, "identify.json", report, _unit(recs, ch)),
+              inputs=records,
               gearbox=gb, parameters={"free": names, "solver": solver, "starts": starts,
                                       "refine": refine, "jac": jac, "model": model,
                                       "fit_window": window.text()})
@@ -320,7 +328,8 @@ def severity(
         typer.echo(est.fit.table())
 
     opts.emit(report, json_out=json_out, table=table, out=out, force=force,
-              files=_files(est.fit, "severity.json", report), inputs=[record], gearbox=gb,
+              files=_files(est.fit, "severity.json", report, _unit([rec], ch)), inputs=[record],
+              gearbox=gb,
               parameters={"location": location, "free": extra,
                           "fit_window": window.text(), "low_band": low_band,
                           "jackknife": jackknife})

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..units import to_db
+from ..units import to_db, unit_name
 
 __all__ = ["SCALES", "level_axis", "levels", "mesh_band", "place_labels", "set_level_limits",
            "unit_text"]
@@ -24,10 +24,9 @@ SCALES = ("db", "linear")
 
 
 def unit_text(unit: str | None) -> str:
-    """The unit as printed on an axis: ``m/s^2`` → ``m/s²``, ``um`` → ``µm``."""
-    if not unit:
-        return "-"
-    u = unit.replace("^2", "²").replace("**2", "²")
+    """The unit as printed on an axis: ``m/s^2`` → ``m/s²``, ``um`` → ``µm``; a unit the record
+    does not state reads ``record unit`` (`dtwin.units.unit_name`)."""
+    u = unit_name(unit).replace("^2", "²").replace("**2", "²")
     return "µm" if u == "um" else u
 
 
@@ -84,7 +83,9 @@ def place_labels(ax, xs: Sequence[float], ys: Sequence[float], texts: Sequence[s
     Points closer than `min_sep` (fraction of the axis width, scaled by the text length) form
     a cluster; a cluster's texts sit side by side, `min_sep` apart and centred on the cluster,
     on one line just above its highest point, each joined to its point by a thin leader line
-    when it had to move sideways. Call after the limits are set."""
+    when it had to move sideways. A text never stands closer than `min_sep` to the previous
+    cluster's last text (a lone point's text moves right when that one was pushed over it).
+    Call after the limits are set."""
     if not len(xs):
         return
     x0, x1 = ax.get_xlim()
@@ -107,14 +108,14 @@ def place_labels(ax, xs: Sequence[float], ys: Sequence[float], texts: Sequence[s
         first = min(first, x1 - (n - 0.5) * sep) if n > 1 else first
         base = max(float(ys[i]) for i in c) + 0.05 * height
         for k, i in enumerate(c):
-            xl = first + k * sep if n > 1 else float(xs[i])
+            xl = first + k * sep
             moved = abs(xl - float(xs[i])) > 0.2 * sep
             ax.annotate(texts[i], (float(xs[i]), float(ys[i])), xytext=(xl, base),
                         textcoords="data", ha="center", va="bottom", fontsize=fontsize,
                         color=color, rotation=rotation, annotation_clip=True,
                         arrowprops=dict(arrowstyle="-", lw=0.5, color=color, alpha=0.6,
                                         shrinkA=0, shrinkB=2) if moved else None)
-        last = first + (n - 1) * sep if n > 1 else float(xs[c[0]])
+        last = first + (n - 1) * sep
 
 
 def mesh_band(f_mesh: float, f_carrier: float, nyquist: float, *, harmonics: int = 3,

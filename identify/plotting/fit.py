@@ -41,7 +41,7 @@ def plot_fit_spectrum(
     fitted: np.ndarray,
     *,
     labels: Sequence[tuple[float, str]] = (),
-    unit: str = "m/s^2",
+    unit: str | None = "m/s^2",
     scale: str = "db",
     title: str = "Measured vs fitted spectrum",
 ) -> Figure:
