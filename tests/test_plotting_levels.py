@@ -60,16 +60,23 @@ def test_labels_after_a_pushed_cluster_keep_their_distance():
     from matplotlib.text import Text
 
     xs = [30.0, 41.5, 60.0, 101.5, 112.9, 131.5, 172.9, 184.4, 244.4, 255.9, 315.9, 327.4]
-    fig = Figure(figsize=(9, 3))
-    ax = fig.add_subplot()
-    ax.set_xlim(0, 2500)
-    ax.set_ylim(-90, 10)
-    place_labels(ax, xs, [-30.0] * len(xs), [str(k) for k in range(1, len(xs) + 1)])
-    r = FigureCanvasAgg(fig).get_renderer()
-    boxes = sorted((Text.get_window_extent(t, r) for t in ax.texts), key=lambda b: b.x0)
-    gaps = [b.x0 - a.x1 for a, b in zip(boxes, boxes[1:], strict=False)]
-    assert min(gaps) > 2.0, gaps  # pixels of white between neighbouring texts on one line
-    assert len(ax.texts) == len(xs)
+    ys = [-28.0, -28.0, -37.0, -29.0, -29.0, -37.0, -30.0, -31.0, -33.0, -34.0, -35.0, -36.0]
+    for figsize, kw in (((9, 3), {}), ((10, 4.5), {"min_sep": 0.012, "fontsize": 7})):
+        fig = Figure(figsize=figsize)
+        ax = fig.add_subplot()
+        ax.set_xlim(0, 2500)
+        ax.set_ylim(-90, 10)
+        place_labels(ax, xs, ys, [str(k) for k in range(1, len(xs) + 1)], **kw)
+        canvas = FigureCanvasAgg(fig)
+        canvas.draw()
+        r = canvas.get_renderer()
+        boxes = sorted((Text.get_window_extent(t, r) for t in ax.texts), key=lambda b: b.x0)
+        gaps = [b.x0 - a.x1 for a, b in zip(boxes, boxes[1:], strict=False)]
+        # white between neighbouring texts on one line: at least a fifth of the font size
+        assert min(gaps) > 0.2 * kw.get("fontsize", 8) * fig.dpi / 72.0, (figsize, gaps)
+        assert len(ax.texts) == len(xs)
+        inside = ax.get_window_extent(r)
+        assert all(inside.x0 <= b.x0 and b.x1 <= inside.x1 for b in boxes)  # none off the axes
 
 
 def test_unstated_unit_reads_record_unit():

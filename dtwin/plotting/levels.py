@@ -80,8 +80,8 @@ def place_labels(ax, xs: Sequence[float], ys: Sequence[float], texts: Sequence[s
                  rotation: float = 0.0) -> None:
     """Annotate points (data coordinates) with texts that do not overlap.
 
-    Points closer than `min_sep` (fraction of the axis width, scaled by the text length) form
-    a cluster; a cluster's texts sit side by side, `min_sep` apart and centred on the cluster,
+    Points closer than `min_sep` (fraction of the axis width, scaled by the text length; never
+    less than the longest text's printed width and half an em) form a cluster; a cluster's texts sit side by side, `min_sep` apart and centred on the cluster,
     on one line just above its highest point, each joined to its point by a thin leader line
     when it had to move sideways. A text never stands closer than `min_sep` to the previous
     cluster's last text (a lone point's text moves right when that one was pushed over it).
@@ -92,7 +92,11 @@ def place_labels(ax, xs: Sequence[float], ys: Sequence[float], texts: Sequence[s
     y0, y1 = ax.get_ylim()
     width, height = (x1 - x0) or 1.0, (y1 - y0) or 1.0
     longest = max(len(t) for t in texts)
-    sep = min_sep * max(1.0, 0.6 * longest) * width
+    # at least the longest text's width (~0.62 em a character) and half an em of white, in data
+    # units of this axis at its size in points
+    axis_pt = max(ax.get_position().width * ax.figure.get_figwidth() * 72.0, 1.0)
+    text_w = (0.62 * longest + 0.5) * fontsize / axis_pt * width
+    sep = max(min_sep * max(1.0, 0.6 * longest) * width, text_w)
     order = list(np.argsort(np.asarray(xs, dtype=float), kind="stable"))
     clusters: list[list[int]] = []
     for i in order:
@@ -104,7 +108,7 @@ def place_labels(ax, xs: Sequence[float], ys: Sequence[float], texts: Sequence[s
     for c in clusters:
         n = len(c)
         centre = float(np.mean([float(xs[i]) for i in c]))
-        first = max(centre - 0.5 * (n - 1) * sep, last + sep)
+        first = max(centre - 0.5 * (n - 1) * sep, last + sep, x0 + 0.5 * sep if n > 1 else x0)
         first = min(first, x1 - (n - 0.5) * sep) if n > 1 else first
         base = max(float(ys[i]) for i in c) + 0.05 * height
         for k, i in enumerate(c):
