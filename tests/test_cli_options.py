@@ -412,3 +412,20 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
             main(["severity", files["rec"], "--preset", "paper-sim", *extra])
         assert seen[-1] == want
     capsys.readouterr()
+
+
+def test_severity_report_opens_with_the_estimate():
+    """`dtwin severity --out`'s report.html starts its summary with the severity, the peak
+    stiffness loss (%) and their 95 % intervals, and the status (stand-in estimate)."""
+    import types
+
+    from dtwin.cli.cmd_identify import _severity_headline
+
+    est = types.SimpleNamespace(location="sun", severity=0.4502, interval=(0.4098, 0.4914),
+                                method="gaussian", peak_loss=0.3087,
+                                peak_interval=(0.234, 0.491), status="ok")
+    rows = _severity_headline(est)
+    assert rows == {
+        "sun fault severity (dimensionless)": "0.45, 95 % [0.41, 0.491] (gaussian)",
+        "peak stiffness loss (% of the mean mesh stiffness)": "30.9, 95 % [23.4, 49.1]",
+        "status": "ok"}

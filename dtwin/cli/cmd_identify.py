@@ -120,9 +120,22 @@ def _unit(recs: list, channel) -> str | None:
     return recs[0].units[recs[0].index(channel)]
 
 
-def _files(result, name: str, report: dict, unit: str | None):
+def _severity_headline(est) -> dict:
+    """The severity estimate as the report's first rows: severity and peak stiffness loss with
+    their 95 % intervals, the status."""
+    lo, hi = est.interval
+    plo, phi = est.peak_interval
+    return {f"{est.location} fault severity (dimensionless)":
+            f"{est.severity:.3g}, 95 % [{lo:.3g}, {hi:.3g}] ({est.method})",
+            "peak stiffness loss (% of the mean mesh stiffness)":
+            f"{100 * est.peak_loss:.1f}, 95 % [{100 * plo:.1f}, {100 * phi:.1f}]",
+            "status": est.status}
+
+
+def _files(result, name: str, report: dict, unit: str | None, headline: dict | None = None):
     """The files of a fit result: the report, one spectrum figure per record (levels in the
-    records' `unit`; ``record unit`` when they state none), the loss."""
+    records' `unit`; ``record unit`` when they state none), the loss; `headline` (quantity →
+    text) opens the HTML report's summary."""
     def files() -> dict:
         from dtwin.identify.api import plot_fit
         from dtwin.identify.plotting.fit import plot_loss_history
@@ -149,7 +162,8 @@ def _files(result, name: str, report: dict, unit: str | None):
         records = report.get("records") or [report.get("record")]
         out["report.html"] = HTMLReport(
             title=f"dtwin {name.split('.')[0]}: {', '.join(Path(str(r)).name for r in records)}",
-            summary={"records": ", ".join(map(str, records)), "gearbox": report.get("gearbox"),
+            summary={**(headline or {}),
+                     "records": ", ".join(map(str, records)), "gearbox": report.get("gearbox"),
                      "loss": result.loss, "iterations": result.iterations,
                      "converged": result.converged, "wall time (s)": result.wall_time},
             notes=[f"{k}: not determined by these data ({v})"
@@ -328,7 +342,8 @@ def severity(
         typer.echo(est.fit.table())
 
     opts.emit(report, json_out=json_out, table=table, out=out, force=force,
-              files=_files(est.fit, "severity.json", report, _unit([rec], ch)), inputs=[record],
+              files=_files(est.fit, "severity.json", report, _unit([rec], ch),
+                           _severity_headline(est)), inputs=[record],
               gearbox=gb,
               parameters={"location": location, "free": extra,
                           "fit_window": window.text(), "low_band": low_band,
