@@ -80,12 +80,13 @@ def place_labels(ax, xs: Sequence[float], ys: Sequence[float], texts: Sequence[s
                  rotation: float = 0.0) -> None:
     """Annotate points (data coordinates) with texts that do not overlap.
 
-    Points closer than `min_sep` (fraction of the axis width, scaled by the text length; never
-    less than the longest text's printed width and half an em) form a cluster; a cluster's texts sit side by side, `min_sep` apart and centred on the cluster,
-    on one line just above its highest point, each joined to its point by a thin leader line
-    when it had to move sideways. A text never stands closer than `min_sep` to the previous
-    cluster's last text (a lone point's text moves right when that one was pushed over it).
-    Call after the limits are set."""
+    Texts stand at least a separation apart: `min_sep` (fraction of the axis width, scaled by
+    the text length), and never less than the longest text's printed width plus half an em at
+    the axis's size. Points closer than that form a cluster; a cluster's texts sit side by side,
+    one separation apart, centred on the cluster (inside the axis), on one line just above its
+    highest point, each joined to its point by a thin leader line when it had to move sideways.
+    A text never stands closer than one separation to the previous cluster's last text (a lone
+    point's text moves right when that one was pushed over it). Call after the limits are set."""
     if not len(xs):
         return
     x0, x1 = ax.get_xlim()
