@@ -64,19 +64,12 @@ def _condensation_code():
     import jax
     import jax.numpy as jnp
 
-    from dtwin.coords import Coords
     from dtwin.simulate import _observe, state_scales
     from dtwin.twin import contact_force
 
     def parts_forces(twin, t, q, qdot, aux, mesh):
-        G = Coords.zeros(twin.n_planets)
-        aux_dots = []
-        for p, a in zip(twin.parts, twin.split_aux(aux), strict=True):
-            f, ad, _ = p.forces(twin, t, q, qdot, a, mesh)
-            if f is not None:
-                G = G + f
-            aux_dots.append(jnp.asarray(ad).reshape(p.aux_size))
-        return twin.pack(G), (jnp.concatenate(aux_dots) if aux_dots else jnp.zeros(0))
+        G, aux_dot, _ = twin.part_forces(t, q, qdot, aux, mesh)
+        return twin.pack(G), aux_dot
 
     def stiffness_z(twin, z0, zd0, aux0):
         """Aᵀ (K_mesh,mean + K_springs + K_parts) A, K_parts = −∂(parts' forces)/∂q at y0."""

@@ -33,7 +33,22 @@ from __future__ import annotations
 import math
 
 import jax.numpy as jnp
-import numpy as np
+
+from .parts.bearing_defect import PlanetBearingDefect
+from .parts.drive import DrivePart, LoadPart
+from .parts.imperfections import (
+    CarrierEccentricity,
+    MeshOffsets,
+    PlanetPositionErrors,
+    SunEccentricity,
+    TransmissionError,
+)
+from .parts.loads import ConstantLoad
+from .parts.local_fault import LocalFault
+from .parts.mesh_excitation import MeshExcitation
+from .parts.speed_source import IdealSpeedSource
+from .parts.supports import Supports
+from .parts.transfer_path import AbstractTransferPath
 
 __all__ = ["hunting_cycles", "hunting_period", "periodic_reason", "shaft_turns", "tiled_times"]
 
@@ -47,22 +62,6 @@ def _lcm(*ns: int) -> int:
 
 def _planet_dependence(twin) -> tuple[bool, str | None]:
     """(whether a part depends on a planet's own angle, reason the twin is not periodic)."""
-    from .parts.bearing_defect import PlanetBearingDefect
-    from .parts.drive import DrivePart, LoadPart
-    from .parts.imperfections import (
-        CarrierEccentricity,
-        MeshOffsets,
-        PlanetPositionErrors,
-        SunEccentricity,
-        TransmissionError,
-    )
-    from .parts.loads import ConstantLoad
-    from .parts.local_fault import LocalFault
-    from .parts.mesh_excitation import MeshExcitation
-    from .parts.speed_source import IdealSpeedSource
-    from .parts.supports import Supports
-    from .parts.transfer_path import AbstractTransferPath
-
     # parts whose forces depend on the mesh phases, the sun or carrier angle only
     angle_only = (Supports, MeshExcitation, AbstractTransferPath, PlanetPositionErrors,
                   SunEccentricity, CarrierEccentricity, MeshOffsets, TransmissionError)
@@ -122,8 +121,6 @@ def hunting_period(twin, f_sun=None):
     if cycles is None:
         return None
     if f_sun is None:
-        from .parts.drive import DrivePart
-
         drive = next(p.drive for p in twin.parts if isinstance(p, DrivePart))
         f_sun = drive.speed.final / (2.0 * jnp.pi)
     return cycles / mesh_frequency(twin, f_sun)
@@ -159,14 +156,3 @@ def tiled_times(ts, t_ref, period):
     order = jnp.argsort(mapped)
     inverse = jnp.argsort(order)
     return mapped[order], order, inverse, turns
-
-
-def span_needed(settle: float, period: float, probe: float) -> float:
-    """Simulated span (s) of the tiled solve: `settle` + one `period` + the `probe` window."""
-    return float(settle) + float(period) + float(probe)
-
-
-def np_hunting_period(twin, f_sun: float) -> float | None:
-    """:func:`hunting_period` as a Python float at a concrete `f_sun` (Hz)."""
-    T = hunting_period(twin, float(f_sun))
-    return None if T is None else float(np.asarray(T))

@@ -40,6 +40,14 @@ from .integrator import UnrolledTsit5
 from .io.record import Record
 from .parts.drive import DrivePart, LoadPart
 from .parts.transfer_path import AbstractTransferPath, ring_velocity_fixed
+from .periodic import (
+    hunting_cycles,
+    hunting_period,
+    mesh_frequency,
+    periodic_reason,
+    shaft_turns,
+    tiled_times,
+)
 from .sensor_response import apply_frf, knot_basis
 from .twin import Coords, Twin
 
@@ -393,8 +401,6 @@ def periodic_plan(twin: Twin, f_sun: float, t0: float, t_end: float, solver: Sol
     ``(period_estimate_s, "periodic")`` or ``(None, reason)`` (the reason it is integrated in
     full). The period follows the drive's set point; where that is traced, `f_sun` (Hz,
     static) estimates it for the decision."""
-    from .periodic import hunting_cycles, hunting_period, mesh_frequency, periodic_reason
-
     if solver.periodic == "off":
         return None, "full"
     if start != "steady":
@@ -423,8 +429,6 @@ def _solve_tiled(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, set
     follows the drive's set point, traced or not). **Returns** ``(observables, result, steps,
     defect)`` with `defect` the rms of the signal's change over one period on a window of
     `PERIODIC_PROBE` samples after the period, over the signal's rms."""
-    from .periodic import hunting_cycles, hunting_period, shaft_turns, tiled_times
-
     period = hunting_period(twin)
     sun_turns, car_turns = shaft_turns(twin, hunting_cycles(twin))
     t_ref = t0 + settle

@@ -359,15 +359,7 @@ class Twin(eqx.Module):
         mesh = self.mesh_state(t, q, qdot, mod, ops)
         qv, qdv = self.pack(q), self.pack(qdot)
         F = self.mesh_forces(q, mesh, ops) - ops.K @ qv - ops.C @ qdv
-        G = self.frame_forces(q, qdot)
-        aux_dots, outputs = [], {}
-        for p, a in zip(self.parts, self.split_aux(aux), strict=True):
-            f, ad, out = p.forces(self, t, q, qdot, a, mesh)
-            if f is not None:
-                G = G + f
-            aux_dots.append(jnp.asarray(ad).reshape(p.aux_size))
-            outputs.update(out)
-        aux_dot = jnp.concatenate(aux_dots) if aux_dots else jnp.zeros(0)
+        G, aux_dot, outputs = self.part_forces(t, q, qdot, aux, mesh, self.frame_forces(q, qdot))
         # dissipated power (W): mesh damping (contact-gated) and the linear support dampers
         s = self.contact_smoothing
         sig = jax.nn.sigmoid(jnp.concatenate([mesh.delta_sp, mesh.delta_rp]) / s)
@@ -428,16 +420,25 @@ class Twin(eqx.Module):
         q, qdot = self.unpack(qv), self.unpack(qdv)
         mod = self.modulation(t, q, qdot)
         mesh = self._mesh_from_deflections(q, mod, d_rigid, dd_rigid)
-        G = Coords.zeros(self.n_planets)
-        aux_dots = []
+        G, aux_dot, _ = self.part_forces(t, q, qdot, aux, mesh)
+        Gv = self.pack(G) + self._frame_forces_flat(qv, qdv)
+        return jnp.concatenate([mesh.force_sp, mesh.force_rp, Gv]), aux_dot
+
+    def part_forces(self, t, q, qdot, aux, mesh, G=None):
+        """The parts' generalised forces (`Coords`, N and N·m) added to `G` (default zero) in
+        the parts' order, their state derivatives (flat) and their named outputs, at `t` (s)
+        with coordinates `q`, velocities `qdot`, the parts' states `aux` and the `MeshState`.
+
+        **Returns:** `(G, aux_dot, outputs)`."""
+        G = Coords.zeros(self.n_planets) if G is None else G
+        aux_dots, outputs = [], {}
         for p, a in zip(self.parts, self.split_aux(aux), strict=True):
-            f, ad, _ = p.forces(self, t, q, qdot, a, mesh)
+            f, ad, out = p.forces(self, t, q, qdot, a, mesh)
             if f is not None:
                 G = G + f
             aux_dots.append(jnp.asarray(ad).reshape(p.aux_size))
-        aux_dot = jnp.concatenate(aux_dots) if aux_dots else jnp.zeros(0)
-        Gv = self.pack(G) + self._frame_forces_flat(qv, qdv)
-        return jnp.concatenate([mesh.force_sp, mesh.force_rp, Gv]), aux_dot
+            outputs.update(out)
+        return G, (jnp.concatenate(aux_dots) if aux_dots else jnp.zeros(0)), outputs
 
     def _frame_forces_flat(self, qv, qdv):
         """`frame_forces` on flat vectors, vectorised over the bodies (one fused operation

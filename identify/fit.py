@@ -416,7 +416,8 @@ class FitResult:
       `refined` (per refined start: θ, converged, steps, loss);
     - `converged`, `at_bound` (names), `message`, `iterations` (solver steps), `wall_time` (s),
       `operating_points` (Hz per record), `problem` (for figures and re-evaluation),
-      `residuals` (the residual vector at the optimum).
+      `residuals` and `jacobian` (the residual vector and its Jacobian in θ at the optimum,
+      from the solver's last accepted step).
     """
 
     names: tuple[str, ...]
@@ -437,6 +438,7 @@ class FitResult:
     operating_points: list[dict[str, float]]
     problem: Problem | None = dataclasses.field(default=None, repr=False)
     residuals: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    jacobian: np.ndarray | None = dataclasses.field(default=None, repr=False)
 
     @property
     def not_determined(self) -> dict[str, str]:
@@ -779,7 +781,7 @@ def fit(
         start_losses=losses, starts=np.asarray(thetas), refined=refined, converged=converged,
         at_bound=at_bound, message=message, iterations=int(steps[best]),
         wall_time=time.perf_counter() - t0, operating_points=ops, problem=problem,
-        residuals=np.asarray(rs[best]),
+        residuals=np.asarray(rs[best]), jacobian=np.asarray(Js[best]),
     )
     say(res.table())
     if throw and (not converged or at_bound):
@@ -878,6 +880,6 @@ def fit_batch(
                      f"not converged after {int(steps[i])} steps"),
 
             iterations=int(steps[i]), wall_time=wall, operating_points=made[i][1], problem=prob,
-            residuals=np.asarray(rs[i]),
+            residuals=np.asarray(rs[i]), jacobian=np.asarray(Js[i]),
         ))
     return out

@@ -231,9 +231,7 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
     problem, ops = make_problem(record, spec_or_twin, names, initial=initial, **pk)
     if low_band:
         obs = problem.observations[0]
-        kin = Kinematics.from_gears(int(problem.twin.lp.z_sun), int(problem.twin.lp.z_planet),
-                                    int(problem.twin.lp.z_ring), int(problem.twin.lp.n_planets),
-                                    float(obs.speed[0]))
+        kin = Kinematics.from_gear_set(problem.twin.lp, float(obs.speed[0]))
         new = with_low_band(obs, record, channel=pk.get("channel", 0),
                             n_planets=int(problem.twin.lp.n_planets), f_carrier=kin.f_carrier)
         problem = dataclasses.replace(problem, observations=(new,) + problem.observations[1:])
@@ -256,11 +254,15 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
 
 def _jackknife_interval(res: FitResult, name: str) -> tuple[float, float]:
     """95 % interval of `name` from the delete-one-band jackknife of fit `res`
-    (:func:`dtwin.identify.uncertainty.band_jackknife`; the Jacobian is recomputed at the
-    optimum), mapped through the parameter's transform; (nan, nan) without enough bands."""
+    (:func:`dtwin.identify.uncertainty.band_jackknife`; residuals and Jacobian at the optimum,
+    as the fit left them, recomputed only when it kept none), mapped through the parameter's
+    transform; (nan, nan) without enough bands."""
     prob = res.problem
     theta = jnp.asarray(res.theta)
-    r, J = _jacobian(theta, prob)
+    if res.residuals is not None and res.jacobian is not None:
+        r, J = res.residuals, res.jacobian
+    else:
+        r, J = _jacobian(theta, prob)
     n_prior = len(prob.pset.priors)
     groups = np.concatenate([point_groups(prob.observations), -1 - np.arange(n_prior)])
     half, _ = band_jackknife(np.asarray(theta), np.asarray(r), np.asarray(J), groups)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import typer
 
+from ..units import unit_name
 from . import options as opts
 from .app import app
 
@@ -72,7 +73,7 @@ def calibrate(
                     "written (gap %.1f dB against %.1f dB): the healthy records hold lines the "
                     "calibrated parameters cannot represent; run dtwin discover on them before "
                     "using the calibrated spec", result.gap_heldout.total, result.gap_before.total)
-    unit = recs[0].units[_channel_index(recs[0], ch)] or "record unit"
+    unit = unit_name(recs[0].units[_channel_index(recs[0], ch)])
     opts.emit(report, json_out=json_out, table=lambda: typer.echo(result.table()), out=out,
               force=force, files=_files(result, report, unit), inputs=[spec, *records],
               gearbox=gb, parameters={"records": [str(p) for p in records], "knots": knots,

@@ -17,6 +17,7 @@ import optimistix as optx
 from dtwin.errors import SettingsError
 from dtwin.spectrum import noise_floor
 
+from ..fit import batch_mode
 from ..gap import FLOOR_BINS, levels
 
 #: Largest number of parameters of one effect (padded with inert parameters).
@@ -222,8 +223,6 @@ def null_statistics(inp: FitInputs, rng: np.random.Generator, n_draws: int, Z0_f
     ``p <= level`` is the one the full bootstrap makes (the sequential Monte Carlo test of
     Besag & Clifford 1991, Biometrika 78, 301–304, with the decision of the fixed-size test).
     The draws made so far are returned."""
-    from ..fit import batch_mode
-
     mode = batch_mode("auto")
     K = inp.Y.shape[-1]
     F = Z0_full.shape[0]
