@@ -6,6 +6,16 @@ environment (``$VIRTUAL_ENV/jax-cache`` or ``sys.prefix/jax-cache``) unless ``DT
 names another folder; set ``DTWIN_JAX_CACHE=off`` (or ``0``, ``none``) to disable it and
 ``DTWIN_JAX_CACHE=on`` (or ``1``, ``true``) for the default folder
 (outside a virtual environment: ``~/.cache/dtwin/jax-cache``).
+
+JAX never writes a program that calls back to the host to the persistent cache, and equinox's
+run-time checks (``eqx.error_if``, inside diffrax, optimistix and lineax) raise through such a
+callback by default: every ODE solve and every fit would then compile anew in every process.
+dtwin runs those solvers with ``throw=False`` and reads their result codes, so unless the
+environment says otherwise it sets ``EQX_ON_ERROR=nan`` (a failed check returns NaN, which the
+result codes and dtwin's own finiteness checks report) before equinox is imported; the checks
+whose message a user needs (motor steady states) raise explicitly. Import :mod:`dtwin` before
+equinox, diffrax or optimistix, or set ``EQX_ON_ERROR=nan`` yourself, for the cache to hold
+the solves.
 """
 
 from __future__ import annotations
@@ -13,7 +23,10 @@ from __future__ import annotations
 import os
 import sys
 
-import jax
+if "equinox" not in sys.modules:  # equinox reads it once, when first imported
+    os.environ.setdefault("EQX_ON_ERROR", "nan")
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 

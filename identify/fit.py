@@ -296,6 +296,33 @@ def _gauss_newton_step(r, J):
 _STEP_GUARD = 0.1
 
 
+class _LossRecording(optx.AbstractSearch):
+    """A search that records ½‖r‖² of every point the solver evaluates (accepted or rejected)
+    in its state, then defers to `inner` (the solver's own search).
+
+    The loss history is kept in the solver's state rather than sent to the host by a callback:
+    a compiled program with a host callback is never written to JAX's persistent compilation
+    cache, so a callback here would make every fit compile anew in every process. The search
+    sees every evaluation (``f_eval_info``, the first one at the starting point included), so
+    the history is the same as a callback on the residual function would give, up to
+    `length` entries (the solver's step limit + 1)."""
+
+    inner: optx.AbstractSearch
+    length: int = eqx.field(static=True)
+
+    def init(self, y, f_info_struct):
+        return (self.inner.init(y, f_info_struct), jnp.full(self.length, jnp.nan),
+                jnp.zeros((), jnp.int32))
+
+    def step(self, first_step, y, y_eval, f_info, f_eval_info, state):
+        inner_state, losses, count = state
+        loss = 0.5 * jnp.sum(f_eval_info.residual ** 2)
+        losses = losses.at[jnp.minimum(count, self.length - 1)].set(loss)
+        step_size, accept, result, inner_state = self.inner.step(
+            first_step, y, y_eval, f_info, f_eval_info, inner_state)
+        return step_size, accept, result, (inner_state, losses, count + 1)
+
+
 def _noise_stopping(base):
     """`base` (an optimistix Gauss–Newton-type solver class) with the statistical stopping rule
     added: after each step it also stops when, at the last accepted point,
@@ -305,9 +332,11 @@ def _noise_stopping(base):
     class NoiseStopping(base):
         sigma_tol: float = eqx.field(static=True, default=0.0)
 
-        def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0):
+        def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0, history: int = 0):
             super().__init__(rtol=rtol, atol=atol, norm=norm)
             self.sigma_tol = sigma_tol
+            if history:
+                self.search = _LossRecording(self.search, history)
 
         def step(self, fn, y, args, options, state, tags):
             y, state, aux = super().step(fn, y, args, options, state, tags)
@@ -329,7 +358,8 @@ _SOLVER_CLASSES = {"lm": _noise_stopping(optx.LevenbergMarquardt),
                    "dogleg": _noise_stopping(optx.Dogleg)}
 
 
-def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0):
+def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0,
+                 history: int = 0):
     """The optimistix solver, with two stopping rules (either one stops it):
 
     - the Cauchy test (both the step in θ and the change of the residuals below
@@ -343,14 +373,20 @@ def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0):
       on cannot move the estimate by a meaningful fraction of its uncertainty. Without it, a
       fit near its optimum spends steps chasing the ODE solver's noise in the residuals (4 s
       record, 3 parameters: the loss settled to 1e-5 after 4–5 steps, the Cauchy test stopped
-      it after 13–19; benchmarks/README.md "Fit")."""
+      it after 13–19; benchmarks/README.md "Fit").
+
+    `history` > 0 keeps the loss of the first `history` residual evaluations in the solver's
+    state (:class:`_LossRecording`, read by :func:`_outcome`)."""
     if name not in _SOLVER_CLASSES:
         raise SettingsError(f"solver must be one of {SOLVERS}, got {name!r}")
-    return _SOLVER_CLASSES[name](rtol=rtol, atol=atol, norm=optx.rms_norm, sigma_tol=sigma_tol)
+    return _SOLVER_CLASSES[name](rtol=rtol, atol=atol, norm=optx.rms_norm, sigma_tol=sigma_tol,
+                                 history=history)
 
 
 def _outcome(sol):
-    """``(θ, converged, steps, loss, r, J)`` of an optimistix Gauss–Newton-type solution.
+    """``(θ, converged, steps, loss, r, J, losses)`` of an optimistix Gauss–Newton-type
+    solution; `losses` is the loss of every residual evaluation (NaN after the last), from
+    :class:`_LossRecording` in the solver's search state.
 
     The residuals and Jacobian come from the solver's state: they belong to the last accepted
     point, which is the returned value (optimistix keeps ``f_info`` of the accepted ``y``), so
@@ -360,8 +396,10 @@ def _outcome(sol):
     f_info = sol.state.f_info
     r = f_info.residual
     J = f_info.jac.as_matrix()
+    search_state = sol.state.search_state
+    losses = search_state[1] if isinstance(search_state, tuple) else jnp.full(1, jnp.nan)
     return (sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"],
-            0.5 * jnp.sum(r * r), r, J)
+            0.5 * jnp.sum(r * r), r, J, losses)
 
 
 def _least_squares(fn, solver, theta0, problem, jac: str, max_steps: int):
@@ -373,35 +411,20 @@ def _least_squares(fn, solver, theta0, problem, jac: str, max_steps: int):
     return _outcome(sol)
 
 
-#: Losses of the residual evaluations during refinement, per start (filled by a debug callback;
-#: cleared by `fit`). The callback is traced once, so it writes into this module-level store.
-_HISTORY: dict[int, list[float]] = {}
-
-
-def _record_loss(idx, loss) -> None:
-    _HISTORY.setdefault(int(idx), []).append(float(loss))
-
-
 @eqx.filter_jit
 def _refine(thetas, problem: Problem, solver_name: str, rtol: float, atol: float, jac: str,
             max_steps: int, sigma_tol: float = 0.0, batch: str = "vmap"):
-    solver = _make_solver(solver_name, rtol, atol, sigma_tol)
-
+    solver = _make_solver(solver_name, rtol, atol, sigma_tol, history=max_steps + 1)
     residuals = _residual_fn(jac)
 
-    def one(theta0, idx):
-        def fn(theta, args):
-            r = residuals(theta, args)
-            jax.debug.callback(_record_loss, idx, 0.5 * jnp.sum(r * r))
-            return r
-
-        return _least_squares(fn, solver, theta0, problem, jac, max_steps)
+    def one(theta0):
+        return _least_squares(residuals, solver, theta0, problem, jac, max_steps)
 
     if thetas.shape[0] == 1:
         # one start: not vmapped. Under vmap (even of one) the ODE solve's while-loop predicate
         # is batched, and JAX then runs every step of it as selects over the whole carry.
-        return jax.tree.map(lambda x: x[None], one(thetas[0], jnp.zeros((), jnp.int32)))
-    return _over_batch(one, batch, thetas, jnp.arange(thetas.shape[0]))
+        return jax.tree.map(lambda x: x[None], one(thetas[0]))
+    return _over_batch(one, batch, thetas)
 
 
 # ------------------------------------------------------------------------------------ result
@@ -735,8 +758,7 @@ def fit(
         say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
     else:
         say("one start: refining it (its loss is the first of the history)")
-    _HISTORY.clear()
-    th, ok, steps, fl, rs, Js = _refine(chosen, problem, solver, tol, tol, jac, max_steps,
+    th, ok, steps, fl, rs, Js, hist = _refine(chosen, problem, solver, tol, tol, jac, max_steps,
                                         sigma_tol, mode)
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     refined = [{"theta": th[i].tolist(), "converged": bool(ok[i]), "steps": int(steps[i]),
@@ -758,7 +780,7 @@ def fit(
     at_bound = pset.at_bound(theta)
     hit_limit = int(steps[best]) >= max_steps
     converged = bool(ok[best]) and not hit_limit
-    history = list(_HISTORY.get(best, []))
+    history = [float(v) for v in np.asarray(hist[best]) if np.isfinite(v)]
     if thetas.shape[0] == 1 and history:  # the loss at the one start: the solver's first call
         losses = np.asarray([history[0]])
     msgs = []
@@ -819,7 +841,7 @@ def stack_problems(problems: Sequence[Problem]) -> Problem:
 @eqx.filter_jit
 def _refine_records(thetas, stacked: Problem, solver_name: str, rtol: float, atol: float,
                     jac: str, max_steps: int, sigma_tol: float = 0.0, batch: str = "vmap"):
-    solver = _make_solver(solver_name, rtol, atol, sigma_tol)
+    solver = _make_solver(solver_name, rtol, atol, sigma_tol, history=max_steps + 1)
     arrays, static = eqx.partition(stacked, eqx.is_array)
 
     def one(theta0, arr):
@@ -854,7 +876,7 @@ def fit_batch(
     stacked = stack_problems(problems)
     p = problems[0].pset.size
     thetas = jnp.zeros((len(problems), p))
-    th, ok, steps, fl, rs, Js = _refine_records(thetas, stacked, solver, tol, tol, jac,
+    th, ok, steps, fl, rs, Js, hist = _refine_records(thetas, stacked, solver, tol, tol, jac,
                                                 max_steps, sigma_tol, batch_mode(batch))
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     wall = time.perf_counter() - t0
@@ -871,7 +893,8 @@ def fit_batch(
         out.append(FitResult(
             names=pset.free, values=pset.as_dict(th[i]), theta=th[i],
             initial=pset.as_dict(np.zeros(p)), uncertainty=unc, loss=float(fl[i]),
-            loss_history=[float(fl[i])], start_losses=np.zeros(0),  # no start evaluated alone
+            loss_history=[float(v) for v in np.asarray(hist[i]) if np.isfinite(v)] or [float(fl[i])],
+            start_losses=np.zeros(0),  # no start evaluated alone
             starts=np.zeros((1, p)), refined=[],
             converged=bool(ok[i]) and int(steps[i]) < max_steps, at_bound=at_bound,
             message=("converged" if ok[i] and int(steps[i]) < max_steps else

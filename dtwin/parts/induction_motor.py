@@ -229,6 +229,7 @@ class InductionMotor(AbstractDrive):
             w, ~(jnp.abs(res) <= 1e-6 * (1.0 + jnp.abs(load))) | (w > w_sync),
             "InductionMotor.steady_speed: no stable operating point; the load torque exceeds the "
             "breakdown torque at this supply frequency (lower the load or raise rated_voltage)",
+            on_error="raise",  # the user needs the message, not a NaN (dtwin._config)
         )
 
     def aux_init(self, omega_sun: Float[Array, ""], torque_sun: ArrayLike = 0.0) -> Float[Array, " 6"]:

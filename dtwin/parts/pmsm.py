@@ -281,6 +281,7 @@ class PMSM(AbstractDrive):
             i_q, jnp.abs(i_q) >= self.current_limit,
             "aux_init: the steady current exceeds motor.pmsm.current_limit; lower the load or "
             "raise the current limit",
+            on_error="raise",  # the user needs the message, not a NaN (dtwin._config)
         )
         x_w = soft_clip_inverse(i_q, self.current_limit)
         omega_e = self.pole_pairs * omega
@@ -291,6 +292,7 @@ class PMSM(AbstractDrive):
             v_mag2, v_mag2 >= self.voltage_limit**2,
             "aux_init: the steady voltage exceeds V_dc/sqrt(3); raise motor.pmsm.V_dc or lower the "
             "speed (no field weakening is modelled)",
+            on_error="raise",  # the user needs the message, not a NaN (dtwin._config)
         )
         r = (v_mag2 / self.voltage_limit**2) ** (CLIP_ORDER // 2)
         inv = (1.0 - r) ** (-1.0 / CLIP_ORDER)  # |v*| / |v| for the inverse radial clip
