@@ -11,7 +11,8 @@ twin therefore repeats after the **hunting period**
     T = lcm(Zs, Zr[, Zp]) / f_mesh,   f_mesh = Zr f_carrier = Zr Zs f_sun / (Zs + Zr),
 
 with `Zp` included only when a part depends on a planet's own angle (a planet fault, a planet
-bearing defect). Over `T` the sun turns `lcm · (Zs + Zr) / (Zs Zr)` times and the carrier
+bearing defect; not when its severity or amplitude is a concrete zero, as in discovery's
+extended model at θ = 0). A motor's torque ripple depends on the sun's angle only. Over `T` the sun turns `lcm · (Zs + Zr) / (Zs Zr)` times and the carrier
 `lcm / Zr` times, both integers, so the shaft angles are back modulo 2π as well
 (:func:`shaft_turns`). For the paper's 21/30/81 gearbox at 30 Hz, `T = 567 / 500.3 Hz = 1.13 s`;
 with a planet fault on 21/31/84,
@@ -24,7 +25,8 @@ period and gives the permutation that brings the sorted phases back into record 
 
 :func:`hunting_cycles` knows which parts keep the response periodic; a part it does not know,
 a drive other than a constant ideal speed source (a motor's slip makes the speed differ from
-the set point) or a time-varying load make the twin not periodic (None, with the reason from
+the set point) or a time-varying load (unless its fluctuation's amplitude is a concrete zero)
+make the twin not periodic (None, with the reason from
 :func:`periodic_reason`).
 """
 
@@ -43,11 +45,13 @@ from .parts.imperfections import (
     SunEccentricity,
     TransmissionError,
 )
-from .parts.loads import ConstantLoad
+from .parts.loads import ConstantLoad, FluctuatingLoad
 from .parts.local_fault import LocalFault
 from .parts.mesh_excitation import MeshExcitation
+from .parts.shaft import concrete_float
 from .parts.speed_source import IdealSpeedSource
 from .parts.supports import Supports
+from .parts.torque_ripple import TorqueRipple
 from .parts.transfer_path import AbstractTransferPath
 
 __all__ = ["hunting_cycles", "hunting_period", "periodic_reason", "shaft_turns", "tiled_times"]
@@ -60,11 +64,26 @@ def _lcm(*ns: int) -> int:
     return out
 
 
+def _concretely_zero(x) -> bool:
+    """Whether `x` is a concrete zero (an inert part: a fault of severity 0, a fluctuation of
+    amplitude 0); False for tracers, whose value is not known here."""
+    if x is None:
+        return False
+    v = concrete_float(x)
+    return v is not None and v == 0.0
+
+
+def _constant_in_time(load) -> bool:
+    """A fluctuating load whose amplitude is (concretely) zero: constant."""
+    return isinstance(load, FluctuatingLoad) and _concretely_zero(load.amplitude)
+
+
 def _planet_dependence(twin) -> tuple[bool, str | None]:
     """(whether a part depends on a planet's own angle, reason the twin is not periodic)."""
     # parts whose forces depend on the mesh phases, the sun or carrier angle only
     angle_only = (Supports, MeshExcitation, AbstractTransferPath, PlanetPositionErrors,
-                  SunEccentricity, CarrierEccentricity, MeshOffsets, TransmissionError)
+                  SunEccentricity, CarrierEccentricity, MeshOffsets, TransmissionError,
+                  TorqueRipple)
     planet = False
     drives = 0
     for p in twin.parts:
@@ -76,11 +95,14 @@ def _planet_dependence(twin) -> tuple[bool, str | None]:
             if p.drive.speed.kind != "constant":
                 return planet, f"speed profile {p.drive.speed.kind!r} is not constant"
         elif isinstance(p, LoadPart):
-            if not isinstance(p.load, ConstantLoad):
+            if not (isinstance(p.load, ConstantLoad) or _constant_in_time(p.load)):
                 return planet, f"load {type(p.load).__name__} varies in time"
         elif isinstance(p, LocalFault):
-            planet = planet or p.fault.location == "planet"
+            inert = _concretely_zero(getattr(p.fault, "severity", None))
+            planet = planet or (p.fault.location == "planet" and not inert)
         elif isinstance(p, PlanetBearingDefect):
+            if _concretely_zero(p.amplitude):
+                continue  # no defect: depends on nothing
             if float(p.defect_order) != int(p.defect_order) or (
                     float(p.modulation_order) != int(p.modulation_order)):
                 return planet, "planet bearing defect of non-integer order"

@@ -183,3 +183,44 @@ def test_falls_back(spec, twins, records):
     r = simulate(tw, duration=DURATION, f_sun=F_SUN, discard=DISCARD, solver=strict)
     assert r.method.startswith("full (periodic: signal changes")
     np.testing.assert_array_equal(np.asarray(r.signal), np.asarray(records["sun fault"][0].signal))
+
+
+def test_inert_parts_keep_the_hunting_period(spec):
+    """Parts that cannot break the period at their present values: a planet fault of severity
+    0 adds no planet dependence (discovery's extended model at θ = 0), a fluctuating load of
+    amplitude 0 is constant, a motor's torque ripple follows the sun's angle (the sun turns a
+    whole number of times over the period). Checked against the cycle count found by stepping."""
+    from dtwin.parts.drive import LoadPart
+    from dtwin.parts.loads import FluctuatingLoad
+    from dtwin.parts.torque_ripple import TorqueRipple
+
+    def planet_fault(sev):
+        return _with_teeth(build_twin(spec, kind="torsional",
+                                      faults=(MissingTooth(sev, location="planet"),)), 21, 31, 84)
+
+    assert hunting_cycles(planet_fault(0.0)) == _search_cycles(21, 31, 84, planet=False)
+    assert hunting_cycles(planet_fault(0.3)) == _search_cycles(21, 31, 84, planet=True)
+    tw = build_twin(spec, kind="torsional")
+    base = hunting_cycles(tw)
+    assert base == _search_cycles(21, 30, 81, planet=False)
+    ripple = eqx.tree_at(lambda t: t.parts, tw,
+                         tuple(tw.parts) + (TorqueRipple(jnp.asarray(0.1), jnp.asarray(0.0)),))
+    assert hunting_cycles(ripple) == base
+    i = next(k for k, p in enumerate(tw.parts) if isinstance(p, LoadPart))
+
+    def with_fluctuation(amp):
+        return eqx.tree_at(lambda t: t.parts[i].load, tw, FluctuatingLoad(40.0, amp, 2.1))
+
+    assert hunting_cycles(with_fluctuation(0.0)) == base
+    assert hunting_cycles(with_fluctuation(1.0)) is None
+    assert "varies in time" in periodic_reason(with_fluctuation(1.0))
+
+
+def test_periodicity_tolerance_follows_the_solver_tolerance():
+    """The defect holds the integrator's own error of two periods, so the default tolerance
+    grows with rtol: 1e-3 up to rtol 2e-5, 50 rtol above; an explicit value is kept."""
+    assert SolverOptions().periodic_tolerance == 1e-3
+    assert SolverOptions(rtol=1e-4, atol=1e-4).periodic_tolerance == pytest.approx(5e-3)
+    assert SolverOptions(rtol=1e-4, periodic_tol=2e-4).periodic_tolerance == 2e-4
+    with pytest.raises(ValueError):
+        SolverOptions(periodic_tol=-1.0)

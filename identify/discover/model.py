@@ -3,6 +3,7 @@ simulations and responses, cached in memory and optionally on disk."""
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 from collections.abc import Sequence
@@ -36,6 +37,8 @@ class ExtendedModel:
         self.duration = n_samples / daq.sample_rate
         self.f_sun = float(f_sun)
         self.solver = solver or SolverOptions(adjoint="forward")
+        #: how each simulation was integrated (`dtwin.simulate.SimResult.method`)
+        self.methods: list[str] = []
         if response_mode not in ("fd", "jvp"):
             raise SettingsError(f"response_mode must be 'fd' or 'jvp', got {response_mode!r}")
         self.response_mode = response_mode
@@ -122,8 +125,17 @@ class ExtendedModel:
 
 
 def _ext_signal_impl(model: ExtendedModel, theta):
+    # with concrete parameters `simulate` checks the periodic steady state (one hunting period
+    # tiled when the twin is periodic, `SolverOptions.periodic`) and falls back to the whole
+    # record when the signal is not periodic; under `jax.jvp` it could not check, so the whole
+    # record is integrated there
+    solver = model.solver
+    traced = isinstance(theta, jax.core.Tracer)
+    if traced:
+        solver = dataclasses.replace(solver, periodic="off")
     res = simulate(model.twin(theta), duration=model.duration, f_sun=model.f_sun, daq=model.daq,
-                   solver=model.solver, check=False)
+                   solver=solver, check=not traced)
+    model.methods.append(res.method)
     return res.signal
 
 

@@ -33,6 +33,10 @@ class DiscoverySettings:
       level excludes zero (:func:`dtwin.identify.discover.statistics.is_identified`).
     - `rtol`, `atol`: solver tolerances of the model simulations; `response`: ``"fd"`` or
       ``"jvp"`` (:meth:`ExtendedModel.ensure_responses`).
+    - `periodic`: ``"auto"`` (default) simulates a constant-speed, periodic model over a
+      settling time and one hunting period and tiles it, checking the periodicity and
+      integrating the whole record where it fails (`dtwin.simulate.SolverOptions.periodic`);
+      ``"off"`` always integrates the whole record.
     """
 
     n_folds: int = 2
@@ -51,6 +55,7 @@ class DiscoverySettings:
     rtol: float = 1e-4
     atol: float = 1e-4
     response: str = "fd"
+    periodic: str = "auto"
 
     def __post_init__(self):
         if self.screen not in ("score", "coverage"):
@@ -60,5 +65,6 @@ class DiscoverySettings:
 
     def solver(self):
         """Solver options of the model simulations (forward-mode responses)."""
-        return SolverOptions(rtol=self.rtol, atol=self.atol, adjoint="forward")
+        return SolverOptions(rtol=self.rtol, atol=self.atol, adjoint="forward",
+                             periodic=self.periodic)
 
