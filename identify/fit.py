@@ -384,9 +384,9 @@ def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0,
 
 
 def _outcome(sol):
-    """``(θ, converged, steps, loss, r, J, losses)`` of an optimistix Gauss–Newton-type
-    solution; `losses` is the loss of every residual evaluation (NaN after the last), from
-    :class:`_LossRecording` in the solver's search state.
+    """``(θ, converged, steps, loss, r, J, losses, n)`` of an optimistix Gauss–Newton-type
+    solution; ``losses[:n]`` are the losses of the residual evaluations, in order, from
+    :class:`_LossRecording` in the solver's search state (n = 0 without one).
 
     The residuals and Jacobian come from the solver's state: they belong to the last accepted
     point, which is the returned value (optimistix keeps ``f_info`` of the accepted ``y``), so
@@ -397,9 +397,13 @@ def _outcome(sol):
     r = f_info.residual
     J = f_info.jac.as_matrix()
     search_state = sol.state.search_state
-    losses = search_state[1] if isinstance(search_state, tuple) else jnp.full(1, jnp.nan)
+    if isinstance(search_state, tuple):  # _LossRecording's (inner, losses, count)
+        _, losses, count = search_state
+        count = jnp.minimum(count, losses.shape[0])
+    else:
+        losses, count = jnp.full(1, jnp.nan), jnp.zeros((), jnp.int32)
     return (sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"],
-            0.5 * jnp.sum(r * r), r, J, losses)
+            0.5 * jnp.sum(r * r), r, J, losses, count)
 
 
 def _least_squares(fn, solver, theta0, problem, jac: str, max_steps: int):
@@ -758,8 +762,8 @@ def fit(
         say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
     else:
         say("one start: refining it (its loss is the first of the history)")
-    th, ok, steps, fl, rs, Js, hist = _refine(chosen, problem, solver, tol, tol, jac, max_steps,
-                                        sigma_tol, mode)
+    th, ok, steps, fl, rs, Js, hist, n_hist = _refine(chosen, problem, solver, tol, tol, jac,
+                                                      max_steps, sigma_tol, mode)
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     refined = [{"theta": th[i].tolist(), "converged": bool(ok[i]), "steps": int(steps[i]),
                 "loss": float(fl[i]), "values": pset.as_dict(th[i])} for i in range(th.shape[0])]
@@ -780,7 +784,7 @@ def fit(
     at_bound = pset.at_bound(theta)
     hit_limit = int(steps[best]) >= max_steps
     converged = bool(ok[best]) and not hit_limit
-    history = [float(v) for v in np.asarray(hist[best]) if np.isfinite(v)]
+    history = [float(v) for v in np.asarray(hist[best])[: int(n_hist[best])]]
     if thetas.shape[0] == 1 and history:  # the loss at the one start: the solver's first call
         losses = np.asarray([history[0]])
     msgs = []
@@ -876,7 +880,7 @@ def fit_batch(
     stacked = stack_problems(problems)
     p = problems[0].pset.size
     thetas = jnp.zeros((len(problems), p))
-    th, ok, steps, fl, rs, Js, hist = _refine_records(thetas, stacked, solver, tol, tol, jac,
+    th, ok, steps, fl, rs, Js, hist, n_hist = _refine_records(thetas, stacked, solver, tol, tol, jac,
                                                 max_steps, sigma_tol, batch_mode(batch))
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     wall = time.perf_counter() - t0
@@ -893,7 +897,7 @@ def fit_batch(
         out.append(FitResult(
             names=pset.free, values=pset.as_dict(th[i]), theta=th[i],
             initial=pset.as_dict(np.zeros(p)), uncertainty=unc, loss=float(fl[i]),
-            loss_history=[float(v) for v in np.asarray(hist[i]) if np.isfinite(v)] or [float(fl[i])],
+            loss_history=[float(v) for v in np.asarray(hist[i])[: int(n_hist[i])]] or [float(fl[i])],
             start_losses=np.zeros(0),  # no start evaluated alone
             starts=np.zeros((1, p)), refined=[],
             converged=bool(ok[i]) and int(steps[i]) < max_steps, at_bound=at_bound,
