@@ -12,7 +12,8 @@ twin therefore repeats after the **hunting period**
 
 with `Zp` included only when a part depends on a planet's own angle (a planet fault, a planet
 bearing defect; not when its severity or amplitude is a concrete zero, as in discovery's
-extended model at θ = 0). A motor's torque ripple depends on the sun's angle only. Over `T` the sun turns `lcm · (Zs + Zr) / (Zs Zr)` times and the carrier
+extended model at θ = 0). A motor's torque ripple depends on the sun's angle only. Over `T`
+the sun turns `lcm · (Zs + Zr) / (Zs Zr)` times and the carrier
 `lcm / Zr` times, both integers, so the shaft angles are back modulo 2π as well
 (:func:`shaft_turns`). For the paper's 21/30/81 gearbox at 30 Hz, `T = 567 / 500.3 Hz = 1.13 s`;
 with a planet fault on 21/31/84,

@@ -144,7 +144,8 @@ class _StallStopping(optx.LevenbergMarquardt):
     ``u`` never holds: 60 of 60 steps in most draws (measured on a sun-fault record: the loss
     changed by 0.2 of ~8600 between step 5 and 200). The data's statistic and every draw of
     its null use the same rule, so the bootstrap stays calibrated; the statistic moves by
-    ~0.1 (its null's 99th percentile is ~18) and a bootstrap costs a fifth."""
+    ~0.1 (its null's 99th percentile is ~18), and a bootstrap costs 0.2–0.8 of what it did
+    (three candidates measured: docs/discovery.md, "When a fold fit stops")."""
 
     loss_rtol: float = eqx.field(static=True, default=FOLD_LOSS_RTOL)
 
