@@ -332,11 +332,10 @@ def _noise_stopping(base):
     class NoiseStopping(base):
         sigma_tol: float = eqx.field(static=True, default=0.0)
 
-        def __init__(self, rtol, atol, norm, sigma_tol: float = 0.0, history: int = 0):
+        def __init__(self, rtol, atol, norm, sigma_tol: float, history: int):
             super().__init__(rtol=rtol, atol=atol, norm=norm)
             self.sigma_tol = sigma_tol
-            if history:
-                self.search = _LossRecording(self.search, history)
+            self.search = _LossRecording(self.search, history)
 
         def step(self, fn, y, args, options, state, tags):
             y, state, aux = super().step(fn, y, args, options, state, tags)
@@ -358,8 +357,7 @@ _SOLVER_CLASSES = {"lm": _noise_stopping(optx.LevenbergMarquardt),
                    "dogleg": _noise_stopping(optx.Dogleg)}
 
 
-def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0,
-                 history: int = 0):
+def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float, history: int):
     """The optimistix solver, with two stopping rules (either one stops it):
 
     - the Cauchy test (both the step in θ and the change of the residuals below
@@ -375,8 +373,8 @@ def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0,
       record, 3 parameters: the loss settled to 1e-5 after 4–5 steps, the Cauchy test stopped
       it after 13–19; benchmarks/README.md "Fit").
 
-    `history` > 0 keeps the loss of the first `history` residual evaluations in the solver's
-    state (:class:`_LossRecording`, read by :func:`_outcome`)."""
+    The loss of the first `history` residual evaluations is kept in the solver's state
+    (:class:`_LossRecording`, read by :func:`_outcome`)."""
     if name not in _SOLVER_CLASSES:
         raise SettingsError(f"solver must be one of {SOLVERS}, got {name!r}")
     return _SOLVER_CLASSES[name](rtol=rtol, atol=atol, norm=optx.rms_norm, sigma_tol=sigma_tol,
@@ -386,7 +384,7 @@ def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float = 0.0,
 def _outcome(sol):
     """``(θ, converged, steps, loss, r, J, losses, n)`` of an optimistix Gauss–Newton-type
     solution; ``losses[:n]`` are the losses of the residual evaluations, in order, from
-    :class:`_LossRecording` in the solver's search state (n = 0 without one).
+    :class:`_LossRecording` in the solver's search state.
 
     The residuals and Jacobian come from the solver's state: they belong to the last accepted
     point, which is the returned value (optimistix keeps ``f_info`` of the accepted ``y``), so
@@ -396,12 +394,8 @@ def _outcome(sol):
     f_info = sol.state.f_info
     r = f_info.residual
     J = f_info.jac.as_matrix()
-    search_state = sol.state.search_state
-    if isinstance(search_state, tuple):  # _LossRecording's (inner, losses, count)
-        _, losses, count = search_state
-        count = jnp.minimum(count, losses.shape[0])
-    else:
-        losses, count = jnp.full(1, jnp.nan), jnp.zeros((), jnp.int32)
+    _, losses, count = sol.state.search_state  # _LossRecording's (inner, losses, count)
+    count = jnp.minimum(count, losses.shape[0])
     return (sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"],
             0.5 * jnp.sum(r * r), r, J, losses, count)
 
