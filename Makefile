@@ -8,6 +8,15 @@ export MPLBACKEND := Agg
 # Persistent JAX compilation cache lives inside the venv (see dtwin/_config.py).
 export DTWIN_JAX_CACHE := $(abspath $(VENV))/jax-cache
 
+# Two pytest-xdist workers. XLA's CPU compiler (jaxlib 0.10.2) now and then kills the process
+# compiling a program (`Fatal Python error: Aborted` or a segfault); xdist then starts a new
+# worker and pytest-rerunfailures runs the test that was running once more (`--reruns 1`).
+# `--only-rerun` names a message no ordinary failure has, so an ordinary failure is never rerun
+# (crashed tests are rerun whatever the filter). `worksteal`, not `loadgroup`: xdist's group and
+# file schedulers cannot put a crashed test back in the queue, and can hang waiting for the
+# replacement worker (tests/test_crash_rerun.py runs all of this on a suite that crashes).
+XDIST := -n 2 --dist worksteal --reruns 1 --only-rerun "pytest-xdist worker crashed" --max-suite-reruns 3
+
 .PHONY: venv demo test test-all lint bench notebooks clean
 
 $(STAMP): pyproject.toml
@@ -22,10 +31,10 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check dtwin identify tests benchmarks data
 
 test: lint
-	$(VENV)/bin/pytest -q -m "not slow" -n 2 --dist loadgroup
+	$(VENV)/bin/pytest -q -m "not slow" $(XDIST)
 
 test-all: lint
-	$(VENV)/bin/pytest -q -n 2 --dist loadgroup
+	$(VENV)/bin/pytest -q $(XDIST)
 
 demo: $(STAMP)
 	$(PY) -m dtwin.identify.demo --out demo-output

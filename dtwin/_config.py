@@ -17,7 +17,10 @@ the solves and fits are cached too: a fit of a 60 s record then took 18 s instea
 its next run, discovery 52 s instead of 61 s. dtwin does not set it for you: in one of two
 full test runs with it, XLA aborted the process while serializing a fit for the cache
 (``Fatal Python error: Aborted`` in ``executable.serialize()``, jax/jaxlib 0.10.2 on the
-2-core CPU; not reproduced alone), and an abort cannot be caught.
+2-core CPU; not reproduced alone), and an abort cannot be caught. XLA's CPU compiler has since
+killed test processes without it too (an abort and a segmentation fault inside
+``backend_compile_and_load``), so the setting may not be the cause; it stays opt-in until that
+is known.
 """
 
 from __future__ import annotations

@@ -15,9 +15,6 @@ from dtwin.sensor_response import apply_frf, frf_gain, knot_basis
 from dtwin.spec import load_spec, preset, spec_to_dict
 from dtwin.spec_writer import spec_to_toml
 
-# one worker calibrates once for every test of the independent records (tests/_independent.py)
-pytestmark = pytest.mark.xdist_group("independent")
-
 IND = Path(__file__).resolve().parents[2] / "shared" / "independent"
 needs_independent = pytest.mark.skipif(not (IND / "baseline-1.csv").exists(),
                                        reason="../shared/independent/ is not beside the checkout")

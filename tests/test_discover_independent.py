@@ -17,7 +17,7 @@ from __future__ import annotations
 import pytest
 from _independent import IND, needs_independent
 
-pytestmark = [needs_independent, pytest.mark.xdist_group("independent")]
+pytestmark = needs_independent
 
 #: the look-alike group each hidden effect belongs to (docs/discovery.md)
 GROUP = {"sun-fault-0.15": "sun_rotation", "sun-fault-0.30": "sun_rotation",

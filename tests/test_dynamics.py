@@ -28,8 +28,6 @@ from dtwin.simulate import DAQ, SolverOptions, simulate
 from dtwin.spec import preset
 from dtwin.spectrum import amplitude_spectrum, noise_floor
 
-pytestmark = pytest.mark.xdist_group("dynamics")
-
 FS = 5000.0
 DURATION = 2.0
 DISCARD = 0.1

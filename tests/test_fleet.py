@@ -32,9 +32,6 @@ from dtwin.io.readers import write_record
 from dtwin.simulate import DAQ, simulate
 from dtwin.spec import preset
 
-# every test of this module shares the fitted fleet (module fixtures): one xdist worker
-pytestmark = pytest.mark.xdist_group("fleet")
-
 SEVERITIES = (0.35, 0.5, 0.65)
 SPEEDS = (29.5, 30.0, 30.6)  # Hz: one batch in the order domain
 DURATION = 0.35  # s: just over 2 / f_carrier (6.1 Hz at 29.5 Hz), the shortest the fit accepts

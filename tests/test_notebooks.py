@@ -41,7 +41,6 @@ SKIP: dict[str, str] = {}
 #: `make test-all`). Empty: all four run in CI in their short form.
 SLOW: dict[str, str] = {}
 
-pytestmark = pytest.mark.xdist_group("notebooks")
 
 
 def _paths() -> list[Path]:

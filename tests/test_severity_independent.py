@@ -12,9 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-# one worker calibrates once for every test of the independent records (tests/_independent.py)
-pytestmark = pytest.mark.xdist_group("independent")
-
 IND = Path(__file__).resolve().parents[2] / "shared" / "independent"
 needs_independent = pytest.mark.skipif(not (IND / "baseline-1.csv").exists(),
                                        reason="../shared/independent/ is not beside the checkout")

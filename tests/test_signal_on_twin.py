@@ -26,7 +26,6 @@ from dtwin.tsa import (
     time_synchronous_average,
 )
 
-pytestmark = pytest.mark.xdist_group("twin_signal")
 FS = 5000.0
 
 
