@@ -44,5 +44,7 @@ def independent_calibration(tmp_path_factory, worker_id):
         res = calibrate([IND / "baseline-1.csv"], spec_file)
         assert hashlib.sha256(spec_file.read_bytes()).hexdigest() == before
         res.write_spec(path)
-        result.write_bytes(pickle.dumps(res))
+        part = result.with_suffix(".part")
+        part.write_bytes(pickle.dumps(res))
+        part.replace(result)  # whole or absent, should this worker die
     return res, path
