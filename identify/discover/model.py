@@ -3,6 +3,7 @@ simulations and responses, cached in memory and optionally on disk."""
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import hashlib
 import os
@@ -37,8 +38,8 @@ class ExtendedModel:
         self.duration = n_samples / daq.sample_rate
         self.f_sun = float(f_sun)
         self.solver = solver or SolverOptions(adjoint="forward")
-        #: how each simulation was integrated (`dtwin.simulate.SimResult.method`)
-        self.methods: list[str] = []
+        #: how many simulations were integrated each way (`dtwin.simulate.SimResult.method`)
+        self.methods: collections.Counter[str] = collections.Counter()
         if response_mode not in ("fd", "jvp"):
             raise SettingsError(f"response_mode must be 'fd' or 'jvp', got {response_mode!r}")
         self.response_mode = response_mode
@@ -135,7 +136,7 @@ def _ext_signal_impl(model: ExtendedModel, theta):
         solver = dataclasses.replace(solver, periodic="off")
     res = simulate(model.twin(theta), duration=model.duration, f_sun=model.f_sun, daq=model.daq,
                    solver=solver, check=not traced)
-    model.methods.append(res.method)
+    model.methods[res.method] += 1
     return res.signal
 
 
