@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 
 import jax
 import jax.numpy as jnp
@@ -253,7 +254,8 @@ def noise_floor(
         raise RecordError(f"noise-floor window must span at least 3 bins, got {width_bins}")
     width += 1 - width % 2
     # one row at a time: SciPy's 1-D rank filter is ~9x faster than its n-D one on (.., 1, w)
-    rows = spec.reshape(-1, spec.shape[-1]) if spec.ndim else spec.reshape(1, 1)
+    shape = (math.prod(spec.shape[:-1]), spec.shape[-1]) if spec.ndim else (1, 1)
+    rows = spec.reshape(shape)
     floor = np.empty_like(rows)
     for row, out in zip(rows, floor, strict=True):
         scipy.ndimage.median_filter(row, size=width, mode="nearest", output=out)

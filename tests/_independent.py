@@ -7,6 +7,7 @@ temporary folder), so the run calibrates once whichever workers the tests land o
 from __future__ import annotations
 
 import hashlib
+import os
 import pickle
 from pathlib import Path
 
@@ -25,15 +26,15 @@ def independent_calibrated_spec(independent_calibration) -> Path:
 
 
 @pytest.fixture(scope="session")
-def independent_calibration(tmp_path_factory, worker_id):
+def independent_calibration(tmp_path_factory):
     """``(CalibrationResult, path of the calibrated spec)`` of the calibration on
     ``baseline-1.csv`` (the user's ``gearbox.toml`` is checked unmodified)."""
     from dtwin.identify.calibrate import calibrate
 
     if not (IND / "baseline-1.csv").exists():
         pytest.skip("../shared/independent/ is not beside the checkout")
-    base = tmp_path_factory.getbasetemp()
-    shared = (base.parent if worker_id != "master" else base) / "independent_cal"
+    base = tmp_path_factory.getbasetemp()  # an xdist worker's lies in the session's folder
+    shared = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "independent_cal"
     shared.mkdir(exist_ok=True)
     result, path = shared / "result.pickle", shared / "calibrated.toml"
     with FileLock(str(shared / "lock")):
