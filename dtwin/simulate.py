@@ -24,6 +24,7 @@ Everything is JAX: `simulate(..., check=False)` is differentiable with respect t
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -445,18 +446,32 @@ def _solve_tiled(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, set
     period = hunting_period(twin)
     sun_turns, car_turns = shaft_turns(twin, hunting_cycles(twin))
     t_ref = t0 + settle
-    n = ts_np.shape[0]
-    grid, _, inverse, turns = tiled_times(ts_np, t_ref, period)
-    probe = jnp.arange(PERIODIC_PROBE, dtype=jnp.float64) / fs_hi
-    mapped = grid[inverse]
-    every = jnp.concatenate([mapped, t_ref + probe, t_ref + period + probe])
-    order = jnp.argsort(every)
-    back = jnp.argsort(order)
-    save = every[order]
-    t1 = t_ref + period + probe[-1]
+    save, back, turns, t1 = _tiled_grid(jnp.asarray(ts_np), t_ref, period, fs_hi)
     obs, result, nsteps = _solve(twin, y0, t0, t1, save, quantity, rtol, atol, dtmax, max_steps,
                                  adjoint, progress, pcoeff, icoeff, unrolled, rate_scale_hz)
+    out, defect = _untiled(obs, back, turns, sun_turns, car_turns)
+    return out, result, nsteps, defect
+
+
+@jax.jit
+def _tiled_grid(ts, t_ref, period, fs_hi):
+    """The save times of `_solve_tiled`, sorted: the record's times mapped onto one period,
+    then two probe windows of `PERIODIC_PROBE` samples at ``t_ref`` and ``t_ref + period``.
+    **Returns** ``(save, back, turns, t1)``: ``save[back]`` restores that order, `turns` the
+    whole periods removed from each time, `t1` (s) the last save time."""
+    grid, _, inverse, turns = tiled_times(ts, t_ref, period)
+    probe = jnp.arange(PERIODIC_PROBE, dtype=jnp.float64) / fs_hi
+    every = jnp.concatenate([grid[inverse], t_ref + probe, t_ref + period + probe])
+    order = jnp.argsort(every)
+    return every[order], jnp.argsort(order), turns, t_ref + period + probe[-1]
+
+
+@functools.partial(jax.jit, static_argnums=(3, 4))
+def _untiled(obs, back, turns, sun_turns: int, car_turns: int):
+    """The observables of `_solve_tiled` back in the record's order, unwrapped shaft angles
+    advanced by the whole turns removed, and the periodic defect (see `_solve_tiled`)."""
     obs = {k: v[back] for k, v in obs.items()}
+    n = turns.shape[0]
     sig = obs["signal"]
     a, b = sig[n : n + PERIODIC_PROBE], sig[n + PERIODIC_PROBE :]
     body = sig[:n]
@@ -470,7 +485,7 @@ def _solve_tiled(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, set
         elif k == "theta_carrier":
             v = v + turns * two_pi * car_turns
         out[k] = v
-    return out, result, nsteps, defect
+    return out, defect
 
 
 def _observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, f_sun: float,
