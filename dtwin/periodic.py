@@ -20,8 +20,8 @@ with a planet fault on 21/31/84,
 `T = 2604 / 504 Hz = 5.17 s`.
 
 A record of a constant-speed run after the start-up transient is then the periodic response
-sampled at the phases ``(t_k - t_ref) mod T``: :func:`tiled_times` maps a sampling grid onto one
-period and gives the permutation that brings the sorted phases back into record order
+sampled at the phases ``(t_k - t_ref) mod T``: :func:`fold_times` maps a sampling grid onto one
+period, and :func:`tiled_times` also sorts it and gives the permutation back into record order
 (`dtwin.simulate.simulate` with ``SolverOptions(periodic="auto")``).
 
 :func:`hunting_cycles` knows which parts keep the response periodic; a part it does not know,
@@ -55,7 +55,8 @@ from .parts.supports import Supports
 from .parts.torque_ripple import TorqueRipple
 from .parts.transfer_path import AbstractTransferPath
 
-__all__ = ["hunting_cycles", "hunting_period", "periodic_reason", "shaft_turns", "tiled_times"]
+__all__ = ["fold_times", "hunting_cycles", "hunting_period", "periodic_reason", "shaft_turns",
+           "tiled_times"]
 
 
 def _lcm(*ns: int) -> int:
@@ -161,6 +162,22 @@ def shaft_turns(twin, cycles: int) -> tuple[int, int]:
     return int(round(sun)), int(round(car))
 
 
+def fold_times(ts, t_ref, period):
+    """Sampling times folded onto one period of the steady state, in their own order.
+
+    **Arguments:** `ts` (s), `t_ref` (s, start of the reference period), `period` (s; may be
+    traced).
+
+    **Returns:** ``(mapped, turns)``: times before ``t_ref + period`` kept, later ones
+    ``t_ref + (t - t_ref) mod period``, and the whole periods removed from each time (integers
+    as floats).
+    """
+    ts = jnp.asarray(ts)
+    late = ts >= t_ref + period
+    turns = jnp.where(late, jnp.floor((ts - t_ref) / period), 0.0)
+    return ts - turns * period, turns
+
+
 def tiled_times(ts, t_ref, period):
     """Map sampling times onto one period of the steady state.
 
@@ -172,10 +189,7 @@ def tiled_times(ts, t_ref, period):
     sorted (a valid `diffrax.SaveAt(ts=...)`), ``phase_times[inverse]`` is the mapped grid in the
     order of `ts`, and `turns` the whole periods removed from each time (integers as floats).
     """
-    ts = jnp.asarray(ts)
-    late = ts >= t_ref + period
-    turns = jnp.where(late, jnp.floor((ts - t_ref) / period), 0.0)
-    mapped = ts - turns * period
+    mapped, turns = fold_times(ts, t_ref, period)
     order = jnp.argsort(mapped)
     inverse = jnp.argsort(order)
     return mapped[order], order, inverse, turns

@@ -42,12 +42,12 @@ from .io.record import Record
 from .parts.drive import DrivePart, LoadPart
 from .parts.transfer_path import AbstractTransferPath, ring_velocity_fixed
 from .periodic import (
+    fold_times,
     hunting_cycles,
     hunting_period,
     mesh_frequency,
     periodic_reason,
     shaft_turns,
-    tiled_times,
 )
 from .sensor_response import apply_frf, knot_basis
 from .twin import Coords, Twin
@@ -438,7 +438,7 @@ def _solve_tiled(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, set
                  pcoeff, icoeff, unrolled: bool, rate_scale_hz: float):
     """`_solve` over `settle` s and one hunting period only, the observables gathered back onto
     the whole grid `ts_np` (s): a sample at ``t >= t_ref + T`` (``t_ref = t0 + settle``) is the
-    sample at ``t_ref + (t - t_ref) mod T`` (`dtwin.periodic.tiled_times`), unwrapped shaft
+    sample at ``t_ref + (t - t_ref) mod T`` (`dtwin.periodic.fold_times`), unwrapped shaft
     angles advanced by the whole turns over the periods removed. Differentiable (the period
     follows the drive's set point, traced or not). **Returns** ``(observables, result, steps,
     defect)`` with `defect` the rms of the signal's change over one period on a window of
@@ -459,9 +459,9 @@ def _tiled_grid(ts, t_ref, period, fs_hi):
     then two probe windows of `PERIODIC_PROBE` samples at ``t_ref`` and ``t_ref + period``.
     **Returns** ``(save, back, turns, t1)``: ``save[back]`` restores that order, `turns` the
     whole periods removed from each time, `t1` (s) the last save time."""
-    grid, _, inverse, turns = tiled_times(ts, t_ref, period)
+    mapped, turns = fold_times(ts, t_ref, period)
     probe = jnp.arange(PERIODIC_PROBE, dtype=jnp.float64) / fs_hi
-    every = jnp.concatenate([grid[inverse], t_ref + probe, t_ref + period + probe])
+    every = jnp.concatenate([mapped, t_ref + probe, t_ref + period + probe])
     order = jnp.argsort(every)
     return every[order], jnp.argsort(order), turns, t_ref + period + probe[-1]
 
