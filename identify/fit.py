@@ -533,7 +533,16 @@ class FitResult:
         return out
 
     def spectra(self):
-        """Per record: (freqs, measured, fitted) linear levels at the fitted points (numpy)."""
+        """Per record: (freqs, measured, fitted) linear levels at the fitted points (numpy).
+
+        The fitted levels come from the residual vector at the optimum, which holds them: a
+        record's first residuals are ``weight (log fitted − log measured)`` at its points
+        (:func:`dtwin.identify.residuals.observation_residuals`), so nothing is simulated
+        again. Without residuals (or with a failed point in them) the twin is simulated at the
+        optimum."""
+        levels = self._levels_from_residuals()
+        if levels is not None:
+            return levels
         p = self.problem
         sigs, values = p.signals(jnp.asarray(self.theta))
         gain = p.pset.gain(values)
@@ -541,6 +550,26 @@ class FitResult:
         for s, o in zip(sigs, p.observations, strict=True):
             model, meas = fitted_levels(s, o, gain)
             out.append((np.asarray(o.freqs), meas, model))
+        return out
+
+    def _levels_from_residuals(self):
+        """:meth:`spectra` read from `residuals`; None when they cannot give it."""
+        p, r = self.problem, self.residuals
+        if r is None or p is None:
+            return None
+        r = np.asarray(r, dtype=np.float64)
+        out, off = [], 0
+        for o in p.observations:
+            meas = np.asarray(o.meas, dtype=np.float64)
+            n = meas.shape[0]
+            ro = r[off: off + n]
+            off += n + (int(np.asarray(o.env_meas).shape[0]) if o.env_weight else 0)
+            if (ro.shape[0] != n or not o.weight > 0.0 or not np.all(np.isfinite(ro))
+                    or np.any(ro == _FAILED)):
+                return None
+            out.append((np.asarray(o.freqs), np.exp(meas), np.exp(meas + ro / o.weight)))
+        if off + len(p.pset.priors) != r.shape[0]:
+            return None
         return out
 
 
