@@ -9,6 +9,7 @@ import equinox as eqx
 
 from dtwin.parts.drive import LoadPart
 from dtwin.parts.loads import FluctuatingLoad
+from dtwin.parts.speed_fluctuation import SpeedFluctuation
 
 from ..lines import find_modulation, modulation_lines
 from .base import AbstractEffect, EffectParameter, SignatureLine, rms
@@ -20,11 +21,17 @@ class LocatedModulationEffect(AbstractEffect):
     unevenness or a speed controller's oscillation — anything that modulates the transmitted
     torque at a rate that is not a gearbox frequency.
 
-    Parts: two :class:`dtwin.parts.loads.FluctuatingLoad` (mean 0, active at any speed). Every
-    mesh force is modulated together, so the lines are ``f_x`` and ``L ± j f_x`` around the
-    lines an ideal gearbox has (:func:`dtwin.identify.lines.modulation_lines`). The torque at
-    the carrier and the speed at the sun give the same lines to one sensor: the effect is
-    reported as a "load/speed fluctuation". `f_x` comes from the data (:meth:`adapt`:
+    Parts: two :class:`dtwin.parts.loads.FluctuatingLoad` (mean 0, active at any speed) and a
+    :class:`dtwin.parts.speed_fluctuation.SpeedFluctuation` of the drive's rotor at the same
+    frequency, ``b_cos cos(2 pi f_x t) + b_sin sin(2 pi f_x t)`` (rad/s). The load modulates the
+    amplitude of every mesh force; the speed fluctuation, which a speed-controlled drive under a
+    fluctuating load also makes (its controller's speed dip), modulates the mesh phase, whose
+    sidebands grow with the mesh harmonic. Both give the lines ``f_x`` and ``L ± j f_x`` around
+    the lines an ideal gearbox has (:func:`dtwin.identify.lines.modulation_lines`), in
+    proportions that differ from harmonic to harmonic, so one sensor tells their mix but the
+    cause is reported as a "load/speed fluctuation". The main amplitude is the load torque's
+    (N·m at the carrier); the speed's is a parameter of its own. `f_x` comes from the data
+    (:meth:`adapt`:
     :func:`dtwin.identify.lines.find_modulation`, a family of at least three residual lines
     beside the f_x line, chance ≤ 1e-3); without one the candidate is withdrawn. Group
     ``located_modulation``.
@@ -68,14 +75,19 @@ class LocatedModulationEffect(AbstractEffect):
         return (EffectParameter("located_modulation_cos", "N*m", 0.5,
                                 "load torque fluctuation at the located frequency, cosine"),
                 EffectParameter("located_modulation_sin", "N*m", 0.5,
-                                "load torque fluctuation at the located frequency, sine"))
+                                "load torque fluctuation at the located frequency, sine"),
+                EffectParameter("located_modulation_speed_cos", "rad/s", 0.05,
+                                "rotor speed fluctuation at the located frequency, cosine"),
+                EffectParameter("located_modulation_speed_sin", "rad/s", 0.05,
+                                "rotor speed fluctuation at the located frequency, sine"))
 
     def parts(self, theta, twin, kin):
         if self.f_x is None:
             raise ValueError("LocatedModulationEffect needs f_x (adapt() on the data)")
         return (LoadPart(FluctuatingLoad(0.0, theta[0], self.f_x, math.pi / 2,
                                          engage_speed=0.0)),
-                LoadPart(FluctuatingLoad(0.0, theta[1], self.f_x, 0.0, engage_speed=0.0)))
+                LoadPart(FluctuatingLoad(0.0, theta[1], self.f_x, 0.0, engage_speed=0.0)),
+                SpeedFluctuation(theta[2], theta[3], self.f_x))
 
     def signature(self, kin, f_max):
         if self.f_x is None:
@@ -83,4 +95,4 @@ class LocatedModulationEffect(AbstractEffect):
         return [SignatureLine(f, lab) for f, lab in modulation_lines(kin, self.f_x, f_max)]
 
     def main(self, theta):
-        return rms(theta)
+        return rms(theta[:2])
