@@ -67,7 +67,10 @@ class SpeedFluctuation(AbstractPart):
         drives = twin.find(DrivePart)
         d_theta, d_omega = self.rotor_motion(t)
         if drives:
-            shaft = drives[0].drive.shaft
+            shaft = getattr(drives[0].drive, "shaft", None)
+            if shaft is None:
+                raise ValueError(f"SpeedFluctuation needs a drive with a `shaft` (k_shaft, "
+                                 f"c_shaft); {type(drives[0].drive).__name__} has none")
             torque = shaft.k_shaft * d_theta + shaft.c_shaft * d_omega
         else:
             torque = 0.0 * d_theta
