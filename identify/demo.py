@@ -245,6 +245,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="smoke run: 0.5 s records, torsional model (used by the tests)")
     ap.add_argument("--force", action="store_true", help="overwrite an earlier demo's results")
     args = ap.parse_args(argv)
+    from dtwin.cli.logs import setup_logging
+
+    setup_logging()  # the library's warnings as one "warning: …" line each, as in the CLI
     out = Path(args.out)
     force = args.force or (out / "manifest.json").exists()  # the demo's own folder: refresh it
     folder = OutputFolder(out, force=force, parameters={"full": args.full, "quick": args.quick})

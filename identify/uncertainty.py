@@ -59,9 +59,12 @@ count independent points lose it (Monte Carlo in ``tests/test_severity_rules.py`
 the sandwich interval.
 
 **Profile likelihood** for severities (``*_fault``) within ``2σ`` of 0 or 1: the severity is
-stepped over a grid, the other parameters follow by one Gauss–Newton step from the optimum (with
-``J`` at the optimum), and the interval is where ``(‖r‖² - ‖r*‖²)/(s² κ_i) ≤ 3.84`` (χ²₁, 95 %);
-``κ_i`` is the sandwich's inflation of that parameter's variance.
+stepped over a grid across its range, the other parameters follow by one Gauss–Newton step from
+the optimum (with ``J`` at the optimum), and the interval is where
+``(‖r‖² - ‖r*‖²)/(s² κ_i) ≤ 3.84`` (χ²₁, 95 %); ``κ_i`` is the sandwich's inflation of that
+parameter's variance. A second grid of the same size lies between the values that bracket each
+edge, and the edge is interpolated where the profile crosses 3.84 between its nearest values
+inside and outside (a single grid would leave an edge anywhere within one grid step).
 """
 
 from __future__ import annotations
@@ -314,31 +317,63 @@ def analyse(
     )
 
 
-def _profile_interval(pset, theta, r, J, i, s2_i, profile_fn, m_data, n_grid: int = 25):
-    """Profile-likelihood 95 % interval of parameter `i` (a bounded severity)."""
-    lo, hi = pset.lower[i], pset.upper[i]
-    grid_x = np.linspace(lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo), n_grid)
-    thetas = np.repeat(theta[None, :], n_grid, axis=0)
-    for g, x in enumerate(grid_x):
-        v = np.asarray(pset.values(theta)).copy()
+def _profile_rss(pset, theta, J, i, xs, profile_fn, m_data):
+    """Residual sum of squares of the data along the profile of parameter `i`: at each value
+    ``xs`` (SI) of it, the other parameters moved by one Gauss–Newton step from the optimum
+    (`J` the Jacobian there)."""
+    thetas = np.repeat(theta[None, :], len(xs), axis=0)
+    v = np.asarray(pset.values(theta)).copy()
+    for g, x in enumerate(xs):
         v[i] = x
         thetas[g, i] = pset.theta(v)[i]
     others = [j for j in range(theta.size) if j != i]
     if others:
-        Jo = J[:, others]
         rr = np.asarray(profile_fn(thetas))
-        step = -np.linalg.lstsq(Jo, rr.T, rcond=None)[0].T
+        step = -np.linalg.lstsq(J[:, others], rr.T, rcond=None)[0].T
         thetas[:, others] += step
     rr = np.asarray(profile_fn(thetas))
-    rss = np.sum(rr[:, :m_data] ** 2, axis=1)
+    return np.sum(rr[:, :m_data] ** 2, axis=1)
+
+
+def _crossing(x0, x1, q0, q1):
+    """Where ``q`` reaches the χ² level between ``(x0, q0)`` and ``(x1, q1)``, one inside and
+    one outside (linear interpolation; the midpoint when ``q`` does not change there)."""
+    if q1 == q0:
+        return 0.5 * (x0 + x1)
+    u = min(max((CHI2_95 - q0) / (q1 - q0), 0.0), 1.0)
+    return x0 + u * (x1 - x0)
+
+
+def _profile_interval(pset, theta, r, J, i, s2_i, profile_fn, m_data, n_grid: int = 13):
+    """Profile-likelihood 95 % interval of parameter `i` (a bounded severity).
+
+    The profile is evaluated on `n_grid` values across the parameter's range, then on
+    `n_grid` more between the grid values that bracket each edge of the interval (a batch of
+    the same size, so no new compilation), and each edge is interpolated where the profile
+    crosses the χ² level between its two nearest values, inside and outside."""
+    lo, hi = pset.lower[i], pset.upper[i]
+    xs = np.linspace(lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo), n_grid)
+    rss = _profile_rss(pset, theta, J, i, xs, profile_fn, m_data)
     rss0 = min(float(np.sum(r[:m_data] ** 2)), float(rss.min()))
     inside = (rss - rss0) / s2_i <= CHI2_95
     if not inside.any():
         return None
-    idx = np.flatnonzero(inside)
-    a, b = idx[0], idx[-1]
-    lo_v = lo if a == 0 else 0.5 * (grid_x[a - 1] + grid_x[a])
-    hi_v = hi if b == n_grid - 1 else 0.5 * (grid_x[b] + grid_x[b + 1])
+    a, b = np.flatnonzero(inside)[[0, -1]]
+    brackets = ([(xs[a - 1], xs[a])] if a > 0 else []) + \
+               ([(xs[b], xs[b + 1])] if b < n_grid - 1 else [])
+    if brackets:
+        k = n_grid // len(brackets)
+        fine = np.concatenate([np.linspace(x0, x1, k + 2)[1:-1] for x0, x1 in brackets])
+        fine = np.concatenate([fine, np.full(n_grid - fine.size, fine[-1])])
+        rss_fine = _profile_rss(pset, theta, J, i, fine, profile_fn, m_data)
+        order = np.argsort(np.concatenate([xs, fine]), kind="stable")
+        xs = np.concatenate([xs, fine])[order]
+        rss = np.concatenate([rss, rss_fine])[order]
+        rss0 = min(rss0, float(rss_fine.min()))
+    q = (rss - rss0) / s2_i
+    a, b = np.flatnonzero(q <= CHI2_95)[[0, -1]]
+    lo_v = lo if a == 0 else _crossing(xs[a], xs[a - 1], q[a], q[a - 1])
+    hi_v = hi if b == xs.size - 1 else _crossing(xs[b], xs[b + 1], q[b], q[b + 1])
     return np.array([lo_v, hi_v])
 
 

@@ -90,3 +90,25 @@ def test_spread_is_checked():
 
     with pytest.raises(SpecError, match="spread"):
         MissingTooth(0.4, spread=-0.1)
+
+
+@pytest.mark.parametrize("v_hat, sigma", [(0.02, 0.01), (0.5, 0.05), (0.97, 0.02)])
+def test_profile_interval_edges_against_the_closed_form(v_hat, sigma):
+    """The profile-likelihood interval of a bounded severity (used near a bound) on a loss
+    whose profile is known: ``rss(v) = ((v − v̂)/σ)²`` gives the edges ``v̂ ± σ √χ²₀.₉₅`` clipped
+    to [0, 1]. A coarse grid alone puts an edge anywhere within 1/24 of the range (0.02 off for
+    v̂ = 0.02); refined between the bracketing grid values and interpolated, within 0.002."""
+    from dtwin.identify.params import ParameterSet
+    from dtwin.identify.uncertainty import CHI2_95, _profile_interval
+
+    pset = ParameterSet.build(["sun_fault"], initial={"sun_fault": 0.3})
+    theta = pset.theta([v_hat])
+
+    def profile_fn(thetas):
+        v = np.array([float(pset.values(t)[0]) for t in np.asarray(thetas)])
+        return ((v - v_hat) / sigma)[:, None]
+
+    iv = _profile_interval(pset, theta, np.zeros(1), np.ones((1, 1)), 0, 1.0, profile_fn, 1)
+    half = sigma * np.sqrt(CHI2_95)
+    want = [max(0.0, v_hat - half), min(1.0, v_hat + half)]
+    np.testing.assert_allclose(iv, want, atol=2e-3)
