@@ -53,14 +53,17 @@ from dtwin.twin import Twin
 from .operating_point import estimate_speed, estimate_speed_profile
 from .params import ParameterSet
 from .residuals import (
+    FAILED_RESIDUAL,
     Features,
     Observation,
     _check,
     fitted_levels,
+    levels_from_residuals,
     model_signal,
     observation_residuals,
     observe,
     point_groups,
+    residual_count,
 )
 from .uncertainty import Uncertainty, analyse, expected_noise_rss
 
@@ -74,8 +77,6 @@ SOLVERS = ("lm", "gauss-newton", "dogleg")
 #: 0.05 a fit could spend 15 steps chasing that noise. A step of 0.1 σ moves no interval
 #: noticeably.
 SIGMA_TOL = 0.1
-#: Residual value substituted for a failed (NaN) simulation: a huge loss the solver rejects.
-_FAILED = 30.0
 
 
 class Problem(eqx.Module):
@@ -115,7 +116,7 @@ class Problem(eqx.Module):
         rs = [observation_residuals(s, o, gain) for s, o in zip(sigs, self.observations, strict=True)]
         rs.append(self.pset.prior_residuals(values))
         r = jnp.concatenate(rs)
-        return jnp.where(jnp.isfinite(r), r, _FAILED)
+        return jnp.where(jnp.isfinite(r), r, FAILED_RESIDUAL)
 
     @property
     def n_profiled_gains(self) -> int:
@@ -560,17 +561,13 @@ class FitResult:
         r = np.asarray(r, dtype=np.float64)
         out, off = [], 0
         for o in p.observations:
-            meas = np.asarray(o.meas, dtype=np.float64)
-            n = meas.shape[0]
-            ro = r[off: off + n]
-            off += n + (int(np.asarray(o.env_meas).shape[0]) if o.env_weight else 0)
-            if (ro.shape[0] != n or not o.weight > 0.0 or not np.all(np.isfinite(ro))
-                    or np.any(ro == _FAILED)):
+            n = residual_count(o)
+            levels = levels_from_residuals(r[off: off + n], o)
+            if levels is None:
                 return None
-            out.append((np.asarray(o.freqs), np.exp(meas), np.exp(meas + ro / o.weight)))
-        if off + len(p.pset.priors) != r.shape[0]:
-            return None
-        return out
+            out.append((np.asarray(o.freqs), levels[1], levels[0]))
+            off += n
+        return out if off + len(p.pset.priors) == r.shape[0] else None
 
 
 # ------------------------------------------------------------------------------------ fit

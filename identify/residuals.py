@@ -68,6 +68,9 @@ from .operating_point import gear_orders
 __all__ = ["Features", "Observation", "model_signal", "observe", "observation_residuals",
            "quantity_of_unit", "MIN_SIDEBAND_BINS", "MIN_RATE_PER_MESH"]
 
+#: Residual value substituted for a failed (NaN) simulation: a huge loss the solver rejects.
+FAILED_RESIDUAL = 30.0
+
 #: The record must hold the carrier sidebands this many DFT bins apart (Hann main lobe
 #: half-width = 2 bins: two lines f_carrier apart are then resolved): T ≥ 2 / f_carrier.
 MIN_SIDEBAND_BINS = 2.0
@@ -538,6 +541,26 @@ def observation_residuals(signal, obs: Observation, gain=1.0):
                                             - obs.env_meas)
         r = jnp.concatenate([r, re])
     return r
+
+
+def residual_count(obs: Observation) -> int:
+    """Length of :func:`observation_residuals`' vector for `obs` (points, then envelope)."""
+    return int(obs.meas.shape[0]) + (int(obs.env_meas.shape[0]) if obs.env_weight else 0)
+
+
+def levels_from_residuals(r, obs: Observation):
+    """:func:`fitted_levels` read back from `obs`'s residual vector `r` (numpy, as
+    :func:`observation_residuals` made it): its first entries are ``weight (log fitted − log
+    measured)`` at the points. None when `r` cannot give them (wrong length, a zero weight, a
+    point whose model value was not finite and was replaced by `failed`)."""
+    meas = np.asarray(obs.meas, dtype=np.float64)
+    r = np.asarray(r, dtype=np.float64)
+    if r.shape[0] != residual_count(obs) or not obs.weight > 0.0:
+        return None
+    rp = r[: meas.shape[0]]
+    if not np.all(np.isfinite(rp)) or np.any(rp == FAILED_RESIDUAL):
+        return None
+    return np.exp(meas + rp / obs.weight), np.exp(meas)
 
 
 def fitted_levels(signal, obs: Observation, gain=1.0):

@@ -114,7 +114,7 @@ def test_fitted_spectra_read_from_the_residuals(severity_fit):
     np.testing.assert_allclose(simulated[0][1], meas, rtol=1e-12)
     np.testing.assert_allclose(simulated[0][2], fitted, rtol=1e-2)
     failed = res.residuals.copy()
-    failed[0] = 30.0  # dtwin.identify.fit._FAILED: a point whose model value was not finite
+    failed[0] = 30.0  # residuals.FAILED_RESIDUAL: a point whose model value was not finite
     assert dataclasses.replace(res, residuals=failed)._levels_from_residuals() is None
 
 

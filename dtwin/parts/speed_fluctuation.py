@@ -71,7 +71,7 @@ class SpeedFluctuation(AbstractPart):
             if shaft is None:
                 raise ValueError(f"SpeedFluctuation needs a drive with a `shaft` (k_shaft, "
                                  f"c_shaft); {type(drives[0].drive).__name__} has none")
-            torque = shaft.k_shaft * d_theta + shaft.c_shaft * d_omega
+            torque = shaft.torque(d_theta, d_omega, 0.0, 0.0)  # rotor displaced, sun at rest
         else:
             torque = 0.0 * d_theta
         f = Coords.zeros(twin.n_planets).set(theta_s=torque)
