@@ -361,8 +361,9 @@ def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings):
         return simulate(tw, duration=n / fs, f_sun=f_sun, daq=daq, discard=settings.discard,
                         solver=solver, check=False).signal[:n]
 
-    theta0 = jnp.zeros(layout.size)
-    y0, jvp_fn = jax.linearize(sig, theta0)
+    # evaluated eagerly, not as one compiled program: compiled, it rounds differently, and the
+    # calibration's weakly determined directions then lead its fit to another optimum
+    y0, jvp_fn = jax.linearize(sig, jnp.zeros(layout.size))
     J = jax.vmap(jvp_fn, in_axes=1, out_axes=1)(jnp.eye(layout.size))
     y0, J = np.asarray(y0), np.asarray(J)
     if not (np.all(np.isfinite(y0)) and np.all(np.isfinite(J))):
@@ -428,6 +429,7 @@ def _frf_solve(absZ, data: _Data):
                                                                                jnp.ones(k)))
 
 
+@eqx.filter_jit
 def _model_amp(theta, data: _Data):
     Z = data.Z0 + jnp.einsum("rbp,p->rb", data.JZ, theta.astype(data.JZ.dtype))
     absZ = jnp.abs(Z)
@@ -445,6 +447,13 @@ def _residuals(theta, data: _Data):
     return jnp.concatenate([r.ravel(), theta / data.prior_sd])
 
 
+@eqx.filter_jit
+def _residuals_and_jacobian(theta, data: _Data):
+    """The residuals at `theta` and their Jacobian (forward mode), as one compiled program."""
+    return _residuals(theta, data), jax.jacfwd(_residuals)(theta, data)
+
+
+@eqx.filter_jit
 def _column_scales(data: _Data, theta0) -> jax.Array:
     """1 / (norm of each data column of the residual Jacobian at `theta0`): the LM iterates on
     ``u = θ / scale``, in which every column has unit norm (the window's c_3 moves the planet
@@ -455,11 +464,18 @@ def _column_scales(data: _Data, theta0) -> jax.Array:
     return 1.0 / jnp.maximum(norms, 1e-9 * jnp.max(norms))
 
 
+def _scaled_residuals(u, args):
+    data, scale = args
+    return _residuals(u * scale, data)
+
+
 def _fit(data: _Data, theta0, max_steps: int):
     scale = _column_scales(data, theta0)
     solver = optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10)
-    sol = optx.least_squares(lambda u, d: _residuals(u * scale, d), solver, theta0 / scale,
-                             args=data, max_steps=max_steps, throw=False)
+    # a module-level function with the scales among the arguments: fits of equal shapes (the
+    # two halves) share one compilation
+    sol = optx.least_squares(_scaled_residuals, solver, theta0 / scale, args=(data, scale),
+                             max_steps=max_steps, throw=False)
     return np.asarray(sol.value * scale), int(sol.stats["num_steps"])
 
 
@@ -626,8 +642,8 @@ def _quantity(spec: Spec) -> str:
 
 def _intervals(theta, G, data: _Data, layout: _Layout, knots, Wl, B, twin, i_exc,
                settings) -> list[CalibratedParameter]:
-    r = np.asarray(_residuals(jnp.asarray(theta), data))
-    Jr = np.asarray(jax.jacfwd(_residuals)(jnp.asarray(theta), data))
+    r, Jr = _residuals_and_jacobian(jnp.asarray(theta), data)
+    r, Jr = np.asarray(r), np.asarray(Jr)
     m_data = int(np.asarray(data.S).sum())
     p = len(theta)
     n_prior = p
