@@ -138,8 +138,11 @@ GAP_NOT_MET = {
                   "under: a force at 2.1 Hz reaches the twin's sensor only through the planet-pass "
                   "path's high-pass, whose corner no healthy record determines; the 5fm alias "
                   "(2498.5 Hz, in baseline-2 too) stays 14–19 dB over the twin",
-    "planet-fault": "18.46 → 11.99 dB (35 % closed): the low-frequency comb k fp (28–33 dB over "
-                    "the twin) stays; the fault on the ring flank closes no more (12.45 dB)",
+    "planet-fault": "18.46 → 11.99 dB (35 % closed): the comb k fp (28–33 dB over the twin, "
+                    "k = 1 … 16) stays: in the record it stands 0–29 dB above k fp ± fc, in the "
+                    "twin ≥ 48 dB under, because the planets' summed mesh force is the load's "
+                    "reaction (test_dynamics.py::test_planet_fault_low_comb_lies_beside_k_fp_not_"
+                    "on_it); the fault on the ring flank closes no more (12.45 dB)",
     "spacing": "6.69 → 5.45 dB (19 % closed): carrier_sidebands named (load sharing and planet "
                "position errors tie), 4fm ± fc stay 16 dB over the twin",
     "sun-fault-0.15": "14.36 → 4.96 dB (65 % closed): sun_local_fault named; fs/3 − 2fc "

@@ -132,6 +132,23 @@ def test_planet_fault_family_rises_on_each_planet(planet):
     assert risen >= 0.7 * len(lines)
 
 
+def test_planet_fault_low_comb_lies_beside_k_fp_not_on_it():
+    """Torque balance: below the torsional modes the planets' ring-mesh forces sum to the ring's
+    reaction to the load, whatever one planet's mesh stiffness does, so a planet fault moves
+    load between the planets rather than changing the sum. The planet-angle window weighs the
+    planets by their angle, which turns at f_c: the moved load reaches the sensor at
+    ``k fp ± n fc`` (n ≠ 0), and the line ``k fp`` itself, the window's mean times the summed
+    force, only through the small dynamic torque. (k = 1 is left out: 1.85 Hz from the
+    planet-pass line, it holds that line's leakage at 0.5 Hz resolution; k fp up to 9 fp stays
+    ≥ 3 bins from every m·3fc.)"""
+    _, f, A1, fr = run("paper-sim", "torsional", ("planet:missing_tooth:0.5:0:0",))
+    fc, fp = fr["f_carrier"], fr["f_planet_fault"]
+    for k in range(2, 10):
+        on = level(f, A1, k * fp)
+        beside = max(level(f, A1, k * fp + n * fc) for n in (-1, 1))
+        assert db(on / beside) <= -30.0, (k, db(on / beside))
+
+
 def test_combined_fault_shows_both_families():
     _, f, A0, fr = run("paper-sim", "torsional")
     _, _, A2, _ = run("paper-sim", "torsional", ("sun:missing_tooth:0.5", "planet:missing_tooth:0.5"))
