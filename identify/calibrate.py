@@ -85,6 +85,7 @@ from dtwin.spectrum import noise_floor
 
 from .gap import FLOOR_BINS, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
 from .lines import Kinematics, estimate_speed
+from .stopping import StallStopping
 
 __all__ = ["CalibratedParameter", "CalibrationResult", "CalibrationSettings", "calibrate",
            "heldout_gap"]
@@ -113,7 +114,10 @@ class CalibrationSettings:
       linearised in it).
     - `smooth_db`: prior standard deviation (dB) of the response's second difference per knot.
     - `frf_prior_db`: prior standard deviation (dB) of a knot about the mean level.
-    - `max_steps`: Levenberg–Marquardt steps per fit.
+    - `max_steps`: Levenberg–Marquardt steps per fit at most; a fit stops earlier when an
+      accepted step lowers its loss by less than `loss_rtol` of itself
+      (:class:`dtwin.identify.stopping.StallStopping`): the window and excitation terms the
+      records do not determine otherwise keep moving by ever smaller decreases of the loss.
     - `solver`: `dtwin.simulate.SolverOptions` of the simulations.
     """
 
@@ -127,6 +131,7 @@ class CalibrationSettings:
     smooth_db: float = 1.0
     frf_prior_db: float = 60.0
     max_steps: int = 400
+    loss_rtol: float = 1e-8
     solver: SolverOptions | None = None
 
     def __post_init__(self):
@@ -138,6 +143,8 @@ class CalibrationSettings:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise SpecError([(name, f"must be a positive number, got {v!r}")])
+        if not (math.isfinite(self.loss_rtol) and self.loss_rtol >= 0):
+            raise SpecError([("loss_rtol", f"must be a number >= 0, got {self.loss_rtol!r}")])
         if self.discard < 0 or self.max_steps < 1:
             raise SpecError([("discard/max_steps", "discard must be >= 0 s and max_steps >= 1")])
 
@@ -174,6 +181,8 @@ class CalibrationResult:
       of the records, the uncalibrated and the confirmed calibrated twin, in the record's unit.
     - `noise_rms`: the measured noise floor as an rms (record unit).
     - `records`: names of the records.
+    - `fit_steps`: Levenberg–Marquardt steps of the final fit; `fit_converged`: False when it
+      stopped at `CalibrationSettings.max_steps` with its loss still falling.
     """
 
     spec_data: dict[str, Any]
@@ -188,6 +197,8 @@ class CalibrationResult:
     a_after: np.ndarray
     noise_rms: float
     records: list[str]
+    fit_steps: int = 0
+    fit_converged: bool = True
 
     @property
     def improves(self) -> bool:
@@ -216,6 +227,7 @@ class CalibrationResult:
                 f"gap (dB): before {self.gap_before.total:.2f}, held-out "
                 f"{self.gap_heldout.total:.2f}, confirmed {self.gap_confirmed.total:.2f}"
                 + ("" if self.improves else " (NOT closer than the spec as written)"),
+                f"final fit: {self.fit_status}",
                 f"{'parameter':<24} {'value':>12} {'sd':>10} {'unit':<6} status"]
         for p in self.parameters:
             status = "determined" if p.determined else "not determined"
@@ -224,9 +236,18 @@ class CalibrationResult:
             rows.append(f"{p.name:<24} {p.value:>12.4g} {p.sd:>10.2g} {p.unit:<6} {status}")
         return "\n".join(rows)
 
+    @property
+    def fit_status(self) -> str:
+        """The final fit's stop, in words."""
+        if self.fit_converged:
+            return f"converged in {self.fit_steps} Levenberg–Marquardt steps"
+        return (f"stopped at the step limit ({self.fit_steps} Levenberg–Marquardt steps) with "
+                "its loss still falling: raise CalibrationSettings.max_steps")
+
     def to_dict(self) -> dict[str, Any]:
         return dict(
             f_sun=self.f_sun, records=self.records, noise_rms=self.noise_rms,
+            fit_steps=self.fit_steps, fit_converged=self.fit_converged,
             gap_before=self.gap_before.to_dict(), gap_heldout=self.gap_heldout.to_dict(),
             gap_confirmed=self.gap_confirmed.to_dict(),
             parameters=[p.to_dict() for p in self.parameters],
@@ -469,14 +490,16 @@ def _scaled_residuals(u, args):
     return _residuals(u * scale, data)
 
 
-def _fit(data: _Data, theta0, max_steps: int):
+def _fit(data: _Data, theta0, max_steps: int, loss_rtol: float):
+    """θ at the fit's end, its step count and whether it stopped before `max_steps`."""
     scale = _column_scales(data, theta0)
-    solver = optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10)
+    solver = StallStopping(rtol=1e-8, atol=1e-10, loss_rtol=loss_rtol)
     # a module-level function with the scales among the arguments: fits of equal shapes (the
     # two halves) share one compilation
     sol = optx.least_squares(_scaled_residuals, solver, theta0 / scale, args=(data, scale),
                              max_steps=max_steps, throw=False)
-    return np.asarray(sol.value * scale), int(sol.stats["num_steps"])
+    converged = bool(sol.result == optx.RESULTS.successful)
+    return np.asarray(sol.value * scale), int(sol.stats["num_steps"]), converged
 
 
 # ------------------------------------------------------------------------------------ the driver
@@ -603,7 +626,8 @@ def calibrate(
     for h in (0, 1):
         other = 1 - h
         tr = half_idx == h
-        theta_h, _ = _fit(data_for(rec_idx[tr], half_idx[tr]), theta0, settings.max_steps)
+        theta_h, _, _ = _fit(data_for(rec_idx[tr], half_idx[tr]), theta0, settings.max_steps,
+                             settings.loss_rtol)
         rows = np.flatnonzero(half_idx == other)
         a_held[rows] = amp_at(theta_h, h, other)
         a_before[rows] = before_amp(h, other)
@@ -613,7 +637,7 @@ def calibrate(
 
     say("final fit on all data")
     d_all = data_for(rec_idx, half_idx)
-    theta, nsteps = _fit(d_all, theta0, settings.max_steps)
+    theta, nsteps, converged = _fit(d_all, theta0, settings.max_steps, settings.loss_rtol)
     _, G = _model_amp(jnp.asarray(theta), d_all)
     G = np.asarray(G)
     params = _intervals(theta, G, d_all, layout, knots, Wl, B, twin, i_exc, settings)
@@ -630,9 +654,11 @@ def calibrate(
     a_after = np.abs(Zc)[half_idx]
     gap_conf = gap(freqs, a_meas, a_after, bands)
     data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
-    say(f"confirmed gap {gap_conf.total:.2f} dB ({nsteps} LM steps)")
+    say(f"confirmed gap {gap_conf.total:.2f} dB ({nsteps} LM steps"
+        + ("" if converged else ", stopped at the step limit") + ")")
     return CalibrationResult(data, params, f_sun, gap_before, gap_held, gap_conf, freqs,
-                             a_meas, a_before, a_after, noise_rms, list(names))
+                             a_meas, a_before, a_after, noise_rms, list(names), nsteps,
+                             converged)
 
 
 def _quantity(spec: Spec) -> str:

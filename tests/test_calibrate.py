@@ -140,3 +140,62 @@ def test_gap_counts_no_noise_bin_at_its_stated_rate():
         hits += gap(f, A, np.zeros_like(A), {"all": ((0.0, 0.45 * fs),)}).counts["all"] > 0
     assert ALPHA == 0.01
     assert hits <= 8
+
+
+def _toy_fit_data(seed: int = 0):
+    """A calibration fit of known form: 3 parameters, 2 response knots, 1 row of 400 bins."""
+    import jax.numpy as jnp
+
+    from dtwin.identify.calibrate import _Data
+    from dtwin.sensor_response import knot_basis
+
+    rng = np.random.default_rng(seed)
+    n, p = 400, 3
+    freqs = np.linspace(10.0, 2000.0, n)
+    Z0 = rng.normal(size=(1, n)) + 1j * rng.normal(size=(1, n))
+    JZ = 0.3 * (rng.normal(size=(1, n, p)) + 1j * rng.normal(size=(1, n, p)))
+    # a fourth direction the data barely see: a column 1e-4 of the others
+    JZ[..., 2] *= 1e-4
+    B = knot_basis(freqs, [50.0, 1000.0])
+    theta_true = np.array([0.5, -0.3, 0.0])
+    A = 10.0 ** ((B @ np.array([-20.0, -30.0])) / 20.0) * np.abs(Z0[0] + JZ[0] @ theta_true)
+    A = A[None, :] * np.exp(0.02 * rng.normal(size=(1, n)))
+    F = np.full((1, n), 1e-4)
+    return _Data(Z0=jnp.asarray(Z0), JZ=jnp.asarray(JZ), A=jnp.asarray(A), F=jnp.asarray(F),
+                 S=jnp.ones((1, n)), W=jnp.ones((1, n)), B=jnp.asarray(B),
+                 prior_sd=jnp.full(p, 1e3), smooth=1.0, frf_prior=60.0)
+
+
+def test_calibration_fit_stops_when_its_loss_stalls_and_says_when_it_did_not():
+    """The calibration's fits stop when an accepted step no longer lowers the loss
+    (`StallStopping`), at the loss that plain Levenberg–Marquardt reaches with ten times the
+    steps; a fit cut at its step limit says so."""
+    import jax.numpy as jnp
+    import optimistix as optx
+
+    from dtwin.identify.calibrate import _fit, _residuals
+
+    data = _toy_fit_data()
+    theta0 = jnp.zeros(3)
+    theta, steps, converged = _fit(data, theta0, 400, 1e-8)
+    assert converged and steps < 400
+    loss = float(jnp.sum(_residuals(jnp.asarray(theta), data) ** 2))
+    plain = optx.least_squares(_residuals, optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14),
+                               theta0, args=data, max_steps=10 * steps, throw=False)
+    loss_plain = float(jnp.sum(_residuals(plain.value, data) ** 2))
+    assert loss <= loss_plain * (1 + 1e-6), (loss, loss_plain)
+    assert abs(theta[0] - 0.5) < 0.05 and abs(theta[1] + 0.3) < 0.05
+    _, steps, converged = _fit(data, theta0, 2, 1e-8)
+    assert steps == 2 and not converged
+
+
+@needs_independent
+def test_calibration_reports_how_its_fit_stopped(calibrated):
+    import dataclasses
+
+    res, _ = calibrated
+    assert res.fit_converged and 0 < res.fit_steps < 400
+    assert f"final fit: converged in {res.fit_steps} " in res.table()
+    assert res.to_dict()["fit_converged"] is True
+    cut = dataclasses.replace(res, fit_steps=400, fit_converged=False)
+    assert "stopped at the step limit (400 " in cut.table()

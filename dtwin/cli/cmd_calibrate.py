@@ -73,6 +73,8 @@ def calibrate(
                     "written (gap %.1f dB against %.1f dB): the healthy records hold lines the "
                     "calibrated parameters cannot represent; run dtwin discover on them before "
                     "using the calibrated spec", result.gap_heldout.total, result.gap_before.total)
+    if not result.fit_converged:
+        log.warning("calibration's final fit %s", result.fit_status)
     unit = unit_name(recs[0].units[_channel_index(recs[0], ch)])
     opts.emit(report, json_out=json_out, table=lambda: typer.echo(result.table()), out=out,
               force=force, files=_files(result, report, unit), inputs=[spec, *records],
@@ -112,7 +114,8 @@ def _files(result, report, unit: str):
                              round(result.gap_heldout.total, 2),
                          "gap of the calibrated twin, full simulation (dB)":
                              round(result.gap_confirmed.total, 2),
-                         "noise floor rms": result.noise_rms},
+                         "noise floor rms": result.noise_rms,
+                         "final fit": result.fit_status},
                 figures={"Measured vs twin, before and after": "calibration_spectra.png",
                          "Gap per band": "calibration_gap.png"},
                 tables={"Calibrated parameters": rows},

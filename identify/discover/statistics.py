@@ -19,6 +19,7 @@ from dtwin.spectrum import noise_floor
 
 from ..fit import batch_mode
 from ..gap import FLOOR_BINS, levels
+from ..stopping import StallStopping
 
 #: Largest number of parameters of one effect (padded with inert parameters).
 P_MAX = 4
@@ -130,35 +131,17 @@ def _starts(Z0, J, Y, floor, sig, nonneg, active, log_g0):
 
 
 _SOLVER = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8)
-#: Relative loss decrease below which a fold fit stops (:class:`_StallStopping`).
+#: Relative loss decrease below which a fold fit stops (`StallStopping`).
 FOLD_LOSS_RTOL = 1e-6
 
 
-class _StallStopping(optx.LevenbergMarquardt):
-    """Levenberg–Marquardt that also stops when an accepted step (not the first) lowered the
-    loss by less than `loss_rtol` of itself.
-
-    Why: a non-negative parameter is fitted as ``θ = exp(u)``; when the data put its optimum
-    at θ = 0 — the rule rather than the exception in the bootstrap draws under the null —
-    ``u`` walks towards −∞ by ever smaller loss decreases and the Cauchy test on the step in
-    ``u`` never holds: 60 of 60 steps in most draws (measured on a sun-fault record: the loss
-    changed by 0.2 of ~8600 between step 5 and 200). The data's statistic and every draw of
-    its null use the same rule, so the bootstrap stays calibrated; the statistic moves by
-    ~0.1 (its null's 99th percentile is ~18), and a bootstrap costs 0.2–0.8 of what it did
-    (three candidates measured: docs/discovery.md, "When a fold fit stops")."""
-
-    loss_rtol: float = eqx.field(static=True, default=FOLD_LOSS_RTOL)
-
-    def step(self, fn, y, args, options, state, tags):
-        y_new, new, aux = super().step(fn, y, args, options, state, tags)
-        before = jnp.sum(state.f_info.residual ** 2)
-        after = jnp.sum(new.f_info.residual ** 2)
-        accepted = new.num_accepted_steps > state.num_accepted_steps
-        stall = accepted & (state.num_accepted_steps > 0) & (before - after <= self.loss_rtol * after)
-        return y_new, eqx.tree_at(lambda s: s.terminate, new, new.terminate | stall), aux
-
-
-_FOLD_SOLVER = _StallStopping(rtol=1e-6, atol=1e-8)
+# The fold fits stop on a stalled loss (`dtwin.identify.stopping.StallStopping`): a
+# non-negative parameter is fitted as ``θ = exp(u)``; when the data put its optimum at θ = 0 —
+# the rule rather than the exception in the bootstrap draws under the null — ``u`` walks
+# towards −∞ by ever smaller loss decreases and the Cauchy test on the step in ``u`` never
+# holds (60 of 60 steps in most draws). The data's statistic and every draw of its null use
+# the same rule, so the bootstrap stays calibrated (docs/discovery.md, "When a fold fit stops").
+_FOLD_SOLVER = StallStopping(rtol=1e-6, atol=1e-8, loss_rtol=FOLD_LOSS_RTOL)
 
 
 def _solve(fn, y0, args, solver=_SOLVER):
@@ -170,8 +153,8 @@ def _solve(fn, y0, args, solver=_SOLVER):
 
 def fit_fold(Z0, J, Y, floor, fit, sig, nonneg, active, log_g0):
     """Fit one fold from three starts (:func:`_starts`; Levenberg–Marquardt that also stops
-    on a stalled loss, :class:`_StallStopping`): returns ``(params, loss)`` of the best, with
-    params = (u (P), log g)."""
+    on a stalled loss, :class:`~dtwin.identify.stopping.StallStopping`): returns
+    ``(params, loss)`` of the best, with params = (u (P), log g)."""
     y0s = _starts(Z0, J, Y, floor, sig, nonneg, active, log_g0)
     args = (Z0, J, Y, floor, fit, nonneg, active, log_g0)
     vals, losses = jax.vmap(lambda y0: _solve(_residual_fold, y0, args, _FOLD_SOLVER))(y0s)
