@@ -26,6 +26,7 @@ from ..lines import (
     find_combs,
     find_modulation,
     label_combs,
+    modulation_lines,
     residual_lines,
 )
 from .candidates import _adapted, _bins_of, _dilate, coverage, signature_labels
@@ -81,10 +82,12 @@ def _set_score(cr: CandidateResult, scores: dict, i: int, covering: list) -> Non
     cr.score_rank = 1 + [j for _, j, _ in covering].index(i)
 
 
-def _labelled(lines, kin, tol, f_max):
+def _labelled(lines, kin, tol, f_max, added_fx=()):
     """Residual lines with their comb and located-modulation labels
     (:func:`dtwin.identify.lines.find_combs`, :func:`~dtwin.identify.lines.find_modulation`):
-    ``(lines, combs, modulation)``."""
+    ``(lines, combs, modulation)``. `added_fx`: ``(f_x, step)`` of the located modulations
+    already added; a measured line left on their family (the twin's level there falls short) is
+    labelled as theirs rather than "no kinematic match"."""
     combs = find_combs(lines, kin, tol, f_max)
     lines = label_combs(lines, combs)
     mod = find_modulation(lines, kin, tol, f_max)
@@ -93,6 +96,19 @@ def _labelled(lines, kin, tol, f_max):
         lines = [dataclasses.replace(r, comb=lab[r.frequency])
                  if r.side == "measured" and not r.comb and r.frequency in lab else r
                  for r in lines]
+    for f_x, step in added_fx:
+        fam = modulation_lines(kin, f_x, f_max)
+        ff = np.array([f for f, _ in fam])
+
+        def added_label(r, fam=fam, ff=ff, f_x=f_x, step=step):
+            i = int(np.argmin(np.abs(ff - r.frequency)))
+            if abs(ff[i] - r.frequency) > tol:
+                return r
+            return dataclasses.replace(
+                r, comb=f"{fam[i][1]} (fx = {f_x:.2f} Hz, the fluctuation added in step {step})")
+
+        lines = [added_label(r) if r.side == "measured" and not r.descriptions and not r.comb
+                 else r for r in lines]
     return lines, combs, mod
 
 
@@ -212,6 +228,7 @@ def discover(
     n_bins = 0
     models, residual_sets = [], []
     added: set[str] = set()
+    added_fx: list[tuple[float, int]] = []  # (f_x, step) of the located modulations added
     stop = "budget"
     last_cands: list[CandidateResult] = []
     initial_gap = None
@@ -229,7 +246,7 @@ def discover(
         lines = residual_lines(freqs_full, np.asarray(a_full), m_full, kin,
                                threshold_db=settings.threshold_db, excess_db=settings.excess_db,
                                tolerance_bins=settings.tolerance_bins, f_max=f_max)
-        lines, combs, modulation = _labelled(lines, kin, tol_full, f_max)
+        lines, combs, modulation = _labelled(lines, kin, tol_full, f_max, added_fx)
         residual_sets.append(lines)
         if step_no > settings.max_steps:
             break
@@ -421,6 +438,8 @@ def discover(
                           signature_labels(e_best, kin, best.matched, tol_full, f_max),
                           getattr(e_best, "summary", e_best.description)))
         added.add(best.name)
+        if getattr(e_best, "f_x", None) is not None:
+            added_fx.append((float(e_best.f_x), step_no))
         say(f"  added {best.name} (named {named}); gap {gap_now.total:.2f} → {gap_lin:.2f} dB "
             f"(confirmed {gap_conf.total:.2f})")
     final_lines = residual_sets[-1]
