@@ -474,13 +474,12 @@ def _residuals_and_jacobian(theta, data: _Data):
     return _residuals(theta, data), jax.jacfwd(_residuals)(theta, data)
 
 
-@eqx.filter_jit
 def _column_scales(data: _Data, theta0) -> jax.Array:
     """1 / (norm of each data column of the residual Jacobian at `theta0`): the LM iterates on
     ``u = θ / scale``, in which every column has unit norm (the window's c_3 moves the planet
     pass line ~10⁴ times more per unit than an excitation coefficient moves a mesh line)."""
     P = theta0.shape[0]
-    Jr = jax.jacfwd(_residuals)(theta0, data)[:-P]
+    Jr = _residuals_and_jacobian(theta0, data)[1][:-P]
     norms = jnp.sqrt(jnp.sum(Jr**2, axis=0))
     return 1.0 / jnp.maximum(norms, 1e-9 * jnp.max(norms))
 

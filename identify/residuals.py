@@ -552,7 +552,7 @@ def levels_from_residuals(r, obs: Observation):
     """:func:`fitted_levels` read back from `obs`'s residual vector `r` (numpy, as
     :func:`observation_residuals` made it): its first entries are ``weight (log fitted − log
     measured)`` at the points. None when `r` cannot give them (wrong length, a zero weight, a
-    point whose model value was not finite and was replaced by `failed`)."""
+    point whose model value was not finite and was replaced by :data:`FAILED_RESIDUAL`)."""
     meas = np.asarray(obs.meas, dtype=np.float64)
     r = np.asarray(r, dtype=np.float64)
     if r.shape[0] != residual_count(obs) or not obs.weight > 0.0:

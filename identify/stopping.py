@@ -29,7 +29,7 @@ class StallStopping(optx.LevenbergMarquardt):
     with ``RESULTS.max_steps_reached``.
     """
 
-    loss_rtol: float = eqx.field(static=True, default=1e-6)
+    loss_rtol: float = eqx.field(static=True)
 
     def __init__(self, rtol: float, atol: float, loss_rtol: float = 1e-6):
         super().__init__(rtol=rtol, atol=atol)
