@@ -42,6 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from dtwin import _heap
 from dtwin.build import build_twin
 from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
 from dtwin.parts.drive import DrivePart
@@ -782,6 +783,7 @@ def fit(
         say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
     else:
         say("one start: refining it (its loss is the first of the history)")
+    _heap.before_first_fit()
     th, ok, steps, fl, rs, Js, hist, n_hist = _refine(chosen, problem, solver, tol, tol, jac,
                                                       max_steps, sigma_tol, mode)
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
@@ -900,6 +902,7 @@ def fit_batch(
     stacked = stack_problems(problems)
     p = problems[0].pset.size
     thetas = jnp.zeros((len(problems), p))
+    _heap.before_first_fit()
     th, ok, steps, fl, rs, Js, hist, n_hist = _refine_records(thetas, stacked, solver, tol, tol, jac,
                                                 max_steps, sigma_tol, batch_mode(batch))
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))

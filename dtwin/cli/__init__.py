@@ -97,6 +97,10 @@ def main(argv: list[str] | None = None) -> None:
 
     global _CONSOLE_SCRIPT
     _CONSOLE_SCRIPT = argv is None
+    if _CONSOLE_SCRIPT:  # one command, then the process ends: its caches need not outlive a fit
+        from .. import _heap
+
+        _heap.one_shot_process()
     setup_logging()
     _load_commands()
 
