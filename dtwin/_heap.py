@@ -4,8 +4,8 @@ Compiling one of dtwin's fits (an ODE solve and its tangents, `jax.jit` through 
 allocates some 500 MB of small, short-lived objects on the C heap. glibc's ``malloc`` keeps
 the freed pages inside the process, so after the compilation the process stays that much
 larger and every later allocation (the run of the compiled program, the next compilation)
-stacks on top of it. ``malloc_trim(0)`` (glibc ≥ 2.8; since 2.9 it also releases free pages
-in the middle of the heap with ``madvise``) hands them back.
+stacks on top of it. ``malloc_trim(0)`` hands them back (since glibc 2.8 every whole free
+page of every arena, not only the top of the heap: ``malloc_trim(3)``).
 
 :func:`install` registers a `jax.monitoring` listener that trims after every compilation that
 took longer than :data:`MIN_COMPILE_S` (the small programs of eager operations are left
@@ -20,7 +20,8 @@ compilation (:func:`before_first_fit`). Each program XLA compiled and JAX keeps 
 program of its own): ~70 MB that the fit's compilation would otherwise stack on. A notebook or a
 script keeps its caches: there they save recompiling.
 
-Reference: the GNU C Library manual, "Memory Allocation Tunables" and ``malloc_trim(3)``.
+Reference: the Linux man-pages project, ``malloc_trim(3)``; the GNU C Library manual, "Memory
+Allocation Tunables".
 """
 
 from __future__ import annotations
