@@ -1,4 +1,4 @@
-"""Process-wide JAX configuration: float64, a persistent compilation cache, a heap trim.
+"""Process-wide JAX configuration: float64 and a persistent compilation cache.
 
 Imported first by :mod:`dtwin`. float64 is required (docs/references.md §6: in float32 the adaptive
 solver stalls on kHz mesh forcing). The compilation cache lives inside the project's virtual
@@ -21,9 +21,6 @@ full test runs with it, XLA aborted the process while serializing a fit for the 
 killed test processes without it too (an abort and a segmentation fault inside
 ``backend_compile_and_load``), so the setting may not be the cause; it stays opt-in until that
 is known.
-
-After every compilation longer than half a second the C heap's free pages go back to the
-operating system (:mod:`dtwin._heap`; ``DTWIN_MALLOC_TRIM=off`` leaves them in the process).
 """
 
 from __future__ import annotations
@@ -32,8 +29,6 @@ import os
 import sys
 
 import jax
-
-from . import _heap
 
 jax.config.update("jax_enable_x64", True)
 
@@ -60,7 +55,3 @@ if _dir is not None:
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     except (OSError, AttributeError):  # read-only prefix or an older jax: run without a cache
         pass
-
-
-if _heap.enabled():
-    _heap.install()

@@ -9,16 +9,18 @@ page of every arena, not only the top of the heap: ``malloc_trim(3)``).
 
 :func:`install` registers a `jax.monitoring` listener that trims after every compilation that
 took longer than :data:`MIN_COMPILE_S` (the small programs of eager operations are left
-alone: a trim walks the heap). :mod:`dtwin._config` installs it when dtwin is imported,
-unless ``DTWIN_MALLOC_TRIM=off`` (or ``0``, ``none``, ``false``, ``no``). Where the C library
-has no ``malloc_trim`` (macOS, Windows, musl) :func:`release` does nothing.
+alone). The ``dtwin`` console script, a process that runs one command and exits, declares
+itself with :func:`one_shot_process`, which installs it unless ``DTWIN_MALLOC_TRIM=off`` (or
+``0``, ``none``, ``false``, ``no``). A library user's process (a notebook, a script, the tests)
+is left alone: there the heap that a trim gives back is soon needed again by the next
+compilation, and growing it anew costs time (a few per cent of a calibration or a discovery;
+benchmarks/README.md, "Big records"). Where the C library has no ``malloc_trim`` (macOS, Windows, musl)
+:func:`release` does nothing.
 
-A process that runs one command and exits (the ``dtwin`` console script declares itself with
-:func:`one_shot_process`) also drops JAX's in-memory caches once, before its first fit's
+A one-shot process also drops JAX's in-memory caches once, before its first fit's
 compilation (:func:`before_first_fit`). Each program XLA compiled and JAX keeps holds
 ~1.5 MB of heap, and building a twin runs some fifty single operations eagerly (each a compiled
-program of its own): ~70 MB that the fit's compilation would otherwise stack on. A notebook or a
-script keeps its caches: there they save recompiling.
+program of its own): ~70 MB that the fit's compilation would otherwise stack on.
 
 Reference: the Linux man-pages project, ``malloc_trim(3)``; the GNU C Library manual, "Memory
 Allocation Tunables".
@@ -94,9 +96,12 @@ def install() -> bool:
 
 def one_shot_process() -> None:
     """Declare that this process runs one command and exits (the ``dtwin`` console script):
-    :func:`before_first_fit` then drops JAX's caches."""
+    the heap is trimmed after long compilations (:func:`install`, unless
+    ``DTWIN_MALLOC_TRIM=off``) and :func:`before_first_fit` drops JAX's caches."""
     global _one_shot
     _one_shot = True
+    if enabled():
+        install()
 
 
 def before_first_fit() -> bool:

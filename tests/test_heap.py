@@ -47,10 +47,22 @@ def test_release_returns_freed_heap_pages_from_the_middle_of_the_heap():
 
 
 @linux_glibc
-def test_install_registers_the_listener_once_and_import_installed_it():
-    assert _heap.enabled()  # the test environment leaves DTWIN_MALLOC_TRIM unset
-    assert _heap._installed  # dtwin's import installed it
-    assert _heap.install() and _heap.install()
+def test_a_one_shot_process_installs_the_listener_once(monkeypatch):
+    """The console script's process trims after long compilations; a library user's process
+    (this one) does not, until it declares itself one-shot."""
+    registered = []
+    monkeypatch.setattr(jax.monitoring, "register_event_duration_secs_listener",
+                        registered.append)
+    monkeypatch.setattr(_heap, "_installed", False)
+    monkeypatch.setattr(_heap, "_one_shot", False)
+    monkeypatch.delenv("DTWIN_MALLOC_TRIM", raising=False)
+    _heap.one_shot_process()
+    _heap.one_shot_process()
+    assert registered == [_heap._after_compile]
+    monkeypatch.setattr(_heap, "_installed", False)
+    monkeypatch.setenv("DTWIN_MALLOC_TRIM", "off")
+    _heap.one_shot_process()  # switched off: nothing more registered
+    assert registered == [_heap._after_compile]
 
 
 def test_trim_switch_reads_the_environment(monkeypatch):
@@ -64,6 +76,7 @@ def test_trim_switch_reads_the_environment(monkeypatch):
 def test_caches_are_dropped_only_in_a_one_shot_process_and_only_once(monkeypatch):
     monkeypatch.setattr(_heap, "_one_shot", False)
     monkeypatch.setattr(_heap, "_cleared", False)
+    monkeypatch.setattr(_heap, "install", lambda: True)  # no listener left in this process
     f = jax.jit(lambda x: jnp.sin(x) + 1.0)
     f(jnp.ones(3)).block_until_ready()
     assert f._cache_size() == 1
