@@ -33,9 +33,13 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 
+#: Values of a ``DTWIN_…`` switch (any case) that turn it off.
+OFF_VALUES = ("off", "0", "none", "false", "no")
+
+
 def _cache_dir() -> str | None:
     env = os.environ.get("DTWIN_JAX_CACHE")
-    if env is not None and env.lower() in ("", "off", "0", "none", "false", "no"):
+    if env is not None and env.lower() in ("", *OFF_VALUES):
         return None
     if env is not None and env.lower() not in ("on", "1", "true", "yes"):
         return env

@@ -75,8 +75,9 @@ def _after_compile(event: str, duration: float, **_) -> None:
 
 def enabled() -> bool:
     """Whether the environment leaves the trim on (``DTWIN_MALLOC_TRIM``, default on)."""
-    value = os.environ.get("DTWIN_MALLOC_TRIM", "on").strip().lower()
-    return value not in ("off", "0", "none", "false", "no")
+    from ._config import OFF_VALUES
+
+    return os.environ.get("DTWIN_MALLOC_TRIM", "on").strip().lower() not in OFF_VALUES
 
 
 def install() -> bool:

@@ -96,19 +96,18 @@ def _labelled(lines, kin, tol, f_max, added_fx=()):
         lines = [dataclasses.replace(r, comb=lab[r.frequency])
                  if r.side == "measured" and not r.comb and r.frequency in lab else r
                  for r in lines]
+    lines = list(lines)
     for f_x, step in added_fx:
         fam = modulation_lines(kin, f_x, f_max)
         ff = np.array([f for f, _ in fam])
-
-        def added_label(r, fam=fam, ff=ff, f_x=f_x, step=step):
+        for j, r in enumerate(lines):
+            if r.side != "measured" or r.descriptions or r.comb:
+                continue
             i = int(np.argmin(np.abs(ff - r.frequency)))
-            if abs(ff[i] - r.frequency) > tol:
-                return r
-            return dataclasses.replace(
-                r, comb=f"{fam[i][1]} (fx = {f_x:.2f} Hz, the fluctuation added in step {step})")
-
-        lines = [added_label(r) if r.side == "measured" and not r.descriptions and not r.comb
-                 else r for r in lines]
+            if abs(ff[i] - r.frequency) <= tol:
+                lines[j] = dataclasses.replace(
+                    r, comb=f"{fam[i][1]} (fx = {f_x:.2f} Hz, the fluctuation added in step "
+                            f"{step})")
     return lines, combs, mod
 
 
