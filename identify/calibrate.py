@@ -45,9 +45,18 @@ reported without any refit.
 
 **Intervals.** Gauss–Newton at the optimum, with the residual variance estimated from the
 residuals themselves (so lack of fit widens every interval). A parameter is *determined* when
-the data shrink its prior standard deviation by at least half; a knot of the response is
-determined when a measured line lies within its support and its standard deviation is below
-3 dB.
+the data shrink its prior standard deviation by at least half; *determined jointly* with others
+when they do so only with the others held (its conditional standard deviation, ``1/sqrt`` of
+its diagonal of the information, below half the prior's, its marginal one not), and the report
+names those it trades with, by posterior correlation (a transmission-error harmonic's cosine
+and sine: an amplitude spectrum fixes their amplitude, not their phase); *not determined*
+otherwise. A knot of the response is determined when a measured line lies within its support
+and its standard deviation is below 3 dB.
+
+**The fits.** Levenberg–Marquardt in coordinates where every Jacobian column has unit norm,
+run in short runs (`CalibrationSettings.run_steps`), each started where the last one ended
+with column scales taken there, until a run no longer lowers the loss: one long run from
+θ = 0 can crawl on a shallow slope far above the minimum.
 
 References: Golub & Pereyra (1973), "The differentiation of pseudo-inverses and nonlinear least
 squares problems whose variables separate", SIAM J. Numer. Anal. 10(2); McFadden & Smith
@@ -83,7 +92,7 @@ from dtwin.spec import Spec, load_spec, spec_to_dict
 from dtwin.spec_writer import spec_to_toml
 from dtwin.spectrum import noise_floor
 
-from .gap import FLOOR_BINS, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
+from .gap import FLOOR_BINS, PASSBAND, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
 from .lines import Kinematics, estimate_speed
 from .stopping import StallStopping
 
@@ -91,10 +100,6 @@ __all__ = ["CalibratedParameter", "CalibrationResult", "CalibrationSettings", "c
            "heldout_gap"]
 
 _DB = 20.0 / math.log(10.0)
-#: Top of the band calibrated and scored, as a fraction of the sampling rate: the usable band
-#: of a DAQ (its anti-aliasing filter's pass band ends at ~0.4–0.45 fs); lines above it are
-#: aliases or filter-shaped and no twin of the gearbox can be held to them.
-PASSBAND = 0.45
 #: Unit (m) of the transmission-error coordinates in θ.
 _TE_UNIT = 1e-8
 
@@ -114,11 +119,19 @@ class CalibrationSettings:
       linearised in it).
     - `smooth_db`: prior standard deviation (dB) of the response's second difference per knot.
     - `frf_prior_db`: prior standard deviation (dB) of a knot about the mean level.
-    - `max_steps`: Levenberg–Marquardt steps per fit at most; a fit stops earlier when an
-      accepted step lowers its loss by less than `loss_rtol` of itself
-      (:class:`dtwin.identify.stopping.StallStopping`): the window and excitation terms the
-      records do not determine otherwise keep moving by ever smaller decreases of the loss.
-    - `solver`: `dtwin.simulate.SolverOptions` of the simulations.
+    - `max_steps`: Levenberg–Marquardt steps per fit at most, all its runs together.
+    - `run_steps`, `restart_rtol`: a fit is a sequence of Levenberg–Marquardt runs of at most
+      `run_steps` steps, each from where the last one ended with fresh column scales and trust
+      region (a run from θ = 0 can crawl on a shallow slope), until a run lowers the loss by
+      no more than `restart_rtol` of itself.
+    - `loss_rtol`: a run stops earlier when an accepted step lowers its loss by less than
+      `loss_rtol` of itself (:class:`dtwin.identify.stopping.StallStopping`): the window and
+      excitation terms the records do not determine otherwise keep moving by ever smaller
+      decreases of the loss.
+    - `solver`: `dtwin.simulate.SolverOptions` of the simulations. None: the linearised
+      response is one hunting period after a settling time, tiled
+      (``SolverOptions(periodic="auto")``, which integrates the whole record when the twin is
+      not periodic at constant speed), and the confirmation integrates the whole record.
     """
 
     window_terms: int = 7
@@ -132,6 +145,8 @@ class CalibrationSettings:
     frf_prior_db: float = 60.0
     max_steps: int = 400
     loss_rtol: float = 1e-8
+    run_steps: int = 50
+    restart_rtol: float = 1e-5
     solver: SolverOptions | None = None
 
     def __post_init__(self):
@@ -145,6 +160,10 @@ class CalibrationSettings:
                 raise SpecError([(name, f"must be a positive number, got {v!r}")])
         if not (math.isfinite(self.loss_rtol) and self.loss_rtol >= 0):
             raise SpecError([("loss_rtol", f"must be a number >= 0, got {self.loss_rtol!r}")])
+        if self.run_steps < 1 or not (math.isfinite(self.restart_rtol) and self.restart_rtol >= 0):
+            raise SpecError([("run_steps/restart_rtol", "run_steps must be >= 1 and "
+                              f"restart_rtol a number >= 0, got {self.run_steps!r}, "
+                              f"{self.restart_rtol!r}")])
         if self.discard < 0 or self.max_steps < 1:
             raise SpecError([("discard/max_steps", "discard must be >= 0 s and max_steps >= 1")])
 
@@ -161,9 +180,26 @@ class CalibratedParameter:
     prior_sd: float
     determined: bool
     note: str = ""
+    #: when not `determined` alone but the data determine it with the others held (its
+    #: conditional standard deviation below half the prior's): the parameters it trades with,
+    #: as ``(name, correlation)``, the strongest first
+    joint_with: tuple[tuple[str, float], ...] = ()
+
+    @property
+    def status(self) -> str:
+        """``determined``, ``determined jointly with …`` or ``not determined``."""
+        if self.determined:
+            return "determined"
+        if self.joint_with:
+            return "determined jointly with " + ", ".join(
+                f"{n} (correlation {r:+.2f})" for n, r in self.joint_with)
+        return "not determined"
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        d = dataclasses.asdict(self)
+        d["joint_with"] = [[n, r] for n, r in self.joint_with]
+        d["status"] = self.status
+        return d
 
 
 @dataclasses.dataclass
@@ -210,7 +246,13 @@ class CalibrationResult:
 
     @property
     def not_determined(self) -> list[str]:
-        return [p.name for p in self.parameters if not p.determined]
+        """Parameters the records determine neither alone nor jointly with the others."""
+        return [p.name for p in self.parameters if not (p.determined or p.joint_with)]
+
+    @property
+    def jointly_determined(self) -> list[str]:
+        """Parameters the records determine only jointly with others (their `joint_with`)."""
+        return [p.name for p in self.parameters if not p.determined and p.joint_with]
 
     def spec(self) -> Spec:
         """The calibrated spec, validated."""
@@ -230,7 +272,7 @@ class CalibrationResult:
                 f"final fit: {self.fit_status}",
                 f"{'parameter':<24} {'value':>12} {'sd':>10} {'unit':<6} status"]
         for p in self.parameters:
-            status = "determined" if p.determined else "not determined"
+            status = p.status
             if p.note:
                 status += f" ({p.note})"
             rows.append(f"{p.name:<24} {p.value:>12.4g} {p.sd:>10.2g} {p.unit:<6} {status}")
@@ -251,7 +293,8 @@ class CalibrationResult:
             gap_before=self.gap_before.to_dict(), gap_heldout=self.gap_heldout.to_dict(),
             gap_confirmed=self.gap_confirmed.to_dict(),
             parameters=[p.to_dict() for p in self.parameters],
-            not_determined=self.not_determined, improves=self.improves,
+            not_determined=self.not_determined, jointly_determined=self.jointly_determined,
+            improves=self.improves,
         )
 
 
@@ -375,7 +418,7 @@ def _apply(twin, theta, layout: _Layout, i_path: int, i_exc: int):
 def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings):
     """The signal at θ = 0 and its Jacobian (n, P) by forward mode through the solve."""
     fs = float(daq.sample_rate)
-    solver = settings.solver or SolverOptions()
+    solver = settings.solver or SolverOptions(periodic="auto")
 
     def sig(theta):
         tw = _apply(twin, theta, layout, i_path, i_exc)
@@ -489,16 +532,42 @@ def _scaled_residuals(u, args):
     return _residuals(u * scale, data)
 
 
-def _fit(data: _Data, theta0, max_steps: int, loss_rtol: float):
-    """θ at the fit's end, its step count and whether it stopped before `max_steps`."""
-    scale = _column_scales(data, theta0)
+@eqx.filter_jit
+def _loss(theta, data: _Data):
+    return 0.5 * jnp.sum(_residuals(theta, data) ** 2)
+
+
+def _fit(data: _Data, theta0, max_steps: int, loss_rtol: float, run_steps: int,
+         restart_rtol: float):
+    """θ at the fit's end, its Levenberg–Marquardt steps (all runs) and whether it stopped
+    before `max_steps` with its loss settled.
+
+    A Levenberg–Marquardt run from θ0 can settle on a shallow slope, its trust region small
+    and its column scales those of θ0, and crawl (the loss falling by ~1e-4 of itself per step
+    for hundreds of steps) well above the minimum. The fit is therefore a sequence of runs of
+    at most `run_steps` steps, each from where the last one ended with column scales taken
+    there and a fresh trust region, until a run lowers the loss by no more than
+    `restart_rtol` of itself (converged) or the runs' steps reach `max_steps` (not).
+    """
     solver = StallStopping(rtol=1e-8, atol=1e-10, loss_rtol=loss_rtol)
-    # a module-level function with the scales among the arguments: fits of equal shapes (the
-    # two halves) share one compilation
-    sol = optx.least_squares(_scaled_residuals, solver, theta0 / scale, args=(data, scale),
-                             max_steps=max_steps, throw=False)
-    converged = bool(sol.result == optx.RESULTS.successful)
-    return np.asarray(sol.value * scale), int(sol.stats["num_steps"]), converged
+    theta = jnp.asarray(theta0)
+    loss = float(_loss(theta, data))
+    steps = 0
+    while steps < max_steps:
+        scale = _column_scales(data, theta)
+        # a module-level function with the scales among the arguments: fits of equal shapes
+        # (the two halves, every run) share one compilation
+        sol = optx.least_squares(_scaled_residuals, solver, theta / scale, args=(data, scale),
+                                 max_steps=min(run_steps, max_steps - steps), throw=False)
+        steps += int(sol.stats["num_steps"])
+        new = sol.value * scale
+        new_loss = float(_loss(new, data))
+        if not new_loss < loss:  # LM accepts only steps that lower the loss: nothing moved
+            return np.asarray(theta), steps, True
+        theta, drop, loss = new, loss - new_loss, new_loss
+        if drop <= restart_rtol * (loss + drop):
+            return np.asarray(theta), steps, True
+    return np.asarray(theta), steps, False
 
 
 # ------------------------------------------------------------------------------------ the driver
@@ -626,7 +695,7 @@ def calibrate(
         other = 1 - h
         tr = half_idx == h
         theta_h, _, _ = _fit(data_for(rec_idx[tr], half_idx[tr]), theta0, settings.max_steps,
-                             settings.loss_rtol)
+                             settings.loss_rtol, settings.run_steps, settings.restart_rtol)
         rows = np.flatnonzero(half_idx == other)
         a_held[rows] = amp_at(theta_h, h, other)
         a_before[rows] = before_amp(h, other)
@@ -636,7 +705,8 @@ def calibrate(
 
     say("final fit on all data")
     d_all = data_for(rec_idx, half_idx)
-    theta, nsteps, converged = _fit(d_all, theta0, settings.max_steps, settings.loss_rtol)
+    theta, nsteps, converged = _fit(d_all, theta0, settings.max_steps, settings.loss_rtol,
+                                    settings.run_steps, settings.restart_rtol)
     _, G = _model_amp(jnp.asarray(theta), d_all)
     G = np.asarray(G)
     params = _intervals(theta, G, d_all, layout, knots, Wl, B, twin, i_exc, settings)
@@ -680,29 +750,35 @@ def _intervals(theta, G, data: _Data, layout: _Layout, knots, Wl, B, twin, i_exc
     cov = np.linalg.pinv(info)
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     prior = np.asarray(data.prior_sd)
+    names = ([f"window_c{k + 1}" for k in range(layout.n_window)]
+             + [f"excitation_ring_{cs}_{i + 1}" for cs in ("cos", "sin")
+                for i in range(layout.n_harm)] + ["zeta_mesh"])
+    joint = _joint(cov, info, prior, names)
     out = []
     c = np.asarray(layout.c_init)
     for k in range(layout.n_window):
         val = c[k + 1] + layout.window_scale * theta[k]
         out.append(CalibratedParameter(
-            f"window_c{k + 1}", float(val), "1", float(layout.window_scale * sd[k]),
-            float(layout.window_scale * prior[k]), bool(sd[k] < 0.5 * prior[k])))
+            names[k], float(val), "1", float(layout.window_scale * sd[k]),
+            float(layout.window_scale * prior[k]), bool(sd[k] < 0.5 * prior[k]),
+            joint_with=joint[k]))
     exc = twin.parts[i_exc]
     h = layout.n_harm
-    for j, (cs, base) in enumerate((("cos", exc.ring_cos), ("sin", exc.ring_sin))):
+    for j, base in enumerate((exc.ring_cos, exc.ring_sin)):
         for i in range(h):
             k = layout.n_window + j * h + i
             val = float(base[i]) + layout.te_scale * theta[k]
             out.append(CalibratedParameter(
-                f"excitation_ring_{cs}_{i + 1}", val, "m", float(layout.te_scale * sd[k]),
+                names[k], val, "m", float(layout.te_scale * sd[k]),
                 float(layout.te_scale * prior[k]), bool(sd[k] < 0.5 * prior[k]),
-                "with the response at this harmonic: one sensor sees their product"))
+                "with the response at this harmonic: one sensor sees their product",
+                joint[k]))
     k = layout.i_zeta
     z0 = float(twin.lp.zeta_ring_planet)
     out.append(CalibratedParameter("zeta_mesh", z0 * math.exp(theta[k]), "1",
                                    z0 * math.exp(theta[k]) * float(sd[k]),
                                    z0 * float(prior[k]), bool(sd[k] < 0.5 * prior[k]),
-                                   "sd of the log value times the value"))
+                                   "sd of the log value times the value", joint[k]))
     # response knots: covariance of the closed-form solve at the optimum
     W = np.asarray(data.W)
     BtWB = np.einsum("rb,bi,bj->ij", W, B, B)
@@ -719,6 +795,24 @@ def _intervals(theta, G, data: _Data, layout: _Layout, knots, Wl, B, twin, i_exc
             f"frf_db_{j}", float(G[j]), "dB", sdj, settings.frf_prior_db,
             bool(support[j] and sdj < 3.0), f"response at {f:.4g} Hz"
             + ("" if support[j] else "; no measured line near this knot")))
+    return out
+
+
+def _joint(cov, info, prior, names, n_max: int = 3) -> list[tuple[tuple[str, float], ...]]:
+    """For each parameter the data do not determine alone (marginal sd ≥ half the prior's) but
+    do with the others held (conditional sd ``1/sqrt(info_kk)`` below half the prior's): the
+    `n_max` parameters most correlated with it in the posterior, with their correlations.
+    Empty for the others."""
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    cond = 1.0 / np.sqrt(np.clip(np.diag(info), 1e-300, None))
+    corr = cov / np.maximum(np.outer(sd, sd), 1e-300)
+    out = []
+    for k in range(len(names)):
+        if sd[k] < 0.5 * prior[k] or not cond[k] < 0.5 * prior[k]:
+            out.append(())
+            continue
+        others = [j for j in np.argsort(-np.abs(corr[k])) if j != k][:n_max]
+        out.append(tuple((names[j], round(float(corr[k, j]), 2)) for j in others))
     return out
 
 

@@ -214,7 +214,8 @@ def step_calibration(folder: OutputFolder, quick: bool = False):
         "",
         f"Speed from the record: {res.f_sun:.3f} Hz. Determined by the record: "
         f"{', '.join(determined) or 'none'}; not determined (left at their priors): "
-        f"{', '.join(res.not_determined) or 'none'}. Final fit: {res.fit_status}.",
+        f"{', '.join(res.not_determined) or 'none'}; determined only jointly with others: "
+        f"{', '.join(res.jointly_determined) or 'none'}. Final fit: {res.fit_status}.",
         "",
         "Lines the calibrated twin still misses are what `dtwin discover` examines next: a "
         "gap that stays high after calibration says the healthy machine holds an effect the "

@@ -94,7 +94,7 @@ def _files(result, report, unit: str):
         from ..io.html_report import HTMLReport
 
         rows = [{"parameter": p.name, "value": f"{p.value:.5g}", "sd": f"{p.sd:.2g}",
-                 "unit": p.unit, "status": "determined" if p.determined else "not determined",
+                 "unit": p.unit, "status": p.status,
                  "note": p.note} for p in result.parameters]
         return {
             "calibrated.toml": spec_to_toml(result.spec_data),
@@ -120,7 +120,9 @@ def _files(result, report, unit: str):
                          "Gap per band": "calibration_gap.png"},
                 tables={"Calibrated parameters": rows},
                 notes=[f"{n}: not determined by these records"
-                       for n in result.not_determined]),
+                       for n in result.not_determined]
+                + [f"{p.name}: {p.status}" for p in result.parameters
+                   if p.name in result.jointly_determined]),
         }
 
     return files
