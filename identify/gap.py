@@ -22,6 +22,12 @@ is cut into two halves, parameters fitted on one half are scored on the other an
 the reported gap pools the squared differences of both folds. Adding parameters cannot shrink
 this by fitting the noise of the scored half.
 
+**The band.** The gap is taken over ``0 … PASSBAND × the sampling rate`` (0.45 fs): the
+usable band of a DAQ, whose anti-aliasing filter's pass band ends at ~0.4–0.45 fs. Above it a
+record holds aliases and filter-shaped lines (an independent simulator's 5 f_m = 2501.5 Hz,
+above the 2500 Hz Nyquist frequency of a 5 kHz record, appears at 2498.5 Hz) that no twin of the
+gearbox can be held to: calibration and discovery score the same band.
+
 **Named bands** (:func:`named_bands`): ``low`` (0 … fm − 10 fc), ``mesh<m>`` (m fm ± 10 fc for
 every mesh harmonic below Nyquist), ``between`` (the rest above the first mesh band), ``all``.
 """
@@ -37,9 +43,11 @@ import numpy as np
 
 from dtwin.spectrum import noise_floor
 
-__all__ = ["ALPHA", "GapResult", "THRESHOLD_DB", "family_threshold_db", "fold_segments", "gap", "named_bands", "levels",
+__all__ = ["ALPHA", "PASSBAND", "GapResult", "THRESHOLD_DB", "family_threshold_db", "fold_segments", "gap", "named_bands", "levels",
            "segment_spectra", "gap_terms"]
 
+#: Top of the band the gap is taken over, as a fraction of the sampling rate (module docs).
+PASSBAND = 0.45
 #: Height over the measured noise floor (dB) that puts a bin into the gap's bin set.
 THRESHOLD_DB = 12.0
 #: Family-wise probability that noise alone puts a bin into the gap's set (:func:`gap`'s default).

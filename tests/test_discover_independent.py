@@ -132,23 +132,17 @@ def _check_gap(res, name):
 #: records whose gap target (≤ 3 dB after or ≥ 70 % closed) is not met, with the measured
 #: values (docs/discovery.md, "Independent records"): the target stays as a strict xfail
 GAP_NOT_MET = {
-    "load-fluct": "12.49 → 6.88 dB (45 % closed): the sidebands m fm ± fx now match (mesh bands "
-                  "2–4: 6.8/7.9/7.5 → 3.9/1.4/1.2 dB, load torque and rotor speed fluctuation "
-                  "fitted together), but the 2.1 Hz line itself (41 dB over the floor) stays 21 dB "
-                  "under: a force at 2.1 Hz reaches the twin's sensor only through the planet-pass "
-                  "path's high-pass, whose corner no healthy record determines; the 5fm alias "
-                  "(2498.5 Hz, in baseline-2 too) stays 14–19 dB over the twin",
-    "planet-fault": "18.46 → 11.99 dB (35 % closed): the comb k fp (28–33 dB over the twin, "
-                    "k = 1 … 16) stays: in the record it stands 0–29 dB above k fp ± fc, in the "
-                    "twin ≥ 48 dB under, because the planets' summed mesh force is the load's "
-                    "reaction (test_dynamics.py::test_planet_fault_low_comb_lies_beside_k_fp_not_"
-                    "on_it); the fault on the ring flank closes no more (12.45 dB)",
-    "spacing": "6.69 → 5.45 dB (19 % closed): carrier_sidebands named (load sharing and planet "
-               "position errors tie), 4fm ± fc stay 16 dB over the twin",
-    "sun-fault-0.15": "14.36 → 4.96 dB (65 % closed): sun_local_fault named; fs/3 − 2fc "
-                      "(11.5 Hz) and fsr stay 14–18 dB over the twin",
-    "sun-ecc": "22.03 → 7.79 dB (65 % closed): sun_eccentricity named, fitted 0.13 µm for 0.3 µm; "
-               "fs/3 − 2fc (11.5 Hz) stays 18 dB over the twin",
+    "load-fluct": "12.35 → 4.65 dB (62 % closed): the sidebands m fm ± fx match (load torque and "
+                  "rotor speed fluctuation fitted together), but the 2.1 Hz line itself (41 dB "
+                  "over the floor) stays 14 dB over the twin: a force at 2.1 Hz reaches the "
+                  "twin's sensor only through the planet-pass path's high-pass, whose corner no "
+                  "healthy record determines",
+    "planet-fault": "18.46 → 12.61 dB (32 % closed): the comb k fp stays: in the record it stands "
+                    "0–29 dB above k fp ± fc, in the twin ≥ 48 dB under, because the planets' "
+                    "summed mesh force is the load's reaction (test_dynamics.py::"
+                    "test_planet_fault_low_comb_lies_beside_k_fp_not_on_it)",
+    "spacing": "5.83 → 4.32 dB (26 % closed): carrier_sidebands named, 4fm ± fc stay ~16 dB over "
+               "the twin",
 }
 
 
