@@ -29,7 +29,8 @@ above the 2500 Hz Nyquist frequency of a 5 kHz record, appears at 2498.5 Hz) tha
 gearbox can be held to: calibration and discovery score the same band.
 
 **Named bands** (:func:`named_bands`): ``low`` (0 … fm − 10 fc), ``mesh<m>`` (m fm ± 10 fc for
-every mesh harmonic below Nyquist), ``between`` (the rest above the first mesh band), ``all``.
+every mesh harmonic whose band starts below the top of the band), ``between`` (the rest above
+the first mesh band), ``all``.
 """
 
 from __future__ import annotations
