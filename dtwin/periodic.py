@@ -26,8 +26,9 @@ period, and :func:`tiled_times` also sorts it and gives the permutation back int
 
 :func:`hunting_cycles` knows which parts keep the response periodic; a part it does not know,
 a drive other than a constant ideal speed source (a motor's slip makes the speed differ from
-the set point) or a time-varying load (unless its fluctuation's amplitude is a concrete zero)
-make the twin not periodic (None, with the reason from
+the set point), a time-varying load (unless its fluctuation's amplitude is a concrete zero) or
+a mount path's line (:class:`dtwin.parts.mount_path.MountPath`, unless both its amplitudes are
+concrete zeros) make the twin not periodic (None, with the reason from
 :func:`periodic_reason`).
 """
 
@@ -49,6 +50,7 @@ from .parts.imperfections import (
 from .parts.loads import ConstantLoad, FluctuatingLoad
 from .parts.local_fault import LocalFault
 from .parts.mesh_excitation import MeshExcitation
+from .parts.mount_path import MountPath
 from .parts.shaft import concrete_float
 from .parts.speed_source import IdealSpeedSource
 from .parts.supports import Supports
@@ -109,6 +111,9 @@ def _planet_dependence(twin) -> tuple[bool, str | None]:
                     float(p.modulation_order) != int(p.modulation_order)):
                 return planet, "planet bearing defect of non-integer order"
             planet = True
+        elif isinstance(p, MountPath):
+            if not (_concretely_zero(p.a_cos) and _concretely_zero(p.a_sin)):
+                return planet, f"mount path line at {p.f:g} Hz varies in time"
         elif not isinstance(p, angle_only):
             return planet, f"part {type(p).__name__} is not known to be periodic"
     if drives == 0:

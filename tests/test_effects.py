@@ -144,3 +144,35 @@ def test_window_mean_closed_form():
     phi = np.linspace(0, 2 * np.pi, 20001)[:-1]
     for p in (0.0, 1.0, 4.0, 2.5):
         assert window_mean(p) == pytest.approx(np.mean((0.5 * (1 + np.cos(phi))) ** p), rel=1e-9)
+
+
+def test_mount_path_is_its_line_and_nothing_else():
+    """The housing-on-mounts path adds exactly ``a cos(2 pi f t) + b sin(2 pi f t)`` to the
+    sensor's acceleration, whatever the gear set does; with both amplitudes zero the twin stays
+    periodic at constant speed, with either nonzero it does not (a line at f_x is not a gearbox
+    frequency). The located modulation's flat-path scale is the closed form
+    ``c_0 Zr / ((Zs + Zr) r_b,ring m_ring)``."""
+    from dtwin.identify.effects.modulation import _flat_path
+    from dtwin.parts.mount_path import MountPath
+    from dtwin.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
+    from dtwin.periodic import hunting_cycles, periodic_reason
+
+    tw = build_twin(preset("paper-sim"), kind="torsional")
+    part = MountPath(jnp.asarray(0.3), jnp.asarray(-0.2), f=2.1)
+    q = Coords.zeros(tw.n_planets)
+    mesh = tw.mesh_state(0.0, q, q, tw.modulation(0.0, q, q))
+    for t in (0.0, 0.1, 0.37):
+        a = float(part.acceleration(tw, t, q, q, q, mesh, jnp.zeros(0)))
+        assert a == pytest.approx(0.3 * math.cos(2 * math.pi * 2.1 * t)
+                                  - 0.2 * math.sin(2 * math.pi * 2.1 * t), abs=1e-15)
+    assert part.aux_size == 0
+    assert hunting_cycles(tw.with_parts(MountPath(jnp.asarray(0.0), jnp.asarray(0.0), f=2.1))) \
+        == hunting_cycles(tw)
+    assert "mount path" in periodic_reason(tw.with_parts(part))
+    path = next(p for p in tw.parts if isinstance(p, PlanetPassTransferPath))
+    c0 = (float(path.window_harmonics[0]) if path.window_harmonics is not None
+          else float(window_cosine_coefficients(float(path.window_exponent), 1)[0]))
+    lp = tw.lp
+    want = c0 * float(path.force_weight) * lp.z_ring / (lp.z_sun + lp.z_ring) / (
+        float(lp.rb_ring) * float(lp.m_ring))
+    assert _flat_path(tw) == pytest.approx(want, rel=1e-12)

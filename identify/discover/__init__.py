@@ -57,8 +57,9 @@ the held-out statistic, its bootstrap null, intervals), ``model`` (:class:`Exten
 its cache), ``candidates`` (coverage, signatures), ``results`` (result types), ``loop``
 (:func:`discover`).
 
-Arrays are padded to fixed sizes (``P_MAX`` parameters, bins to a multiple of ``BIN_BLOCK``) so
-that one compilation serves every candidate.
+Arrays are padded to fixed sizes (parameters to the smallest of ``P_SIZES`` that holds the
+effect's, bins to a multiple of ``BIN_BLOCK``) so that one compilation serves every candidate of
+a size.
 """
 
 from .candidates import coverage as coverage

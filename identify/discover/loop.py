@@ -34,7 +34,6 @@ from .model import extended_model
 from .results import CandidateResult, DiscoveryResult, Step
 from .settings import DiscoverySettings
 from .statistics import (
-    P_MAX,
     amplitude_profile,
     candidate_inputs,
     chi2_quantile,
@@ -352,7 +351,8 @@ def discover(
                 # joint fit and intervals
                 val, loss, jac, r = fit_joint(inp, fold_params)
                 n_par = p + settings.n_folds
-                keep = np.r_[np.arange(p), P_MAX + np.arange(settings.n_folds)]
+                P = inp.J.shape[-1]  # the padded parameter count
+                keep = np.r_[np.arange(p), P + np.arange(settings.n_folds)]
                 Jk = jac[:, keep]
                 s2 = residual_variance(inp, r, n_par)
                 try:
@@ -375,7 +375,7 @@ def discover(
                 cr.main_interval = (c_lo * cr.main, c_hi * cr.main)
                 cr.evidence = evidence
                 cr.identified = is_identified(c_lo, evidence, cr.main, settings.confidence)
-                cr.log_gains = val[P_MAX:]
+                cr.log_gains = val[P:]
                 say(f"    T {T:.1f} p {cr.p_value:.4f} (level {level:.4f}) gap {cr.gap_after:.2f} dB "
                     f"main {cr.main:.3g} [{cr.main_interval[0]:.3g}, {cr.main_interval[1]:.3g}] "
                     f"identified {cr.identified}")

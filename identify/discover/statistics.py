@@ -21,8 +21,16 @@ from ..fit import batch_mode
 from ..gap import FLOOR_BINS, levels
 from ..stopping import StallStopping
 
-#: Largest number of parameters of one effect (padded with inert parameters).
-P_MAX = 4
+#: Parameter counts an effect's arrays are padded to (with inert parameters): the smallest
+#: that holds it, so candidates of up to 4 parameters share the compiled fits and bootstrap and
+#: do not pay for the larger size; the last is the largest number of parameters of one effect.
+P_SIZES = (4, 6)
+P_MAX = P_SIZES[-1]
+
+
+def padded_size(p: int) -> int:
+    """The padded parameter count of an effect of `p` parameters (:data:`P_SIZES`)."""
+    return next(k for k in P_SIZES if k >= p)
 #: Bins are padded to a multiple of this.
 BIN_BLOCK = 128
 _LN10_20 = 20.0 / np.log(10.0)
@@ -398,9 +406,10 @@ def candidate_inputs(Z0, Jc, Y, floor, sig, model_line, nonnegative, log_g0,
     sel = np.flatnonzero(fit_m.any(axis=0))
     K = int(np.ceil(max(len(sel), size or 1, 1) / BIN_BLOCK) * BIN_BLOCK)
     F, _, p = Jc.shape
-    J_pad = np.concatenate([Jc[:, sel], np.zeros((F, len(sel), P_MAX - p))], axis=-1)
-    nonneg = np.array(list(nonnegative) + [False] * (P_MAX - p), float)
-    active = np.array([1.0] * p + [0.0] * (P_MAX - p))
+    P = padded_size(p)
+    J_pad = np.concatenate([Jc[:, sel], np.zeros((F, len(sel), P - p))], axis=-1)
+    nonneg = np.array(list(nonnegative) + [False] * (P - p), float)
+    active = np.array([1.0] * p + [0.0] * (P - p))
     inp = FitInputs(
         jnp.asarray(_pad(Z0[:, sel], K, 0.0)), jnp.asarray(_pad(J_pad, K, 0.0)),
         jnp.asarray(_pad(Y[:, sel], K, 1.0)), jnp.asarray(_pad(floor[:, sel], K, 1.0)),

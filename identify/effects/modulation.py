@@ -9,10 +9,28 @@ import equinox as eqx
 
 from dtwin.parts.drive import LoadPart
 from dtwin.parts.loads import FluctuatingLoad
+from dtwin.parts.mount_path import MountPath
 from dtwin.parts.speed_fluctuation import SpeedFluctuation
+from dtwin.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
 
 from ..lines import find_modulation, modulation_lines
 from .base import AbstractEffect, EffectParameter, SignatureLine, rms
+
+
+def _flat_path(twin) -> float:
+    """Sensor acceleration (m/s²) per N·m of carrier torque fluctuation through a flat path:
+    the ring's share ``Zr / (Zs + Zr)`` of the carrier torque as ring-mesh force (base radius),
+    seen through the planet-pass window's mean, per ring mass."""
+    lp = twin.lp
+    c0, weight = 1.0, 1.0
+    for p in twin.parts:
+        if isinstance(p, PlanetPassTransferPath):
+            c0 = (float(p.window_harmonics[0]) if p.window_harmonics is not None
+                  else float(window_cosine_coefficients(float(p.window_exponent), 1)[0]))
+            weight = float(p.force_weight)
+            break
+    zs, zr = float(lp.z_sun), float(lp.z_ring)
+    return c0 * weight * zr / (zs + zr) / (float(lp.rb_ring) * float(lp.m_ring))
 
 
 class LocatedModulationEffect(AbstractEffect):
@@ -30,7 +48,16 @@ class LocatedModulationEffect(AbstractEffect):
     the lines an ideal gearbox has (:func:`dtwin.identify.lines.modulation_lines`), in
     proportions that differ from harmonic to harmonic, so one sensor tells their mix but the
     cause is reported as a "load/speed fluctuation". The main amplitude is the load torque's
-    (N·m at the carrier); the speed's is a parameter of its own. `f_x` comes from the data
+    (N·m at the carrier); the speed's is a parameter of its own.
+
+    The line at ``f_x`` itself lies below the lowest line of a healthy record (the planet-pass
+    frequency), where calibration has nothing to fit the path against: the housing rocking on
+    its mounts carries it to the sensor with a gain and phase of its own
+    (:class:`dtwin.parts.mount_path.MountPath`). Its two amplitudes are parameters of their own,
+    stated as the torque fluctuation that would give the line through a flat path (the
+    planet-pass window's mean, no high-pass: ring-mesh force per ring mass), so the torque's
+    estimate rests on the mesh sidebands, which reach the sensor through the calibrated path.
+    `f_x` comes from the data
     (:meth:`adapt`:
     :func:`dtwin.identify.lines.find_modulation`, a family of at least three residual lines
     beside the f_x line, chance ≤ 1e-3); without one the candidate is withdrawn. Group
@@ -79,7 +106,13 @@ class LocatedModulationEffect(AbstractEffect):
                 EffectParameter("located_modulation_speed_cos", "rad/s", 0.05,
                                 "rotor speed fluctuation at the located frequency, cosine"),
                 EffectParameter("located_modulation_speed_sin", "rad/s", 0.05,
-                                "rotor speed fluctuation at the located frequency, sine"))
+                                "rotor speed fluctuation at the located frequency, sine"),
+                EffectParameter("located_modulation_mount_cos", "N*m", 0.5,
+                                "the f_x line through the housing's mounts, as a torque "
+                                "through a flat path, cosine"),
+                EffectParameter("located_modulation_mount_sin", "N*m", 0.5,
+                                "the f_x line through the housing's mounts, as a torque "
+                                "through a flat path, sine"))
 
     def parts(self, theta, twin, kin):
         if self.f_x is None:
@@ -87,7 +120,8 @@ class LocatedModulationEffect(AbstractEffect):
         return (LoadPart(FluctuatingLoad(0.0, theta[0], self.f_x, math.pi / 2,
                                          engage_speed=0.0)),
                 LoadPart(FluctuatingLoad(0.0, theta[1], self.f_x, 0.0, engage_speed=0.0)),
-                SpeedFluctuation(theta[2], theta[3], self.f_x))
+                SpeedFluctuation(theta[2], theta[3], self.f_x),
+                MountPath(_flat_path(twin) * theta[4], _flat_path(twin) * theta[5], self.f_x))
 
     def signature(self, kin, f_max):
         if self.f_x is None:
