@@ -26,11 +26,6 @@ from ..stopping import StallStopping
 #: do not pay for the larger size; the last is the largest number of parameters of one effect.
 P_SIZES = (4, 6)
 P_MAX = P_SIZES[-1]
-
-
-def padded_size(p: int) -> int:
-    """The padded parameter count of an effect of `p` parameters (:data:`P_SIZES`)."""
-    return next(k for k in P_SIZES if k >= p)
 #: Bins are padded to a multiple of this.
 BIN_BLOCK = 128
 _LN10_20 = 20.0 / np.log(10.0)
@@ -376,6 +371,11 @@ def model_amplitudes(Z0, J, theta, log_g) -> np.ndarray:
     Z = np.asarray(Z0) + np.einsum("fkp,p->fk", np.asarray(J), np.asarray(theta))
     return np.exp(np.asarray(log_g))[:, None] * np.abs(Z)
 
+
+
+def padded_size(p: int) -> int:
+    """The padded parameter count of an effect of `p` parameters (:data:`P_SIZES`)."""
+    return next(k for k in P_SIZES if k >= p)
 
 
 def _pad_last(arr, K, value):

@@ -117,11 +117,12 @@ class LocatedModulationEffect(AbstractEffect):
     def parts(self, theta, twin, kin):
         if self.f_x is None:
             raise ValueError("LocatedModulationEffect needs f_x (adapt() on the data)")
+        k = _flat_path(twin)  # m/s² per N·m through a flat path
         return (LoadPart(FluctuatingLoad(0.0, theta[0], self.f_x, math.pi / 2,
                                          engage_speed=0.0)),
                 LoadPart(FluctuatingLoad(0.0, theta[1], self.f_x, 0.0, engage_speed=0.0)),
                 SpeedFluctuation(theta[2], theta[3], self.f_x),
-                MountPath(_flat_path(twin) * theta[4], _flat_path(twin) * theta[5], self.f_x))
+                MountPath(k * theta[4], k * theta[5], self.f_x))
 
     def signature(self, kin, f_max):
         if self.f_x is None:
