@@ -196,10 +196,7 @@ class CalibratedParameter:
         return "not determined"
 
     def to_dict(self) -> dict[str, Any]:
-        d = dataclasses.asdict(self)
-        d["joint_with"] = [[n, r] for n, r in self.joint_with]
-        d["status"] = self.status
-        return d
+        return {**dataclasses.asdict(self), "status": self.status}
 
 
 @dataclasses.dataclass
@@ -517,24 +514,19 @@ def _residuals_and_jacobian(theta, data: _Data):
     return _residuals(theta, data), jax.jacfwd(_residuals)(theta, data)
 
 
-def _column_scales(data: _Data, theta0) -> jax.Array:
-    """1 / (norm of each data column of the residual Jacobian at `theta0`): the LM iterates on
-    ``u = θ / scale``, in which every column has unit norm (the window's c_3 moves the planet
-    pass line ~10⁴ times more per unit than an excitation coefficient moves a mesh line)."""
-    P = theta0.shape[0]
-    Jr = _residuals_and_jacobian(theta0, data)[1][:-P]
-    norms = jnp.sqrt(jnp.sum(Jr**2, axis=0))
-    return 1.0 / jnp.maximum(norms, 1e-9 * jnp.max(norms))
+def _column_scales(r, Jr, n_prior: int) -> tuple[float, jax.Array]:
+    """½‖r‖² and 1 / (norm of each data column of the residual Jacobian `Jr`), from the
+    residuals and Jacobian at a point (the last `n_prior` rows are the prior's): the LM iterates
+    on ``u = θ / scale``, in which every column has unit norm (the window's c_3 moves the
+    planet-pass line ~10⁴ times more per unit than an excitation coefficient moves a mesh
+    line)."""
+    norms = jnp.sqrt(jnp.sum(Jr[:-n_prior] ** 2, axis=0))
+    return float(0.5 * jnp.sum(r**2)), 1.0 / jnp.maximum(norms, 1e-9 * jnp.max(norms))
 
 
 def _scaled_residuals(u, args):
     data, scale = args
     return _residuals(u * scale, data)
-
-
-@eqx.filter_jit
-def _loss(theta, data: _Data):
-    return 0.5 * jnp.sum(_residuals(theta, data) ** 2)
 
 
 def _fit(data: _Data, theta0, max_steps: int, loss_rtol: float, run_steps: int,
@@ -550,21 +542,23 @@ def _fit(data: _Data, theta0, max_steps: int, loss_rtol: float, run_steps: int,
     `restart_rtol` of itself (converged) or the runs' steps reach `max_steps` (not).
     """
     solver = StallStopping(rtol=1e-8, atol=1e-10, loss_rtol=loss_rtol)
+    P = theta0.shape[0]
     theta = jnp.asarray(theta0)
-    loss = float(_loss(theta, data))
+    # one residual-and-Jacobian evaluation per run gives the loss where the last run ended and
+    # the column scales of the next
+    loss, scale = _column_scales(*_residuals_and_jacobian(theta, data), P)
     steps = 0
     while steps < max_steps:
-        scale = _column_scales(data, theta)
         # a module-level function with the scales among the arguments: fits of equal shapes
         # (the two halves, every run) share one compilation
         sol = optx.least_squares(_scaled_residuals, solver, theta / scale, args=(data, scale),
                                  max_steps=min(run_steps, max_steps - steps), throw=False)
         steps += int(sol.stats["num_steps"])
         new = sol.value * scale
-        new_loss = float(_loss(new, data))
+        new_loss, new_scale = _column_scales(*_residuals_and_jacobian(new, data), P)
         if not new_loss < loss:  # LM accepts only steps that lower the loss: nothing moved
             return np.asarray(theta), steps, True
-        theta, drop, loss = new, loss - new_loss, new_loss
+        theta, drop, loss, scale = new, loss - new_loss, new_loss, new_scale
         if drop <= restart_rtol * (loss + drop):
             return np.asarray(theta), steps, True
     return np.asarray(theta), steps, False

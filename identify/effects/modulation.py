@@ -11,10 +11,10 @@ from dtwin.parts.drive import LoadPart
 from dtwin.parts.loads import FluctuatingLoad
 from dtwin.parts.mount_path import MountPath
 from dtwin.parts.speed_fluctuation import SpeedFluctuation
-from dtwin.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
 
 from ..lines import find_modulation, modulation_lines
 from .base import AbstractEffect, EffectParameter, SignatureLine, rms
+from .transfer_path import _sensor_path, window_mean
 
 
 def _flat_path(twin) -> float:
@@ -22,13 +22,12 @@ def _flat_path(twin) -> float:
     the ring's share ``Zr / (Zs + Zr)`` of the carrier torque as ring-mesh force (base radius),
     seen through the planet-pass window's mean, per ring mass."""
     lp = twin.lp
+    path = _sensor_path(twin)
     c0, weight = 1.0, 1.0
-    for p in twin.parts:
-        if isinstance(p, PlanetPassTransferPath):
-            c0 = (float(p.window_harmonics[0]) if p.window_harmonics is not None
-                  else float(window_cosine_coefficients(float(p.window_exponent), 1)[0]))
-            weight = float(p.force_weight)
-            break
+    if path is not None:
+        c0 = (float(path.window_harmonics[0]) if path.window_harmonics is not None
+              else window_mean(float(path.window_exponent)))
+        weight = float(path.force_weight)
     zs, zr = float(lp.z_sun), float(lp.z_ring)
     return c0 * weight * zr / (zs + zr) / (float(lp.rb_ring) * float(lp.m_ring))
 
