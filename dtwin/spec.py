@@ -224,8 +224,10 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
         "created_by": FieldSpec("str", "", None, doc="dtwin version that calibrated the spec"),
     },
     "imperfections": {
-        "planet_position_errors": FieldSpec("floats", "rad", None, -0.1, 0.1,
-                                            doc="planet spacing errors added to ψ_i (N values)"),
+        "planet_position_errors": FieldSpec(
+            "floats", "rad", None, -0.1, 0.1,
+            doc="planet spacing errors added to ψ_i (N values): mesh phases and sensor windows "
+                "move, the load stays shared equally"),
         "sun_eccentricity": _reg("sun_eccentricity", 0.0),
         "carrier_eccentricity": _reg("carrier_eccentricity", 0.0),
         "load_sharing": FieldSpec("floats", "1", None, 0.0, 3.0,

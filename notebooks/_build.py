@@ -879,6 +879,9 @@ NB04 = [
     for s in result.steps:
         print(f"step {s.number}: named {s.named!r} (group {s.group!r}, effect fitted "
               f"{s.effect!r}); {s.main['name']} = {s.main['value']:.3g} {s.main['unit']}")
+        if s.effect == "planet_position_errors":
+            print("  fitted planets 1..N-1 relative to planet 0: "
+                  + ", ".join(f"{p['value']:.2e}" for p in s.parameters) + " rad")
     if not result.steps:
         print("nothing was added: no candidate passed the held-out test at this record length")
     found = any(s.group == "carrier_sidebands" for s in result.steps)
@@ -889,11 +892,12 @@ NB04 = [
     md("""
     Spacing errors belong to the `carrier_sidebands` group printed in the table: where a step
     names that group, the workflow found what was hidden, up to what the data can tell apart.
-    The fitted amplitude belongs to the effect's own part (mesh
-    phase shifts and pin offsets of `PlanetPositionErrors`, fitted as a first-order response
-    about zero), not to the preset's geometric planet angles, so the two numbers above are not
-    a like-for-like comparison: read the step as "something that adds carrier sidebands the
-    sideband rule forbids", which is what the data can say.
+    The planet-position member moves the planets' mesh phases with the load shared equally —
+    the same planets as the preset's `planet_position_errors` — so where it is the effect
+    fitted, its values compare with the hidden ones above. They are fitted as a first-order
+    response about zero, from an amplitude spectrum, so expect the size of the errors rather
+    than each planet's sign; where the step names only the group, read it as "something that
+    adds carrier sidebands the sideband rule forbids", which is what the data can say.
     """),
 ]
 

@@ -142,8 +142,10 @@ GAP_NOT_MET = {
                     "0–29 dB above k fp ± fc, in the twin ≥ 48 dB under, because the planets' "
                     "summed mesh force is the load's reaction (test_dynamics.py::"
                     "test_planet_fault_low_comb_lies_beside_k_fp_not_on_it)",
-    "spacing": "5.83 → 4.32 dB (26 % closed): carrier_sidebands named, 4fm ± fc stay ~16 dB over "
-               "the twin",
+    "spacing": "5.83 → 4.24 dB (27 % closed): carrier_sidebands named; a noise bin at the "
+               "12 dB threshold (228 Hz, one half) is 21 % of the squared gap, and the record's "
+               "fm − fc, 4fm ± fc without 2fm ± fc, 3fm ± fc is a pattern mesh-phase errors do "
+               "not make (docs/discovery.md §6b)",
 }
 
 

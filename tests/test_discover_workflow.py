@@ -99,7 +99,7 @@ def run(spec, base_twin, x, candidates=None, settings=SETTINGS):
 # hidden effect, its true main amplitude, the group to be named, whether the member is
 # identifiable (then its main parameter must be recovered within 20 %)
 CASES = {
-    "carrier": ("planet_position_errors", [4e-5, -3e-5], "carrier_sidebands"),
+    "carrier": ("planet_position_errors", [4e-4, -3e-4], "carrier_sidebands"),
     "sun": ("sun_eccentricity", [3e-7, 1e-7], "sun_rotation"),
     "motor": ("torque_ripple_6fe", [0.2, 0.1], "motor"),
     # pitting of one planet tooth (sun flank), severity inside the typical range 0.05-0.6
@@ -331,7 +331,7 @@ def _check_two_effects(res):
 
 def test_two_effects_two_steps_ci(spec, base_twin, truth):
     # CI form: the same record, a budget of two steps, two candidates refit per step
-    x = record(truth, {"planet_position_errors": [4e-5, -3e-5], "torque_ripple_6fe": [0.2, 0.1]},
+    x = record(truth, {"planet_position_errors": [4e-4, -3e-4], "torque_ripple_6fe": [0.2, 0.1]},
                seed=2)
     res = run(spec, base_twin, x, settings=DiscoverySettings(n_boot=200, max_steps=2,
                                                               max_refit=2))
@@ -341,7 +341,7 @@ def test_two_effects_two_steps_ci(spec, base_twin, truth):
 
 @pytest.mark.slow
 def test_two_effects_two_steps(spec, base_twin, truth):
-    x = record(truth, {"planet_position_errors": [4e-5, -3e-5], "torque_ripple_6fe": [0.2, 0.1]},
+    x = record(truth, {"planet_position_errors": [4e-4, -3e-4], "torque_ripple_6fe": [0.2, 0.1]},
                seed=2)
     res = run(spec, base_twin, x, settings=DiscoverySettings(n_boot=500, max_steps=3))
     _check_two_effects(res)

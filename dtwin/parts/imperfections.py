@@ -4,11 +4,19 @@ Each imperfection changes the meshes through the mesh phase and/or an excitation
 from the mesh deflection (docs/conventions.md, "Mesh deflection"):
 
 - `PlanetPositionErrors`: planet i sits at ``psi_i + dpsi_i`` on the carrier. Its mesh phases
-  shift by ``-Zs dpsi_i / 2 pi`` (sun) and ``+Zr dpsi_i / 2 pi`` (ring) and its pin moves by
-  ``a dpsi_i`` along ``e_t``, which changes both mesh deflections by ``-a dpsi cos(alpha)``
-  (a planet placed ahead relieves both its meshes: unequal load sharing, which the planet's
-  rotation cannot absorb). Breaks the sideband cancellation of equally spaced planets
-  (docs/references.md §2): sidebands at every multiple of f_carrier.
+  shift by ``-Zs dpsi_i / 2 pi`` (sun) and ``+Zr dpsi_i / 2 pi`` (ring). With
+  ``pin_offset=True`` (default) its pin also moves by ``a dpsi_i`` along ``e_t`` against a sun
+  and ring held on their centres, which changes both mesh deflections by
+  ``-a dpsi cos(alpha)`` (a planet placed ahead relieves both its meshes: unequal load
+  sharing, which the planet's rotation cannot absorb). With ``pin_offset=False`` only the
+  phases shift: the gearbox whose floating central member takes up the offsets (a floating
+  sun or ring moves by the offsets' ``1, cos psi, sin psi`` components, which for three
+  planets are all of them: equal load sharing; Kahraman, "Load sharing characteristics of
+  planetary transmissions", Mech. Mach. Theory 29 (1994) 1151–1165), and the same planets as
+  ``imperfections.planet_position_errors`` of a spec (`dtwin.spec.lumped_from_spec`, which
+  moves the planet angles and keeps the load shared equally). Breaks the sideband
+  cancellation of equally spaced planets (docs/references.md §2): sidebands at every multiple
+  of f_carrier.
 - `SunEccentricity`: the sun's centre runs out by `e` (m), the offset turning with the sun:
   carrier-frame direction ``theta_s - theta_c + phase``.
 - `CarrierEccentricity`: every pin is offset by the same vector `e` (m) at carrier-frame angle
@@ -39,14 +47,19 @@ def _lines_of_action(lp):
 
 
 class PlanetPositionErrors(AbstractPart):
-    """Angular position errors of the planets on the carrier, `dpsi` (rad), shape (N,)."""
+    """Angular position errors of the planets on the carrier, `dpsi` (rad), shape (N,).
+
+    `pin_offset`: whether the pins' offsets ``a dpsi`` load the meshes (sun and ring held on
+    their centres: unequal load sharing) or a floating member takes them up (mesh phases only;
+    module docs)."""
 
     dpsi: Float[Array, " N"]
+    pin_offset: bool = eqx.field(static=True, default=True)
 
     def modulation(self, twin, t, q, qdot):
         lp = twin.lp
         two_pi = 2.0 * jnp.pi
-        a = lp.centre_distance
+        a = lp.centre_distance if self.pin_offset else 0.0
         return Modulation(
             jnp.zeros_like(self.dpsi),
             jnp.zeros_like(self.dpsi),
