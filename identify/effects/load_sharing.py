@@ -22,7 +22,7 @@ class LoadSharingEffect(AbstractEffect):
     name: ClassVar[str] = "load_sharing"
     group: ClassVar[str] = "carrier_sidebands"
     description: ClassVar[str] = "unequal load sharing between the planets"
-    main_name: ClassVar[str] = "rms mesh clearance difference"
+    main_name: ClassVar[str] = "mesh clearance differences (norm over planets 1 … N−1)"
     main_unit: ClassVar[str] = "m"
     typical_range: ClassVar[tuple[float, float]] = (1e-8, 1e-6)
     typical_note: ClassVar[str] = (

@@ -29,7 +29,7 @@ class PlanetPositionEffect(AbstractEffect):
     name: ClassVar[str] = "planet_position_errors"
     group: ClassVar[str] = "carrier_sidebands"
     description: ClassVar[str] = "planet position (spacing) errors on the carrier"
-    main_name: ClassVar[str] = "rms planet position error"
+    main_name: ClassVar[str] = "planet position errors (norm over planets 1 … N−1)"
     main_unit: ClassVar[str] = "rad"
     typical_range: ClassVar[tuple[float, float]] = (1e-5, 1e-3)
     typical_note: ClassVar[str] = (
