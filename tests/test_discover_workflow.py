@@ -131,6 +131,8 @@ def test_group_named_gap_shrinks(case, spec, base_twin, truth):
 
         md = markdown_report(res, "record")
         assert "## Step 1" in md and "held-out gap" in md
+        if first.named != first.effect:  # a group named: the member's values are conditional
+            assert f"these are `{first.effect}`'s values if it is the effect" in md
         import json
 
         json.dumps(to_jsonable(res.to_dict()))

@@ -68,7 +68,10 @@ def markdown_report(result, record_name: str) -> str:
                 f"- {s.main['name']}: {s.main['value']:.4g} {_unit_text(s.main['unit'])}, 99 % interval "
                 f"[{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}] (typical on real "
                 f"machines {s.main['typical_range'][0]:g}–{s.main['typical_range'][1]:g}: "
-                f"{s.main['typical_note']})", "",
+                f"{s.main['typical_note']})"
+                + (f"; the group is named, not the member: these are `{s.effect}`'s values if "
+                   f"it is the effect, and its interval is that fit's alone"
+                   if s.named != s.effect else ""), "",
                 "| parameter | value | 99 % interval | unit |", "|---|---|---|---|"]
         for p in s.parameters:
             out.append(f"| {p['name']} | {p['value']:.4g} | [{p['interval'][0]:.3g}, "
@@ -162,7 +165,8 @@ def discover(
                        f"{s.main['value']:.3g}"
                        + ("" if s.main['unit'] in ("1", "", "-") else f" {s.main['unit']}")
                        + f" [{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}]"
-                       + (" (dimensionless)" if s.main['unit'] == "1" else ""))
+                       + (" (dimensionless)" if s.main['unit'] == "1" else "")
+                       + (f" (if {s.effect})" if s.named != s.effect else ""))
         for s in result.steps:
             if s.summary:
                 typer.echo(f"step {s.number}: {s.summary}")
