@@ -16,7 +16,7 @@ export DTWIN_JAX_CACHE := $(abspath $(VENV))/jax-cache
 # file schedulers cannot put a crashed test back in the queue, and can hang waiting for the
 # replacement worker (tests/test_crash_rerun.py runs all of this on a suite that crashes).
 # tests/_xdist_crash.py (imported by tests/conftest.py) gives a crashed test its rerun budget on
-# the controller, which otherwise hears it from a worker that may die before it is sent.
+# the controller, which otherwise hears it from a worker that may die before it is read.
 XDIST := -n 2 --dist worksteal --reruns 1 --only-rerun "pytest-xdist worker crashed" --max-suite-reruns 3
 
 .PHONY: venv demo test test-all lint bench notebooks clean
