@@ -48,34 +48,29 @@ def main(argv=None) -> list[dict]:
 
     from dtwin.build import build_twin
     from dtwin.faults import parse_fault
-    from dtwin.periodic import hunting_cycles, mesh_frequency
-    from dtwin.simulate import initial_state
     from dtwin.spec import preset
 
     spec = preset("paper-sim")
     f_sun = float(spec["operating"]["f_sun"])
-    tw = build_twin(spec, kind="torsional", faults=(parse_fault("sun:missing_tooth:0.5"),))
-    ops = tw.operators()
-    y0 = initial_state(tw, f_sun)
-    period = hunting_cycles(tw) / float(mesh_frequency(tw, f_sun))
     n = int(args.points)
-    ts = jnp.linspace(0.0, period, n, endpoint=False)
-    states = jax.tree_util.tree_map(lambda a: jnp.broadcast_to(a, (n,) + a.shape) + 0.0, y0)
-    direction = jax.tree_util.tree_map(lambda a: jnp.full_like(a, 1e-9), states)
-    n_state = sum(int(a.shape[-1]) for a in jax.tree_util.tree_leaves(y0))
-
-    field = jax.jit(jax.vmap(lambda t, y: tw.vector_field(t, y, ops)))
-    jvp = jax.jit(jax.vmap(lambda t, y, v: jax.jvp(lambda yy: tw.vector_field(t, yy, ops),
-                                                   (y,), (v,))[1]))
+    twins = {"healthy": build_twin(spec, kind="torsional"),
+             "sun missing tooth 0.5": build_twin(
+                 spec, kind="torsional", faults=(parse_fault("sun:missing_tooth:0.5"),))}
+    problems = {name: _periodic_problem(tw, f_sun, n) for name, tw in twins.items()}
+    pb = problems["sun missing tooth 0.5"]
+    n_state = pb["y_nom"].shape[1]
+    direction = jnp.full_like(pb["y_nom"], 1e-9)
+    field = jax.jit(jax.vmap(pb["field"]))
+    jvp = jax.jit(pb["jvp"])
     block = jnp.ones((n_state, n))
     fft_pair = jax.jit(lambda z: jnp.fft.irfft(1j * jnp.fft.rfft(z, axis=1), n=n, axis=1))
 
-    out = dict(kind="periodic_cost", points=n, period_s=period, n_state=n_state,
+    out = dict(kind="periodic_cost", points=n, period_s=pb["period"], n_state=n_state,
                load_before=load_average())
-    for name, fn, fargs in (("vector_field", field, (ts, states)),
-                            ("jvp", jvp, (ts, states, direction)),
+    for name, fn, fargs in (("vector_field", field, (pb["ts"], pb["y_nom"])),
+                            ("jvp", jvp, (pb["ts"], pb["y_nom"], direction)),
                             ("fft_pair", fft_pair, (block,))):
-        _, wall_c, cpu_c = timed(lambda fn=fn, fargs=fargs: jax.block_until_ready(fn(*fargs)))
+        _, first, _ = timed(lambda fn=fn, fargs=fargs: jax.block_until_ready(fn(*fargs)))
         walls, cpus = [], []
         for _ in range(repeat):
             _, w, c = timed(lambda fn=fn, fargs=fargs: jax.block_until_ready(fn(*fargs)))
@@ -83,17 +78,14 @@ def main(argv=None) -> list[dict]:
             cpus.append(c)
         walls.sort()
         cpus.sort()
-        out[name] = dict(first_call_s=wall_c, median_wall_ms=1e3 * walls[len(walls) // 2],
+        out[name] = dict(first_call_s=first, median_wall_ms=1e3 * walls[len(walls) // 2],
                          median_cpu_ms=1e3 * cpus[len(cpus) // 2])
-    records = [out]
-    for fault in ((), (parse_fault("sun:missing_tooth:0.5"),)):
-        records.append(_krylov(build_twin(spec, kind="torsional", faults=fault), f_sun, n,
-                               "sun missing tooth 0.5" if fault else "healthy"))
+    records = [out] + [_krylov(pb, name) for name, pb in problems.items()]
     out["load_after"] = load_average()
     if args.json:
         print(json.dumps(records))
     else:
-        print(f"{n} instants over one period of {period:.4f} s, {n_state} states; load "
+        print(f"{n} instants over one period of {pb['period']:.4f} s, {n_state} states; load "
               f"{out['load_before'][0]:.2f} → {out['load_after'][0]:.2f}")
         for name in ("vector_field", "jvp", "fft_pair"):
             r = out[name]
@@ -132,10 +124,11 @@ def _gmres(op, b, tol, maxit):
     return hist
 
 
-def _krylov(tw, f_sun, n, label, tolerances=(1e-3, 1e-4, 1e-5, 1e-6), maxit=120) -> dict:
-    """GMRES iterations of ``(D − J(t)) x = b`` over one hunting period (module docs)."""
-    import time
-
+def _periodic_problem(tw, f_sun: float, n: int) -> dict:
+    """One hunting period of `tw` at `f_sun` (Hz) on `n` instants: times `ts` (s), the nominal
+    motion `y_nom` (the steady initial state turning rigidly, the drive's angle advancing),
+    its rate `drift`, the vector field `field(t, y)` on the flat state ``(z, z', aux)`` and
+    `jvp(ts, ys, vs)`, its forward-mode derivative along `vs` at every instant (vmapped)."""
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -146,7 +139,6 @@ def _krylov(tw, f_sun, n, label, tolerances=(1e-3, 1e-4, 1e-5, 1e-6), maxit=120)
     ops = tw.operators()
     z0, zd0, aux0 = initial_state(tw, f_sun)
     sizes = np.cumsum([len(z0), len(zd0)])
-    m = len(z0) + len(zd0) + len(aux0)
     period = hunting_cycles(tw) / float(mesh_frequency(tw, f_sun))
     auxdot0 = tw.vector_field(0.0, (z0, zd0, aux0), ops)[2]
     ts = jnp.linspace(0.0, period, n, endpoint=False)
@@ -157,6 +149,21 @@ def _krylov(tw, f_sun, n, label, tolerances=(1e-3, 1e-4, 1e-5, 1e-6), maxit=120)
         return jnp.concatenate(tw.vector_field(t, tuple(jnp.split(y, sizes)), ops))
 
     jvp = jax.vmap(lambda t, y, v: jax.jvp(lambda yy: field(t, yy), (y,), (v,))[1])
+    return dict(period=period, ts=ts, y_nom=y_nom, drift=drift, field=field, jvp=jvp)
+
+
+def _krylov(pb: dict, label: str, tolerances=(1e-3, 1e-4, 1e-5, 1e-6), maxit=120) -> dict:
+    """GMRES iterations of ``(D − J(t)) x = b`` over one hunting period (module docs), `pb`
+    from :func:`_periodic_problem`."""
+    import time
+
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    ts, y_nom, drift, field, jvp = (pb[k] for k in ("ts", "y_nom", "drift", "field", "jvp"))
+    n, m = y_nom.shape
+    period = pb["period"]
     j_mean = np.asarray(jax.jit(jax.vmap(lambda t, y: jax.jacfwd(lambda yy: field(t, yy))(y)))(
         ts, y_nom)).mean(axis=0)
     omega = 2.0 * np.pi * np.fft.rfftfreq(n, d=period / n)

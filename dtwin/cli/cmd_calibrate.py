@@ -122,7 +122,7 @@ def _files(result, report, unit: str):
                 notes=[f"{n}: not determined by these records"
                        for n in result.not_determined]
                 + [f"{p.name}: {p.status}" for p in result.parameters
-                   if p.name in result.jointly_determined]),
+                   if not p.determined and p.joint_with]),
         }
 
     return files
