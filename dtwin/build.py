@@ -5,8 +5,9 @@
 - lumped parameters (`dtwin.spec.lumped_from_spec`: geometry, ISO 6336 stiffness, inertias,
   planet position errors);
 - `Supports`; the spec's `[[faults]]` as `LocalFault` parts; imperfections
-  (`SunEccentricity`, `CarrierEccentricity`, `MeshOffsets` for unequal load sharing) and a
-  `TransmissionError` when their values are non-zero;
+  (`SunEccentricity`, `CarrierEccentricity`, `MeshOffsets` for unequal load sharing, its
+  clearances solved from the stated shares by `load_share_offsets`) and a `TransmissionError`
+  when their values are non-zero;
 - the drive of `[motor]` (`dtwin.motor_spec.drive_from_spec`), by default turning at the
   operating speed from the start (``start="steady"``) or stepping from standstill
   (``start="rest"``); the load torque of `[operating]` on the carrier;
@@ -27,7 +28,7 @@ from .faults import AbstractFault, faults_from_table
 from .motor_spec import drive_from_spec
 from .parts.base import AbstractPart
 from .parts.drive import DrivePart, LoadPart
-from .parts.imperfections import MeshOffsets, TransmissionError
+from .parts.imperfections import MeshOffsets, TransmissionError, load_share_offsets
 from .parts.loads import ConstantLoad
 from .parts.local_fault import LocalFault
 from .parts.mesh_excitation import excitation_from_table
@@ -78,12 +79,6 @@ def spec_parts(spec, *, faults: tuple[AbstractFault, ...] | None = None) -> list
     for name in ("sun_eccentricity", "carrier_eccentricity"):  # parts built by their address
         if imp[name]:
             parts.append(lookup(name).address.make(float(imp[name])))
-    if imp["load_sharing"] is not None:
-        ls = jnp.asarray(imp["load_sharing"], dtype=jnp.float64)
-        n = spec["gears"]["n_planets"]
-        if ls.shape != (n,):
-            raise SpecError([("imperfections.load_sharing", f"needs {n} values (one per planet)")])
-        parts.append(MeshOffsets(ls, ls))
     mesh = spec["mesh"]
     if mesh["te_amplitude"]:
         h = jnp.asarray(mesh["te_harmonics"], dtype=jnp.float64)
@@ -147,8 +142,24 @@ def build_twin(
     parts = spec_parts(spec, faults=faults)
     parts.insert(1, drive_part(spec, start=start, f_sun=f_sun))
     parts.insert(2, load_part(spec))
-    parts += list(extra_parts)
     nh = int(n_harmonics or spec["mesh"]["n_harmonics"])
+    shares = spec["imperfections"]["load_sharing"]
+    if shares is not None:
+        n = spec["gears"]["n_planets"]
+        if len(shares) != n or not all(float(v) > 0 for v in shares):
+            raise SpecError([("imperfections.load_sharing",
+                              f"needs {n} positive values (one relative share per planet), "
+                              f"got {list(shares)}")])
+        # clearances from the static balance of the twin as built so far (drive, load,
+        # supports, faults, excitations): the shares hold at the spec's load
+        speed = f_sun if f_sun is not None else spec["operating"]["f_sun"]
+        if speed is None:
+            raise SpecError([("imperfections.load_sharing", "the shares hold at a load and "
+                              "speed: set operating.f_sun (Hz)")])
+        e = load_share_offsets(Twin(lp, tuple(parts), kind=kind, n_harmonics=nh), shares,
+                               float(speed))
+        parts.append(MeshOffsets(e, e))
+    parts += list(extra_parts)
     return Twin(lp, tuple(parts), kind=kind, n_harmonics=nh)
 
 

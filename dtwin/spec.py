@@ -231,7 +231,9 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
         "sun_eccentricity": _reg("sun_eccentricity", 0.0),
         "carrier_eccentricity": _reg("carrier_eccentricity", 0.0),
         "load_sharing": FieldSpec("floats", "1", None, 0.0, 3.0,
-                                  doc="relative load share of each planet (N values, mean 1)"),
+                                  doc="relative load share of each planet (N positive values, read "
+                                      "relative to their mean): the meshes get the clearances "
+                                      "that give these shares at the spec's load"),
     },
     "motor": {
         "type": FieldSpec("str", "", "ideal", choices=("ideal", "pmsm", "induction"),

@@ -22,7 +22,8 @@ from the mesh deflection (docs/conventions.md, "Mesh deflection"):
 - `CarrierEccentricity`: every pin is offset by the same vector `e` (m) at carrier-frame angle
   `phase` (turns with the carrier).
 - `MeshOffsets`: a static extra clearance (m, positive = relieved) per planet and mesh; planets
-  with larger offsets carry less load (unequal load sharing).
+  with larger offsets carry less load (unequal load sharing). :func:`load_share_offsets` gives
+  the clearances of stated load shares (a spec's ``imperfections.load_sharing``).
 - `TransmissionError`: static transmission error of every mesh as a function of its phase.
 """
 
@@ -99,7 +100,9 @@ class CarrierEccentricity(AbstractPart):
 
 
 class MeshOffsets(AbstractPart):
-    """Static clearances (m) of each planet's sun and ring mesh: unequal load sharing."""
+    """Static clearances (m) of each planet's sun and ring mesh: unequal load sharing.
+
+    :func:`load_share_offsets` gives the clearances that produce stated load shares."""
 
     e_sp: Float[Array, " N"]
     e_rp: Float[Array, " N"]
@@ -107,6 +110,50 @@ class MeshOffsets(AbstractPart):
     def modulation(self, twin, t, q, qdot):
         z = jnp.zeros(twin.n_planets)
         return Modulation(z, z, z, z, self.e_sp, self.e_rp)
+
+
+def load_share_offsets(twin, shares, f_sun) -> Float[Array, " N"]:
+    r"""Clearances ``e_i`` (m), the same on both meshes of planet ``i``, that give the planets
+    the relative load shares `shares` (N values, read relative to their mean) in `twin`.
+
+    Static model of `dtwin.simulate.initial_state`: mean mesh stiffness, linear contact, the
+    parts' linear springs, the carrier angle held and the twin's load torque on it. The mesh
+    forces are ``f = K_m (L A z - C e)`` (``C`` puts ``e_i`` on both meshes of planet ``i``), so
+    equilibrium ``K_z z = F + A^T L^T K_m C e`` makes the sun-mesh forces affine in ``e``:
+    ``f_sp = f_0 + G e``. The clearances are the least-norm solution of
+    ``G e = s_i mean(f_0) - f_0``; a common clearance of every planet moves the central members
+    and changes no share, so the result has zero mean where the twin allows that freedom. The
+    torsional twin with a sun held on its centre gives the closed form
+    ``e_i = (1 - s_i) mean(f_0) / (2 k)``, ``1/k = 1/k_sp + 1/k_rp``; a floating sun takes up part
+    of each clearance, and the solve accounts for it. The time-varying stiffness and one-sided
+    contact move the shares of a running twin by a few per cent from the stated ones.
+
+    **Arguments:** `twin` (without the offsets); `shares` (N positive values); `f_sun`: input
+    speed (Hz) at which the load torque (and the planets' centripetal pre-load) is taken.
+
+    **Returns:** `e` (m), shape (N,); positive relieves a planet.
+    """
+    from ..simulate import _ext_static_forces  # simulate imports the parts
+
+    lp, n = twin.lp, twin.n_planets
+    s = jnp.asarray(shares, dtype=jnp.float64)
+    s = s / jnp.mean(s)
+    A = jnp.asarray(twin.kinematic_map())
+    ic = twin._index("theta_c")
+    keep = jnp.asarray([i for i in range(twin.n_dof) if i != ic])
+    K = (A.T @ twin.linear_stiffness(modal=False) @ A)[jnp.ix_(keep, keep)]
+    rs, _ = twin.kinematic_ratios
+    f, _ = _ext_static_forces(twin, 2.0 * jnp.pi * jnp.asarray(f_sun, dtype=jnp.float64) / rs)
+    F = (A.T @ twin.pack(f))[keep]
+    L = twin.deflection_matrix() @ A[:, keep]  # 2N x reduced coordinates
+    km = jnp.concatenate([jnp.full((n,), lp.k_sun_planet), jnp.full((n,), lp.k_ring_planet)])
+    C = jnp.concatenate([jnp.eye(n), jnp.eye(n)])
+    z0 = jnp.linalg.solve(K, F)
+    Z = jnp.linalg.solve(K, L.T @ (km[:, None] * C))  # dz/de
+    f0 = lp.k_sun_planet * (L @ z0)[:n]
+    G = lp.k_sun_planet * ((L @ Z)[:n] - jnp.eye(n))
+    e, *_ = jnp.linalg.lstsq(G, s * jnp.mean(f0) - f0, rcond=1e-10)
+    return e
 
 
 class TransmissionError(AbstractPart):
