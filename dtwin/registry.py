@@ -162,6 +162,16 @@ def _frf_entries() -> tuple[ParameterInfo, ...]:
         for j in range(8))
 
 
+def _load_share_entries() -> tuple[ParameterInfo, ...]:
+    # a share becomes mesh clearances through the twin's static balance (dtwin.build); dtwin
+    # calibrate fits the shares, identify cannot free them (no address in the twin)
+    return tuple(
+        _P(f"load_share_{i}", "1", f"load share of planet {i} relative to planet 0 "
+           "(calibrated unequal load sharing)", f"imperfections.load_sharing[{i}]", (0.0, 3.0),
+           "none", (0.0, 3.0))
+        for i in range(1, 8))
+
+
 def _fault(location: str, factory) -> PartField:
     return PartField(LocalFault, ("fault", "severity"), (("fault.location", location),), factory)
 
@@ -227,6 +237,7 @@ _ENTRIES: tuple[ParameterInfo, ...] = (
     *_window_entries(),
     *_excitation_entries(),
     *_frf_entries(),
+    *_load_share_entries(),
 )
 
 REGISTRY: dict[str, ParameterInfo] = {e.name: e for e in _ENTRIES}

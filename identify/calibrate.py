@@ -23,6 +23,14 @@ that every command accepts; the user's spec is never modified.
   (:mod:`dtwin.sensor_response`), solved in closed form inside the residual function
   (variable projection): for given excitation and window the best knot gains are a linear
   least-squares problem in the log-amplitude, with a smoothness prior.
+- ``load_share_1 … load_share_{N-1}``: each planet's load share relative to planet 0
+  (``imperfections.load_sharing``; the twin gets the mesh clearances that give them,
+  :func:`dtwin.parts.imperfections.load_share_offsets`). Fitted when the records show
+  carrier-order lines ``k f_c`` with ``k`` not a multiple of ``N`` (`CalibrationSettings.load_sharing`):
+  equally loaded, equally spaced planets seen through one planet-pass window make only
+  ``k N f_c`` below the mesh band, so lines at the other orders say that the planets do not
+  share the load equally (pin-hole position errors, a sun that cannot float far enough). A
+  healthy machine's load sharing is its own and not published (ISO 6336-1's ``K_γ``).
 - the measured noise floor (reported, not part of the twin).
 
 **Model.** The twin is simulated once at the record's speed (estimated from its spectrum) and
@@ -84,6 +92,7 @@ from dtwin.errors import FitError, RecordError, SpecError
 from dtwin.io.readers import read_record
 from dtwin.io.record import Record
 from dtwin.lumped import replace as replace_lumped
+from dtwin.parts.imperfections import MeshOffsets, load_share_offsets
 from dtwin.parts.mesh_excitation import MeshExcitation
 from dtwin.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
 from dtwin.sensor_response import knot_basis
@@ -102,6 +111,8 @@ __all__ = ["CalibratedParameter", "CalibrationResult", "CalibrationSettings", "c
 _DB = 20.0 / math.log(10.0)
 #: Unit (m) of the transmission-error coordinates in θ.
 _TE_UNIT = 1e-8
+#: Unit of the load-share coordinates in θ (1 % of planet 0's share).
+_SHARE_UNIT = 0.01
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,6 +139,10 @@ class CalibrationSettings:
       `loss_rtol` of itself (:class:`dtwin.identify.stopping.StallStopping`): the window and
       excitation terms the records do not determine otherwise keep moving by ever smaller
       decreases of the loss.
+    - `load_sharing`: fit the planets' load shares ``"on"``, ``"off"``, or ``"auto"``
+      (default): when at least two orders ``k f_c`` below the first mesh band, ``k`` not a
+      multiple of N, stand above the line threshold in the records (module docstring).
+    - `share_prior`: prior standard deviation of each relative load share.
     - `solver`: `dtwin.simulate.SolverOptions` of the simulations. None: the linearised
       response is one hunting period after a settling time, tiled
       (``SolverOptions(periodic="auto")``, which integrates the whole record when the twin is
@@ -148,13 +163,19 @@ class CalibrationSettings:
     run_steps: int = 50
     restart_rtol: float = 1e-5
     solver: SolverOptions | None = None
+    load_sharing: str = "auto"
+    share_prior: float = 0.3
 
     def __post_init__(self):
+        if self.load_sharing not in ("auto", "on", "off"):
+            raise SpecError([("load_sharing", "must be 'auto', 'on' or 'off', got "
+                              f"{self.load_sharing!r}")])
         if self.window_terms < 2:
             raise SpecError([("window_terms", "needs at least 2 cosine terms")])
         if self.n_knots < 1:
             raise SpecError([("n_knots", "needs at least one knot")])
-        for name in ("te_prior", "window_prior", "zeta_prior", "smooth_db", "frf_prior_db"):
+        for name in ("te_prior", "window_prior", "zeta_prior", "smooth_db", "frf_prior_db",
+                     "share_prior"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise SpecError([(name, f"must be a positive number, got {v!r}")])
@@ -347,10 +368,18 @@ class _Layout:
     c_init: tuple[float, ...]
     window_scale: float
     te_scale: float
+    n_share: int = 0  # free load shares of planets 1 … N-1 (0: not fitted)
+    share_init: tuple[float, ...] = ()
+    f_sun: float = 0.0  # Hz, the speed at which the shares hold
+    i_share_part: int = -1  # the MeshOffsets part that carries them
 
     @property
     def size(self) -> int:
-        return self.n_window + 2 * self.n_harm + 1
+        return self.n_window + 2 * self.n_harm + self.n_share + 1
+
+    @property
+    def i_share(self) -> int:
+        return self.n_window + 2 * self.n_harm
 
     @property
     def i_zeta(self) -> int:
@@ -358,7 +387,7 @@ class _Layout:
 
 
 def _prepare_twin(spec: Spec, f_sun: float, kind: str | None, settings: CalibrationSettings,
-                  n_harm: int):
+                  n_harm: int, fit_shares: bool = False):
     twin = build_twin(spec, kind=kind, f_sun=f_sun)
     i_path = next((i for i, p in enumerate(twin.parts) if isinstance(p, PlanetPassTransferPath)),
                   None)
@@ -392,7 +421,39 @@ def _prepare_twin(spec: Spec, f_sun: float, kind: str | None, settings: Calibrat
     # effect at the mesh harmonics), so every θ column has a similar scale for the LM steps
     layout = _Layout(K - 1, n_harm, tuple(float(v) for v in c), max(abs(c[0]), 1e-12),
                      _TE_UNIT)
+    if fit_shares:
+        n = twin.n_planets
+        old_shares = spec["imperfections"]["load_sharing"]
+        s0 = np.ones(n) if old_shares is None else np.asarray(old_shares, float)
+        i_ls = next((i for i, p in enumerate(twin.parts) if isinstance(p, MeshOffsets)), None)
+        if i_ls is None:
+            twin = twin.with_parts(MeshOffsets(jnp.zeros(n), jnp.zeros(n)))
+            i_ls = len(twin.parts) - 1
+        layout = dataclasses.replace(layout, n_share=n - 1,
+                                     share_init=tuple(float(v) for v in s0 / s0[0]),
+                                     f_sun=float(f_sun), i_share_part=i_ls)
     return twin, i_path, i_exc, layout
+
+
+def _shares(theta, layout: _Layout):
+    """The planets' relative load shares (planet 0 = 1) at θ."""
+    s0 = jnp.asarray(layout.share_init, dtype=jnp.float64)
+    return s0.at[1:].add(_SHARE_UNIT * theta[layout.i_share: layout.i_share + layout.n_share])
+
+
+def _carrier_order_lines(kin: Kinematics, freqs, A, F) -> int:
+    """How many orders ``k f_c`` below the first mesh band, k not a multiple of N, stand above
+    the line threshold in the mean spectrum of the records (A, F: (rec, half, bins))."""
+    a, f = A.mean(axis=(0, 1)), F.mean(axis=(0, 1))
+    df = freqs[1] - freqs[0]
+    count = 0
+    for k in range(1, int((kin.f_mesh - 2 * kin.n_planets * kin.f_carrier) / kin.f_carrier)):
+        if k % kin.n_planets == 0:
+            continue
+        b = int(round(k * kin.f_carrier / df))
+        if b + 1 < a.size and np.max(a[b - 1: b + 2] / f[b - 1: b + 2]) > 10 ** (THRESHOLD_DB / 20):
+            count += 1
+    return count
 
 
 def _apply(twin, theta, layout: _Layout, i_path: int, i_exc: int):
@@ -405,6 +466,11 @@ def _apply(twin, theta, layout: _Layout, i_path: int, i_exc: int):
     exc = twin.parts[i_exc]
     twin = eqx.tree_at(lambda t: (t.parts[i_exc].ring_cos, t.parts[i_exc].ring_sin), twin,
                        (exc.ring_cos + te[:h], exc.ring_sin + te[h:]))
+    if layout.n_share:
+        # clearances from the static balance of the twin before θ's damping (which they do not
+        # depend on): linear in the shares, so forward-mode tangents stay exact
+        e = load_share_offsets(twin, _shares(theta, layout), layout.f_sun)
+        twin = eqx.tree_at(lambda t: t.parts[layout.i_share_part], twin, MeshOffsets(e, e))
     s = jnp.exp(theta[layout.i_zeta])
     lp = twin.lp
     lp = replace_lumped(lp, zeta_sun_planet=lp.zeta_sun_planet * s,
@@ -618,19 +684,26 @@ def calibrate(
     kin = Kinematics.from_gears(g["z_sun"], g["z_planet"], g["z_ring"], g["n_planets"], f_sun)
     say(f"speed {f_sun:.4f} Hz from {n_rec} record(s)")
     n_harm = settings.mesh_harmonics or max(1, int(0.45 * fs / kin.f_mesh))
-    twin, i_path, i_exc, layout = _prepare_twin(spec, f_sun, kind, settings, n_harm)
+    # spectra of each half of each record
+    freqs, Ymeas = segment_spectra(X, fs, 2)  # (rec, 2, bins)
+    A = np.abs(Ymeas)
+    F = noise_floor(A, FLOOR_BINS)
+    n_orders = _carrier_order_lines(kin, freqs, A, F)
+    fit_shares = settings.load_sharing == "on" or (settings.load_sharing == "auto"
+                                                    and n_orders >= 2)
+    if fit_shares:
+        say(f"{n_orders} carrier orders k f_c (k not a multiple of {kin.n_planets}) above the "
+            "line threshold: fitting the planets' load shares")
+    twin, i_path, i_exc, layout = _prepare_twin(spec, f_sun, kind, settings, n_harm, fit_shares)
     daq = daq_from_spec(spec, snr_db=None, quantity=_quantity(spec), frf_hz=None, frf_db=None)
     say(f"simulating the twin and its response to {layout.size} parameters "
         f"({n / fs:.1f} s at {fs:g} Hz)")
     y0, J = _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings)
 
-    # spectra of each half of each record; the model's halves are the same for every record
-    freqs, Ymeas = segment_spectra(X, fs, 2)  # (rec, 2, bins)
+    # the model's halves are the same for every record
     _, Z0 = segment_spectra(y0, fs, 2)  # (2, bins)
     _, JZ = segment_spectra(J.T, fs, 2)  # (P, 2, bins)
     JZ = np.moveaxis(JZ, 0, -1)  # (2, bins, P)
-    A = np.abs(Ymeas)
-    F = noise_floor(A, FLOOR_BINS)
     # the noise floor as an rms: a Hann amplitude spectrum of white noise of variance σ² has
     # Rayleigh amplitudes of median sqrt(2 ln 2 · 3 σ² / n_half)
     noise_rms = float(np.sqrt(np.median(F) ** 2 * n_half / (6.0 * math.log(2.0))))
@@ -643,6 +716,7 @@ def calibrate(
     B = knot_basis(freqs, knots)
     prior = np.concatenate([np.full(layout.n_window, settings.window_prior),
                             np.full(2 * n_harm, settings.te_prior / _TE_UNIT),
+                            np.full(layout.n_share, settings.share_prior / _SHARE_UNIT),
                             [settings.zeta_prior]])
 
     def data_for(rows_rec, rows_half):
@@ -746,7 +820,8 @@ def _intervals(theta, G, data: _Data, layout: _Layout, knots, Wl, B, twin, i_exc
     prior = np.asarray(data.prior_sd)
     names = ([f"window_c{k + 1}" for k in range(layout.n_window)]
              + [f"excitation_ring_{cs}_{i + 1}" for cs in ("cos", "sin")
-                for i in range(layout.n_harm)] + ["zeta_mesh"])
+                for i in range(layout.n_harm)]
+             + [f"load_share_{i}" for i in range(1, layout.n_share + 1)] + ["zeta_mesh"])
     joint = _joint(cov, info, prior, names)
     out = []
     c = np.asarray(layout.c_init)
@@ -767,6 +842,13 @@ def _intervals(theta, G, data: _Data, layout: _Layout, knots, Wl, B, twin, i_exc
                 float(layout.te_scale * prior[k]), bool(sd[k] < 0.5 * prior[k]),
                 "with the response at this harmonic: one sensor sees their product",
                 joint[k]))
+    shares = np.asarray(_shares(jnp.asarray(theta), layout)) if layout.n_share else ()
+    for i in range(layout.n_share):
+        k = layout.i_share + i
+        out.append(CalibratedParameter(
+            names[k], float(shares[i + 1]), "1", float(_SHARE_UNIT * sd[k]),
+            float(_SHARE_UNIT * prior[k]), bool(sd[k] < 0.5 * prior[k]),
+            "load share relative to planet 0", joint[k]))
     k = layout.i_zeta
     z0 = float(twin.lp.zeta_ring_planet)
     out.append(CalibratedParameter("zeta_mesh", z0 * math.exp(theta[k]), "1",
@@ -828,6 +910,9 @@ def _calibrated_data(spec: Spec, theta, G, knots, layout: _Layout, twin, i_exc, 
     mesh["excitation_ring_sin"] = [float(v) for v in np.asarray(exc.ring_sin) + te[h:]]
     mesh["excitation_sun_cos"] = [float(v) for v in np.asarray(exc.sun_cos)]
     mesh["excitation_sun_sin"] = [float(v) for v in np.asarray(exc.sun_sin)]
+    if layout.n_share:
+        data["imperfections"]["load_sharing"] = [
+            float(v) for v in np.asarray(_shares(jnp.asarray(theta), layout))]
     z = float(twin.lp.zeta_ring_planet) * math.exp(float(theta[layout.i_zeta]))
     z = min(max(z, 1e-6), 0.499)
     damping = data["damping"]
