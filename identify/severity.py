@@ -47,6 +47,17 @@ sun when the sun floats on its bearing), tens of dB above the floor. The low ban
 bin from ``0.8 N f_c`` (the lowest knot of a calibrated sensor response) to the first mesh
 band as band 0, with the planet-pass lines that calibration fits.
 
+**A healthy fault is never ruled out by its coordinate.** Severity is fitted in a logit
+coordinate, whose Gaussian and profile intervals never reach 0 itself. The twin without the
+fault (severity at the edge of its range, 1e-3 of it, other free parameters at their fitted
+values) is scored by the likelihood-ratio rule: when its ``‖r‖²`` exceeds the best fit's by no
+more than ``χ²₁(95 %)`` in units of the residual variance (neighbour-correlation and
+lack-of-fit factors included), the data cannot reject a healthy tooth and the interval's lower
+ends (severity and peak loss) become 0. A healthy tooth is a point of the fitted model, not
+another model form, so the shapes' second term (what the best fit leaves unexplained) does
+not apply. Holding the other parameters makes the test conservative: the profile over them
+could only lower the healthy twin's loss.
+
 **Band jackknife** (``jackknife=True``). Each accepted shape's interval is also the hull with
 the delete-one-band jackknife interval (:func:`dtwin.identify.uncertainty.band_jackknife`):
 when the bands disagree about the severity beyond their noise — a model-form error that the
@@ -70,7 +81,7 @@ from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
 from dtwin.spectrum import noise_floor
 
-from .fit import FitResult, _jacobian, fit, make_problem
+from .fit import FitResult, _batched_loss, _jacobian, fit, make_problem
 from .residuals import _STRONG_DB, _amplitude, point_groups
 from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, band_jackknife
 
@@ -278,6 +289,19 @@ def _jackknife_interval(res: FitResult, name: str) -> tuple[float, float]:
     return (min(a, b), max(a, b))
 
 
+def _healthy_accepted(res: FitResult, name: str, best_loss: float, tol: float) -> bool:
+    """Whether the fit's twin with the fault at the low edge of its range (the other free
+    parameters held at their values) loses no more than `tol` in ``‖r‖²`` against
+    `best_loss` (module docstring)."""
+    if res.problem is None or not np.isfinite(tol):
+        return False
+    vals = dict(res.values)
+    vals[name] = 0.0  # pulled inside the logit range by ParameterSet.theta
+    theta0 = jnp.asarray(res.problem.pset.theta(vals))[None, :]
+    loss0 = float(np.asarray(_batched_loss(theta0, res.problem, "map"))[0])
+    return bool(np.isfinite(loss0) and 2.0 * (loss0 - best_loss) <= tol)
+
+
 def _estimate(location: str, shapes, jackknife: bool = False) -> SeverityEstimate:
     """The estimate from the fits of one record over the loss shapes (module docstring)."""
     name = _name(location)
@@ -328,11 +352,19 @@ def _estimate(location: str, shapes, jackknife: bool = False) -> SeverityEstimat
         rows.append(row)
     if not np.isfinite(plo):
         plo = phi = np.nan
+    # a healthy tooth is a point of the fitted model (severity 0), not another model form:
+    # the likelihood-ratio rule with the noise term alone (lack of fit included through s²)
+    healthy_ok = unc is not None and _healthy_accepted(
+        best, name, losses[b], CHI2_95 * unc.s2 * unc.kappa * unc.widened ** 2)
+    if healthy_ok:
+        lo, plo = 0.0, 0.0
     method = "profile" if unc is not None and name in unc.profiled else "gaussian"
     if sum(r["accepted"] for r in rows) > 1:
         method += " + loss shapes"
     if jk_wider:
         method += " + band jackknife"
+    if healthy_ok:
+        method += " + healthy not rejected"
     det = unc is not None and name not in unc.not_determined and \
         0.5 * (hi - lo) <= HALF_WIDTH_LIMIT * max(abs(sev), 0.1)
     return SeverityEstimate(location, sev, (float(lo), float(hi)), bool(det), method, best,

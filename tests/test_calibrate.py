@@ -122,7 +122,7 @@ SAMPLES = Path(__file__).resolve().parents[1] / "data" / "samples"
 def test_calibration_fits_unequal_load_sharing_on_the_bench(tmp_path):
     """The bundled bench_healthy record (made by a translational twin with 20 stiffness
     harmonics, a transmission error and pin-hole position errors of 0.4 and −0.3 mrad that load
-    the planets unequally: not the calibrating twin) holds carrier orders k f_c, k = 1, 2, 4 …,
+    the planets unequally: not the calibrating twin) holds carrier orders k f_c, k = 1, 2 and 4,
     30–50 dB over the floor. Without load shares the calibration left it at 25 dB held out
     (the frequency response bent to hide the low band); with them the held-out gap falls below
     a third of the uncalibrated one and the low band to within 3 dB. The calibrated spec
