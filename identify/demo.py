@@ -203,7 +203,9 @@ def step_calibration(folder: OutputFolder, quick: bool = False):
     text = "\n".join([
         "## 6. Calibration on the healthy bundled record\n",
         "What the bench does not publish (window shape, ring-mesh excitation, mesh damping, the "
-        "sensor's frequency response) is fitted from `bench_healthy` and written as "
+        "sensor's frequency response, and the planets' load shares when the record shows "
+        "carrier orders that equal sharing cannot make) is fitted from `bench_healthy` and "
+        "written as "
         "`calibrated.toml` beside this report (the preset is unchanged): "
         "`dtwin calibrate data/samples/bench_healthy.dtwin.h5 --preset paper-bench --out cal/` "
         "does the same from the shell.\n",
@@ -219,8 +221,7 @@ def step_calibration(folder: OutputFolder, quick: bool = False):
         "",
         "Lines the calibrated twin still misses are what `dtwin discover` examines next: a "
         "gap that stays high after calibration says the healthy machine holds an effect the "
-        "spec does not describe (for `bench_healthy`, planet-spacing lines at the carrier "
-        "frequency's multiples), not that the calibration failed.",
+        "spec does not describe, not that the calibration failed.",
         "",
         "![calibration spectra](calibration_spectra.png)",
         "",

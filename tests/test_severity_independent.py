@@ -164,12 +164,13 @@ def _overlap(a, b) -> bool:
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason=(
-    "measured (paper-bench calibrated on bench_healthy, torsional twin as the commands' "
-    "default): identify k_sun_planet,zeta_mesh,sun_fault stops at the 40-step limit after "
-    "1289 s; k_sun_planet 1.94e8 [1.58e8, 2.38e8] 'unconverged' (no longer 'ok' at ±3 %, but "
-    "not flagged), zeta_mesh NOT DETERMINED, sun_fault 0.0023 [0.0014, 0.0035] for a true 0.6 "
-    "(translational truth: the torsional twin's sun cannot float); lack of fit 2.79, every "
-    "interval widened ×1.67. The agreement and healthy-interval checks were not reached."))
+    "measured (paper-bench calibrated on bench_healthy, load shares included; torsional twin "
+    "as the commands' default): severity alone holds the truth (0.581 [0.424, 0.723]; "
+    "test_calibrate.py checks it in CI) and bench_healthy's interval holds 0, but identify "
+    "k_sun_planet,zeta_mesh,sun_fault stops at the 40-step limit (60 s): k_sun_planet "
+    "2.05e7 N/m, 10x below ISO, pulls the sun mode into the band, zeta_mesh at its bound, "
+    "sun_fault left at its start 0.30 [0.22, 0.40], all 'unconverged', so k_sun_planet is "
+    "not flagged NOT DETERMINED and the agreement check is not reached."))
 def test_bench_identify_severity_and_fleet_agree(bench_spec, tmp_path):
     """identify (k_sun_planet, zeta_mesh, sun_fault), severity and fleet on bench_sun_fault
     agree within their intervals; bench_healthy's severity interval holds 0; k_sun_planet,
@@ -199,7 +200,7 @@ def test_bench_identify_severity_and_fleet_agree(bench_spec, tmp_path):
     assert healthy.interval[0] <= 1e-3
 
 
-def test_shape_profile_keeps_the_shapes_a_model_form_error_cannot_reject():
+def test_shape_profile_keeps_the_shapes_a_model_form_error_cannot_reject(monkeypatch):
     """The union rule of dtwin.identify.severity on stand-in fits: a shape whose ‖r‖² exceeds
     the best by less than max(χ²₁ s² κ, ‖r‖² − E) joins the interval; severity and peak loss map
     through each shape's own ramp (dtwin.faults.peak_stiffness_loss), the peak relative to the
@@ -210,7 +211,12 @@ def test_shape_profile_keeps_the_shapes_a_model_form_error_cannot_reject():
 
     from dtwin.build import build_twin
     from dtwin.faults import peak_stiffness_loss
+    from dtwin.identify import severity
     from dtwin.identify.severity import _estimate, _fault_index
+
+    # the stand-ins carry no problem to simulate: the healthy-tooth test (checked on the bench
+    # records in test_calibrate.py) rejects a healthy tooth here
+    monkeypatch.setattr(severity, "_healthy_accepted", lambda *a: False)
     from dtwin.registry import lookup
     from dtwin.spec import preset
 
