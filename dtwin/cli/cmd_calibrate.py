@@ -35,6 +35,10 @@ def calibrate(
                                      "(default: the spec's model.kind)."),
     knots: int = typer.Option(5, "--knots", help="Knots of the sensor frequency response."),
     window_terms: int = typer.Option(7, "--window-terms", help="Cosine terms of the window."),
+    load_sharing: str = typer.Option("auto", "--load-sharing",
+                                     help="Fit the planets' load shares: auto (when the records "
+                                          "show carrier orders equal sharing cannot make), on, "
+                                          "off."),
     channel: str = opts.channel_option(),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
@@ -50,6 +54,7 @@ def calibrate(
         opts.choice("--model", model, ("torsional", "translational"))
     opts.at_least("--knots", knots, 1)
     opts.at_least("--window-terms", window_terms, 2)
+    opts.choice("--load-sharing", load_sharing, ("auto", "on", "off"))
     opts.check_out(out, force)
     gb = opts.load_gearbox(preset, spec)
     ch = opts.channel_token(channel)
@@ -60,7 +65,8 @@ def calibrate(
         opts.checked_record(r, ch, gb.spec, None, fit=True)
         r.metadata["source"] = p.name
         recs.append(r)
-    settings = CalibrationSettings(window_terms=window_terms, n_knots=knots)
+    settings = CalibrationSettings(window_terms=window_terms, n_knots=knots,
+                                   load_sharing=load_sharing)
     import logging
 
     log = logging.getLogger("dtwin")
