@@ -47,13 +47,13 @@ sun when the sun floats on its bearing), tens of dB above the floor. The low ban
 bin from ``0.8 N f_c`` (the lowest knot of a calibrated sensor response) to the first mesh
 band as band 0, with the planet-pass lines that calibration fits.
 
-**A healthy fault is never ruled out by its coordinate.** Severity is fitted in a logit
+**A healthy tooth is not ruled out by the coordinate.** Severity is fitted in a logit
 coordinate, whose Gaussian and profile intervals never reach 0 itself. The twin without the
 fault (severity at the edge of its range, 1e-3 of it, other free parameters at their fitted
 values) is scored by the likelihood-ratio rule: when its ``‖r‖²`` exceeds the best fit's by no
 more than ``χ²₁(95 %)`` in units of the residual variance (neighbour-correlation and
 lack-of-fit factors included), the data cannot reject a healthy tooth and the interval's lower
-ends (severity and peak loss) become 0. A healthy tooth is a point of the fitted model, not
+ends (severity and peak loss) move to the range's lower edge: 0, unless the user bounded it. A healthy tooth is a point of the fitted model, not
 another model form, so the shapes' second term (what the best fit leaves unexplained) does
 not apply. Holding the other parameters makes the test conservative: the profile over them
 could only lower the healthy twin's loss.
@@ -296,7 +296,8 @@ def _healthy_accepted(res: FitResult, name: str, best_loss: float, tol: float) -
     if res.problem is None or not np.isfinite(tol):
         return False
     vals = dict(res.values)
-    vals[name] = 0.0  # pulled inside the logit range by ParameterSet.theta
+    vals[name] = float(res.problem.pset.lower[res.names.index(name)])  # pulled inside the
+    # logit range by ParameterSet.theta
     theta0 = jnp.asarray(res.problem.pset.theta(vals))[None, :]
     loss0 = float(np.asarray(_batched_loss(theta0, res.problem, "map"))[0])
     return bool(np.isfinite(loss0) and 2.0 * (loss0 - best_loss) <= tol)
@@ -356,8 +357,9 @@ def _estimate(location: str, shapes, jackknife: bool = False) -> SeverityEstimat
     # the likelihood-ratio rule with the noise term alone (lack of fit included through s²)
     healthy_ok = unc is not None and _healthy_accepted(
         best, name, losses[b], CHI2_95 * unc.s2 * unc.kappa * unc.widened ** 2)
-    if healthy_ok:
-        lo, plo = 0.0, 0.0
+    if healthy_ok:  # the range's lower edge: 0 unless the user bounded it
+        lo = float(best.problem.pset.lower[i])
+        plo = _peak(twin_b, k, lo, "max")
     method = "profile" if unc is not None and name in unc.profiled else "gaussian"
     if sum(r["accepted"] for r in rows) > 1:
         method += " + loss shapes"

@@ -126,7 +126,8 @@ def load_share_offsets(twin, shares, f_sun) -> Float[Array, " N"]:
     torsional twin with a sun held on its centre gives the closed form
     ``e_i = (1 - s_i) mean(f_0) / (2 k)``, ``1/k = 1/k_sp + 1/k_rp``; a floating sun takes up part
     of each clearance, and the solve accounts for it. The time-varying stiffness and one-sided
-    contact move the shares of a running twin by a few per cent from the stated ones.
+    contact move the shares of a running twin from the stated ones, by under 1 % on the paper's
+    gearboxes.
 
     **Arguments:** `twin` (without the offsets); `shares` (N positive values); `f_sun`: input
     speed (Hz) at which the load torque (and the planets' centripetal pre-load) is taken.
