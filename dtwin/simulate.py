@@ -256,6 +256,22 @@ def _ext_static_forces(twin: Twin, omega_c):
     return f, tl / rs
 
 
+def _static_balance(twin: Twin, omega_c):
+    """The static problem of a steady run: mean mesh stiffness, linear contact, the parts'
+    springs, the carrier angle held and the load torque at carrier speed `omega_c` (rad/s).
+
+    **Returns:** `(A, keep, K, F, torque_sun)`: the kinematic map, the integration coordinates
+    other than the carrier angle, the stiffness and static forces over them, and the sun torque
+    that balances the load."""
+    A = jnp.asarray(twin.kinematic_map())
+    ic = twin._index("theta_c")
+    keep = np.array([i for i in range(twin.n_dof) if i != ic])
+    K = A.T @ twin.linear_stiffness(modal=False) @ A
+    f, torque_sun = _ext_static_forces(twin, omega_c)
+    F = A.T @ twin.pack(f)
+    return A, keep, K[np.ix_(keep, keep)], F[keep], torque_sun
+
+
 def initial_state(twin: Twin, f_sun: float | Array, start: str = "steady"):
     """Initial `(z, z', aux)` (unscaled) for a run at input speed `f_sun` (Hz).
 
@@ -274,12 +290,8 @@ def initial_state(twin: Twin, f_sun: float | Array, start: str = "steady"):
         aux = [p.aux_init(twin, jnp.zeros(())) for p in twin.parts]
     elif start == "steady":
         omega_c = omega_s / rs
-        A = jnp.asarray(twin.kinematic_map())
-        K = A.T @ twin.linear_stiffness(modal=False) @ A
-        f, torque_sun = _ext_static_forces(twin, omega_c)
-        F = A.T @ twin.pack(f)
-        keep = np.array([i for i in range(n) if i != ic])
-        x = jnp.linalg.solve(K[np.ix_(keep, keep)], F[keep])
+        A, keep, K, F, torque_sun = _static_balance(twin, omega_c)
+        x = jnp.linalg.solve(K, F)
         z = jnp.zeros(n).at[keep].set(x)
         zd = jnp.zeros(n).at[ic].set(omega_c)
         aux = []

@@ -116,7 +116,7 @@ def load_share_offsets(twin, shares, f_sun) -> Float[Array, " N"]:
     r"""Clearances ``e_i`` (m), the same on both meshes of planet ``i``, that give the planets
     the relative load shares `shares` (N values, read relative to their mean) in `twin`.
 
-    Static model of `dtwin.simulate.initial_state`: mean mesh stiffness, linear contact, the
+    Static model of `dtwin.simulate.initial_state` (the same balance): mean mesh stiffness, linear contact, the
     parts' linear springs, the carrier angle held and the twin's load torque on it. The mesh
     forces are ``f = K_m (L A z - C e)`` (``C`` puts ``e_i`` on both meshes of planet ``i``), so
     equilibrium ``K_z z = F + A^T L^T K_m C e`` makes the sun-mesh forces affine in ``e``:
@@ -134,18 +134,14 @@ def load_share_offsets(twin, shares, f_sun) -> Float[Array, " N"]:
 
     **Returns:** `e` (m), shape (N,); positive relieves a planet.
     """
-    from ..simulate import _ext_static_forces  # simulate imports the parts
+    from ..simulate import _static_balance  # simulate imports the parts
 
     lp, n = twin.lp, twin.n_planets
     s = jnp.asarray(shares, dtype=jnp.float64)
     s = s / jnp.mean(s)
-    A = jnp.asarray(twin.kinematic_map())
-    ic = twin._index("theta_c")
-    keep = jnp.asarray([i for i in range(twin.n_dof) if i != ic])
-    K = (A.T @ twin.linear_stiffness(modal=False) @ A)[jnp.ix_(keep, keep)]
     rs, _ = twin.kinematic_ratios
-    f, _ = _ext_static_forces(twin, 2.0 * jnp.pi * jnp.asarray(f_sun, dtype=jnp.float64) / rs)
-    F = (A.T @ twin.pack(f))[keep]
+    A, keep, K, F, _ = _static_balance(
+        twin, 2.0 * jnp.pi * jnp.asarray(f_sun, dtype=jnp.float64) / rs)
     L = twin.deflection_matrix() @ A[:, keep]  # 2N x reduced coordinates
     km = jnp.concatenate([jnp.full((n,), lp.k_sun_planet), jnp.full((n,), lp.k_ring_planet)])
     C = jnp.concatenate([jnp.eye(n), jnp.eye(n)])
