@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import jax.numpy as jnp
@@ -111,6 +112,48 @@ def load_part(spec, load_torque: float | None = None) -> LoadPart:
     """The carrier load of `[operating]` (N·m)."""
     tl = spec["operating"]["load_torque"] if load_torque is None else load_torque
     return LoadPart(ConstantLoad(jnp.asarray(float(tl or 0.0))))
+
+
+#: The twin a fitting command (identify, severity, fleet) builds from a spec that was not
+#: calibrated, when none is asked for: the torsional reduction, which the mesh-band lines of a
+#: steady record need and which simulates fastest.
+FIT_KIND = "torsional"
+
+
+def is_calibrated(spec) -> bool:
+    """Whether `spec` (a `Spec`, path or mapping) was written by ``dtwin calibrate`` (it has
+    ``[calibration] records``)."""
+    if not isinstance(spec, Spec):
+        spec = load_spec(spec)
+    return spec["calibration"]["records"] is not None
+
+
+def twin_kind(spec, kind: str | None = None, default: str = FIT_KIND) -> str:
+    """The twin kind (``translational`` / ``torsional``) a fitting command builds for `spec`.
+
+    - `kind` given: that kind. When the spec was calibrated (it has ``[calibration]``) for the
+      other kind, a `UserWarning` says so: its calibrated excitation, window, sensor response
+      and load shares were fitted with that twin and mean something else in this one.
+    - `kind` None: a calibrated spec's ``model.kind`` (the twin it was calibrated with, which
+      ``dtwin calibrate`` writes there); otherwise `default`.
+
+    **Raises:** `SpecError` for an unknown `kind`.
+    """
+    if not isinstance(spec, Spec):
+        spec = load_spec(spec)
+    calibrated = is_calibrated(spec)
+    own = spec["model"]["kind"]
+    if kind is None:
+        return own if calibrated else default
+    if kind not in ("translational", "torsional"):
+        raise SpecError([("model.kind", f"the twin kind is 'translational' or 'torsional', "
+                                        f"got {kind!r}")])
+    if calibrated and kind != own:
+        warnings.warn(f"this spec was calibrated with the {own} twin: its calibrated excitation, "
+                      f"window, sensor response and load shares were fitted for that twin, not "
+                      f"the {kind} one asked for; leave the kind out (or ask for {own}) to use "
+                      "the twin it was calibrated with", UserWarning, stacklevel=2)
+    return kind
 
 
 def build_twin(

@@ -43,7 +43,7 @@ import numpy as np
 import optimistix as optx
 
 from dtwin import _heap
-from dtwin.build import build_twin
+from dtwin.build import build_twin, twin_kind
 from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
 from dtwin.parts.drive import DrivePart
 from dtwin.registry import lookup
@@ -572,10 +572,11 @@ class FitResult:
 
 
 # ------------------------------------------------------------------------------------ fit
-def _as_twin(spec_or_twin, kind: str):
+def _as_twin(spec_or_twin, kind: str | None):
     if isinstance(spec_or_twin, Twin):
         return spec_or_twin
-    return build_twin(spec_or_twin, kind=kind)
+    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
+    return build_twin(spec, kind=twin_kind(spec, kind))
 
 
 def _nominal_speed(spec_or_twin, twin) -> float | None:
@@ -594,7 +595,7 @@ def make_problem(
     spec_or_twin,
     free: Sequence[str] | str | ParameterSet,
     *,
-    kind: str = "torsional",
+    kind: str | None = None,
     f_sun: float | Sequence[float | None] | None = None,
     runup: tuple[float, float] | Sequence[tuple[float, float] | None] | None = None,
     features: Features | Sequence[Features] | None = None,
@@ -726,8 +727,9 @@ def fit(
     **Arguments:**
 
     - `records`: a `dtwin.io.Record` or a list (fitted jointly).
-    - `spec_or_twin`: a spec (path, mapping, `Spec`; built with ``kind``, default torsional) or
-      a `Twin`.
+    - `spec_or_twin`: a spec (path, mapping, `Spec`; built with ``kind``: default the kind a
+      calibrated spec was calibrated with, otherwise torsional, :func:`dtwin.build.twin_kind`)
+      or a `Twin`.
     - `free`: registry names (list or ``"a,b,c"``) or a `ParameterSet`.
     - `solver`: ``lm`` (Levenberg–Marquardt), ``gauss-newton`` or ``dogleg``.
     - `starts`: number of grid starts (batched evaluation), or an array of θ starts ``(k, p)``,

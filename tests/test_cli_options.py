@@ -430,3 +430,59 @@ def test_severity_report_opens_with_the_estimate():
         "sun fault severity (dimensionless)": "0.45, 95 % [0.41, 0.491] (gaussian)",
         "peak stiffness loss (% of the mean mesh stiffness)": "30.9, 95 % [23.4, 49.1]",
         "status": "ok"}
+
+
+def test_calibrated_spec_sets_the_twin_kind(files, tmp_path, monkeypatch, capsys):
+    """A calibrated spec was fitted with one twin kind: `dtwin severity` (and identify, fleet:
+    dtwin.build.twin_kind) build that kind unless --model says otherwise, and say so when it
+    does; the uncalibrated preset keeps the torsional default."""
+    from dtwin.identify import severity
+    from dtwin.spec import preset, spec_to_dict
+    from dtwin.spec_writer import spec_to_toml
+
+    data = spec_to_dict(preset("paper-sim"))
+    data.pop("source", None)
+    data["model"] = {"kind": "translational"}
+    data["calibration"] = {"records": "healthy.csv"}
+    cal = tmp_path / "calibrated.toml"
+    cal.write_text(spec_to_toml(data))
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(*a, **k):
+        seen.append(k.get("kind"))
+        raise Stop
+
+    monkeypatch.setattr(severity, "estimate_severity", capture)
+    for where, want in ((["--spec", str(cal)], "translational"),
+                        (["--preset", "paper-sim"], "torsional")):
+        with pytest.raises(SystemExit):
+            main(["severity", files["rec"], *where])
+        assert seen[-1] == want
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["severity", files["rec"], "--spec", str(cal), "--model", "torsional"])
+    assert seen[-1] == "torsional"
+    assert "calibrated with the translational twin" in capsys.readouterr().err
+
+
+def test_twin_kind_resolution():
+    """dtwin.build.twin_kind: the asked kind; else a calibrated spec's own; else torsional."""
+    from dtwin.build import twin_kind
+    from dtwin.errors import SpecError
+    from dtwin.spec import load_spec, preset, spec_to_dict
+
+    plain = preset("paper-bench")
+    assert plain["model"]["kind"] == "translational"
+    assert twin_kind(plain) == "torsional"
+    assert twin_kind(plain, "translational") == "translational"
+    data = spec_to_dict(plain)
+    data.pop("source", None)
+    cal = load_spec({**data, "calibration": {"records": "a.h5"}})
+    assert twin_kind(cal) == "translational"
+    with pytest.warns(UserWarning, match="calibrated with the translational twin"):
+        assert twin_kind(cal, "torsional") == "torsional"
+    with pytest.raises(SpecError, match="model.kind"):
+        twin_kind(cal, "rigid")

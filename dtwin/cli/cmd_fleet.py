@@ -52,7 +52,9 @@ def fleet_identify(
     spec: Path | None = opts.spec_option(),
     preset: str | None = opts.preset_option(),
     free: str = typer.Option("sun_fault", "--free", help="Comma-separated registry names."),
-    model: str = typer.Option("torsional", "--model", help="torsional or translational twin."),
+    model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
+                                     "(default: the kind a calibrated spec was calibrated "
+                                     "with, otherwise torsional)."),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz) of every "
                                        "record; default: estimated from each."),
     ray_address: str | None = typer.Option(None, "--ray-address", help="An existing Ray "
@@ -89,6 +91,8 @@ def fleet_identify(
     """Identify every record of a fleet: Ray tasks, one result file per record, a table."""
     from dtwin.identify.fleet import FleetSettings, run_fleet
 
+    from ..build import twin_kind
+
     names = opts.free_names("--free", free)
     opts.choice("--model", model, ("torsional", "translational"))
     opts.input_speed_option("--f-sun", f_sun)
@@ -121,7 +125,7 @@ def fleet_identify(
     gearbox = opts.load_gearbox(preset, spec, why="fleet identification needs the gearbox").spec
     if ray_address is not None and engine == "local":
         raise opts.OptionError("--engine", "--ray-address needs the ray engine (or auto)")
-    settings = FleetSettings(free=tuple(names), kind=model, f_sun=f_sun, starts=starts,
+    settings = FleetSettings(free=tuple(names), kind=twin_kind(gearbox, model), f_sun=f_sun, starts=starts,
                              refine=refine, max_steps=max_steps, tol=tol,
                              channel=opts.channel_token(channel),
                              grid=grid, order_step=order_step, f_max=f_max,

@@ -44,7 +44,7 @@ from . import options as opts
 from .app import app
 
 
-def _check_common(model: str, f_sun: float | None, out: Path | None, force: bool) -> None:
+def _check_common(model: str | None, f_sun: float | None, out: Path | None, force: bool) -> None:
     opts.choice("--model", model, ("torsional", "translational"))
     opts.input_speed_option("--f-sun", f_sun)
     opts.check_out(out, force)
@@ -197,7 +197,9 @@ def identify(
     free: str = typer.Option(..., "--free", help="Comma-separated registry names to fit."),
     spec: Path | None = opts.spec_option(),
     preset: str | None = opts.preset_option(),
-    model: str = typer.Option("torsional", "--model", help="torsional or translational twin."),
+    model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
+                                     "(default: the kind a calibrated spec was calibrated "
+                                     "with, otherwise torsional)."),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz); default: "
                                        "estimated from each record."),
     runup: tuple[float, float] | None = typer.Option(None, "--runup", help="Run-up records: "
@@ -219,6 +221,8 @@ def identify(
     """Fit twin parameters (registry names) to measured spectra, with 95 % intervals."""
     from dtwin.identify.fit import SOLVERS, fit
 
+    from ..build import twin_kind
+
     names = opts.free_names("--free", free)  # before anything is read or simulated
     _check_common(model, f_sun, out, force)
     opts.choice("--solver", solver, SOLVERS)
@@ -238,6 +242,7 @@ def identify(
             raise opts.OptionError("--runup", f"LOW must be > 0 Hz, got {runup[0]:g}")
         opts.input_speed_option("--runup", runup[1])
     gb = opts.load_gearbox(preset, spec, why="identification needs the gearbox")
+    model = twin_kind(gb.spec, model)
     ch = opts.channel_token(channel)
     segs = _segments(records, sample_rate, ch, gb.spec, f_sun, window)
     recs = [sg.record for sg in segs]
@@ -309,7 +314,9 @@ def severity(
     preset: str | None = opts.preset_option(),
     location: str = typer.Option("sun", "--location", help="sun, planet or ring."),
     free: str = typer.Option("", "--free", help="Further registry names fitted with it."),
-    model: str = typer.Option("torsional", "--model", help="torsional or translational twin."),
+    model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
+                                     "(default: the kind a calibrated spec was calibrated "
+                                     "with, otherwise torsional)."),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz)."),
     channel: str = opts.channel_option(),
     fit_window: str = fit_window_option(),
@@ -330,12 +337,15 @@ def severity(
     from dtwin.identify.fit import check_free
     from dtwin.identify.severity import estimate_severity
 
+    from ..build import twin_kind
+
     opts.choice("--location", location, ("sun", "planet", "ring"))
     extra = opts.free_names("--free", free) if free.strip() else []
     check_free([f"{location}_fault"])
     _check_common(model, f_sun, out, force)
     window = _parse_window(fit_window)
     gb = opts.load_gearbox(preset, spec, why="severity estimation needs the gearbox")
+    model = twin_kind(gb.spec, model)
     ch = opts.channel_token(channel)
     segs = _segments([record], sample_rate, ch, gb.spec, f_sun, window)
     rec = segs[0].record

@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dtwin.build import build_twin, daq_from_spec
+from dtwin.build import build_twin, daq_from_spec, twin_kind
 from dtwin.errors import DtwinError
 from dtwin.spec import Spec, load_spec
 from dtwin.spectrum import amplitude_spectrum, as_signal, noise_floor
@@ -162,7 +162,8 @@ def discover(
 
     # 2. the extended model
     if base_twin is None:
-        base_twin = build_twin(spec, kind=kind, f_sun=f_sun)
+        base_twin = build_twin(spec, kind=twin_kind(spec, kind, default=spec["model"]["kind"]),
+                               f_sun=f_sun)
     daq = daq_from_spec(spec, sample_rate=fs, snr_db=None)
     # candidates specialised to the machine (spec, base twin) first, then to the record (the
     # base twin's residual lines); a second model only when the record changed the set

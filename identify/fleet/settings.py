@@ -27,7 +27,8 @@ class FleetSettings:
     """What is fitted to every record of a fleet, and how the run is cut into tasks.
 
     - `free`: registry names fitted (e.g. ``("sun_fault",)``); `kind`: the twin
-      (``torsional`` or ``translational``); `initial`: ``((name, value), ...)`` starting values
+      (``torsional`` or ``translational``; None: the kind a calibrated spec was calibrated
+      with, otherwise torsional, :func:`dtwin.build.twin_kind`); `initial`: ``((name, value), ...)`` starting values
       (SI); `f_sun`: input speed (Hz) for every record (None: estimated from each record).
     - `solver`, `starts`, `refine`, `max_steps`, `tol`, `channel`: as :func:`dtwin.identify.fit.fit`.
     - `grid`: ``orders`` (default: the order domain, module docstring) or ``hz`` (DFT bins, as
@@ -45,7 +46,7 @@ class FleetSettings:
     """
 
     free: tuple[str, ...] = ("sun_fault",)
-    kind: str = "torsional"
+    kind: str | None = None
     initial: tuple[tuple[str, float], ...] = ()
     f_sun: float | None = None
     solver: str = "lm"
@@ -71,7 +72,7 @@ class FleetSettings:
         object.__setattr__(self, "discover_options", tuple((str(k), v) for k, v in opts))
         if not self.free:
             raise SettingsError("FleetSettings.free: name at least one registry parameter")
-        if self.kind not in ("torsional", "translational"):
+        if self.kind is not None and self.kind not in ("torsional", "translational"):
             raise SettingsError(f"FleetSettings.kind must be torsional or translational, got "
                              f"{self.kind!r}")
         if self.grid not in ("orders", "hz"):

@@ -15,7 +15,7 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from dtwin.build import build_twin
+from dtwin.build import build_twin, twin_kind
 from dtwin.errors import DtwinError
 from dtwin.io.readers import read_record
 from dtwin.order import shaft_speed, tacho_angle
@@ -209,7 +209,7 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
 
 def _fitted_twin(spec, settings: FleetSettings, values: Mapping[str, float], f_sun: float | None):
     """The spec's twin with the fitted `values` written through the registry's addresses."""
-    twin = build_twin(spec, kind=settings.kind, f_sun=f_sun)
+    twin = build_twin(spec, kind=twin_kind(spec, settings.kind), f_sun=f_sun)
     names = [n for n in settings.free if n in values]
     twin = ensure_parts(twin, names)
     for n in names:
@@ -229,7 +229,8 @@ def discover_task(job: Mapping[str, Any], spec_data: Mapping[str, Any], settings
         spec = load_spec(spec_data)
         rec = read_record(job["path"])
         twin = _fitted_twin(spec, settings, fit_entry.get("values", {}), fit_entry.get("f_sun"))
-        res = discover(rec.select([settings.channel]), spec, base_twin=twin, kind=settings.kind,
+        res = discover(rec.select([settings.channel]), spec, base_twin=twin,
+                       kind=twin_kind(spec, settings.kind),
                        settings=DiscoverySettings(**dict(settings.discover_options)))
     except DtwinError as e:
         return failure_entry(job, e, stage="discover", fingerprint=fingerprint, kind="discover")
