@@ -125,8 +125,8 @@ def fleet_identify(
     gearbox = opts.load_gearbox(preset, spec, why="fleet identification needs the gearbox").spec
     if ray_address is not None and engine == "local":
         raise opts.OptionError("--engine", "--ray-address needs the ray engine (or auto)")
-    settings = FleetSettings(free=tuple(names), kind=twin_kind(gearbox, model), f_sun=f_sun, starts=starts,
-                             refine=refine, max_steps=max_steps, tol=tol,
+    settings = FleetSettings(free=tuple(names), kind=twin_kind(gearbox, model), f_sun=f_sun,
+                             starts=starts, refine=refine, max_steps=max_steps, tol=tol,
                              channel=opts.channel_token(channel),
                              grid=grid, order_step=order_step, f_max=f_max,
                              batch_size=batch_size,
