@@ -304,7 +304,7 @@ def demo_section(folder, data: Path, quick: bool = False, spec=None) -> str:
 
     calibrated = spec is not None
     spec = spec if calibrated else preset("paper-bench")
-    twin = build_twin(spec, )
+    twin = build_twin(spec, kind="torsional")
     lines = ["## 7. Identification on the bundled records\n",
              "| record | estimated input speed | truth |", "|---|---|---|"]
     paths = sorted((data / "samples").glob("bench_*.dtwin.h5"))
@@ -329,15 +329,15 @@ def demo_section(folder, data: Path, quick: bool = False, spec=None) -> str:
     folder.savefig("identify_sun_fault.png", plot_fit(est.fit))
     folder.write_json("identify_sun_fault.json", est.fit.to_dict())
     lo, hi = est.interval
+    fitted_with = (f"the twin it was calibrated with ({spec['model']['kind']})" if calibrated
+                   else "the torsional twin")
     lines += [
         "",
         f"Sun missing-tooth severity of `bench_sun_fault`: **{est.severity:.2f}** "
         f"(95 % interval {lo:.2f} – {hi:.2f}, {est.method}), with the "
         f"{'calibrated spec of section 6' if calibrated else 'bench preset (section 6)'}"
         "; truth 0.6 in a translational twin with 20 stiffness harmonics and a transmission "
-        "error, fitted with "
-        f"{'the twin it was calibrated with (' + spec['model']['kind'] + ')' if calibrated else 'the torsional twin'}"
-        " (model-form error included).",
+        f"error, fitted with {fitted_with} (model-form error included).",
         "",
         "![fit](identify_sun_fault.png)",
     ]

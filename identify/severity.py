@@ -53,9 +53,9 @@ fault (severity at the edge of its range, 1e-3 of it, other free parameters at t
 values) is scored by the likelihood-ratio rule: when its ``‖r‖²`` exceeds the best fit's by no
 more than ``χ²₁(95 %)`` in units of the residual variance (neighbour-correlation and
 lack-of-fit factors included), the data cannot reject a healthy tooth and the interval's lower
-ends (severity and peak loss) move to the range's lower edge: 0, unless the user bounded it. A healthy tooth is a point of the fitted model, not
-another model form, so the shapes' second term (what the best fit leaves unexplained) does
-not apply. Holding the other parameters makes the test conservative: the profile over them
+ends (severity and peak loss) move to the range's lower edge: 0, unless the user bounded it. A
+healthy tooth is a point of the fitted model, not another model form, so the shapes' second
+term (what the best fit leaves unexplained) does not apply. Holding the other parameters makes the test conservative: the profile over them
 could only lower the healthy twin's loss.
 
 **Band jackknife** (``jackknife=True``). Each accepted shape's interval is also the hull with

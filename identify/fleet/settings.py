@@ -28,8 +28,9 @@ class FleetSettings:
 
     - `free`: registry names fitted (e.g. ``("sun_fault",)``); `kind`: the twin
       (``torsional`` or ``translational``; None: the kind a calibrated spec was calibrated
-      with, otherwise torsional, :func:`dtwin.build.twin_kind`); `initial`: ``((name, value), ...)`` starting values
-      (SI); `f_sun`: input speed (Hz) for every record (None: estimated from each record).
+      with, otherwise torsional, :func:`dtwin.build.twin_kind`); `initial`:
+      ``((name, value), ...)`` starting values (SI); `f_sun`: input speed (Hz) for every
+      record (None: estimated from each record).
     - `solver`, `starts`, `refine`, `max_steps`, `tol`, `channel`: as :func:`dtwin.identify.fit.fit`.
     - `grid`: ``orders`` (default: the order domain, module docstring) or ``hz`` (DFT bins, as
       ``dtwin identify``; records batch together only within 0.1 Hz of speed).
