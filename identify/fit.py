@@ -43,7 +43,7 @@ import numpy as np
 import optimistix as optx
 
 from dtwin import _heap
-from dtwin.build import build_twin, twin_kind
+from dtwin.build import build_twin, is_calibrated, twin_kind
 from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
 from dtwin.parts.drive import DrivePart
 from dtwin.registry import lookup
@@ -51,6 +51,7 @@ from dtwin.simulate import SolverOptions
 from dtwin.spec import Spec, load_spec
 from dtwin.twin import Twin
 
+from .confounding import calibrated_excitation, calibration_confounding, needs_check
 from .operating_point import estimate_speed, estimate_speed_profile
 from .params import ParameterSet
 from .residuals import (
@@ -579,6 +580,15 @@ def _as_twin(spec_or_twin, kind: str | None):
     return build_twin(spec, kind=twin_kind(spec, kind))
 
 
+def _calibrated_spec(spec_or_twin) -> Spec | None:
+    """The spec when it was written by ``dtwin calibrate`` (None: a twin or an uncalibrated
+    spec)."""
+    if isinstance(spec_or_twin, Twin):
+        return None
+    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
+    return spec if is_calibrated(spec) else None
+
+
 def _nominal_speed(spec_or_twin, twin) -> float | None:
     if not isinstance(spec_or_twin, Twin):
         spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
@@ -717,6 +727,7 @@ def fit(
     sigma_tol: float = SIGMA_TOL,
     batch: str = "auto",
     uncertainty: bool = True,
+    confounding: bool = True,
     progress: bool = False,
     throw: bool = False,
     problem: Problem | None = None,
@@ -743,6 +754,9 @@ def fit(
     - `batch`: how the start grid and several refined starts run in their one compiled call,
       ``"auto"``, ``"vmap"`` or ``"map"`` (:func:`batch_mode`).
     - `uncertainty`: compute covariance, intervals and flags.
+    - `confounding`: with a calibrated spec and a free stiffness, damping ratio, mass or
+      inertia, flag the parameters the calibrated mesh excitation confounds
+      (:mod:`dtwin.identify.confounding`; one more Jacobian with the excitation's columns).
     - `progress`: print the stages and losses (stderr).
     - `throw`: raise `FitError` when not converged or at a bound.
     - keyword arguments of :func:`make_problem`: ``f_sun``, ``runup``, ``features``,
@@ -805,6 +819,14 @@ def fit(
                       n_profiled_gains=problem.n_profiled_gains,
                       profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem, mode),
                       expected_rss=expected_noise_rss(problem.observations))
+        spec = _calibrated_spec(spec_or_twin)
+        if confounding and spec is not None and needs_check(pset.free, spec):
+            say("checking the fitted values against the calibrated excitation (one Jacobian "
+                f"with {len(calibrated_excitation(spec))} more columns) …")
+            unc, _ = calibration_confounding(
+                problem, theta, unc, spec, groups=point_groups(problem.observations),
+                expected_rss=expected_noise_rss(problem.observations),
+                jacobian=_value_and_jacfwd)
     at_bound = pset.at_bound(theta)
     hit_limit = int(steps[best]) >= max_steps
     converged = bool(ok[best]) and not hit_limit
@@ -891,12 +913,14 @@ def fit_batch(
     sigma_tol: float = SIGMA_TOL,
     batch: str = "auto",
     uncertainty: bool = True,
+    confounding: bool = True,
     **problem_kwargs: Any,
 ) -> list[FitResult]:
     """Fit many records of one gearbox type in one compiled call (one start each, θ = 0):
     ``vmap`` over the records on a GPU, ``jax.lax.map`` on a CPU (`batch`, :func:`batch_mode`). Records must share length, rate and speed to 0.1 Hz (:func:`stack_problems`);
     per-record keyword lists (``f_sun``…) are not taken here: pass scalars. Uncertainties come
-    from the residuals and Jacobian of each record's last accepted LM step. **Returns:** one
+    from the residuals and Jacobian of each record's last accepted LM step, checked against a
+    calibrated spec's excitation as in :func:`fit` (`confounding`). **Returns:** one
     :class:`FitResult` per record, as :func:`fit` would."""
     t0 = time.perf_counter()
     made = [make_problem(r, spec_or_twin, free, jac=jac, **problem_kwargs) for r in records]
@@ -909,6 +933,7 @@ def fit_batch(
                                                 max_steps, sigma_tol, batch_mode(batch))
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     wall = time.perf_counter() - t0
+    spec = _calibrated_spec(spec_or_twin)
     out = []
     for i, prob in enumerate(problems):
         pset = prob.pset
@@ -918,6 +943,11 @@ def fit_batch(
                           point_groups(prob.observations),
                           n_profiled_gains=prob.n_profiled_gains,
                           expected_rss=expected_noise_rss(prob.observations))
+            if confounding and spec is not None and needs_check(pset.free, spec):
+                unc, _ = calibration_confounding(
+                    prob, th[i], unc, spec, groups=point_groups(prob.observations),
+                    expected_rss=expected_noise_rss(prob.observations),
+                    jacobian=_value_and_jacfwd)
         at_bound = pset.at_bound(th[i])
         out.append(FitResult(
             names=pset.free, values=pset.as_dict(th[i]), theta=th[i],

@@ -252,11 +252,14 @@ def analyse(
     # scaled Jacobian and its SVD (columns scaled to unit norm: conditioning, null directions)
     col = np.linalg.norm(J, axis=0)
     col_safe = np.where(col > 0, col, 1.0)
-    U, sv, Vt = np.linalg.svd(J / col_safe, full_matrices=False)
+    Js = J / col_safe
+    U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
     ratio = sv / sv[0] if sv[0] > 0 else np.zeros_like(sv)
     null = Vt[ratio < NULL_RATIO]
-    # sandwich covariance (pseudo-inverse through the SVD of the unscaled J)
-    JtJ_inv = np.linalg.pinv(J.T @ J, rcond=1e-14)
+    # sandwich covariance; the pseudo-inverse of the column-scaled normal matrix (parameters of
+    # very different θ scales, e.g. a transmission error in metres next to a log stiffness,
+    # keep their information)
+    JtJ_inv = np.linalg.pinv(Js.T @ Js, rcond=1e-14) / np.outer(col_safe, col_safe)
     CJ = np.column_stack([_banded(groups, rho)(J[:, i]) for i in range(p)])
     cov_t = s2 * JtJ_inv @ (J.T @ CJ) @ JtJ_inv
     cov_t = 0.5 * (cov_t + cov_t.T)

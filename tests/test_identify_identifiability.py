@@ -156,3 +156,49 @@ def test_interval_coverage_refits_40(spec, truth_twin):
     print("inside", inside, "ratio", ratio, "converged", sum(r.converged for r in res))
     assert np.all(inside >= 34), (inside, ratio)
     assert np.all((ratio > 0.7) & (ratio < 1.4)), (inside, ratio)
+
+
+def test_intervals_do_not_depend_on_another_parameters_scale():
+    """A parameter's variance with another one profiled out is invariant to that one's scale
+    (rescaling a column of J rescales its θ, nothing else): a transmission error in metres
+    (θ scale 1 m, columns ~1e7 times a log stiffness's) must not make the stiffness look
+    precise. Closed form: with two columns x, y, var θ_x = s² / (‖x‖² (1 − ρ²))."""
+    from dtwin.identify.params import ParameterSet
+
+    rng = np.random.default_rng(0)
+    m = 400
+    x = rng.normal(size=m)
+    y = 0.6 * x + 0.8 * rng.normal(size=m)
+    r = 0.1 * rng.normal(size=m)
+    groups = np.arange(m)  # every point its own group: no neighbour correlation
+    pset = ParameterSet.build(["k_sun_planet", "excitation_ring_cos_1"],
+                              initial={"k_sun_planet": 2e8, "excitation_ring_cos_1": 1e-7})
+    s2 = np.sum(r**2) / (m - 2)
+    rho2 = (x @ y) ** 2 / ((x @ x) * (y @ y))
+    expected = 2e8 * np.sqrt(s2 / ((x @ x) * (1 - rho2)))
+    for scale in (1.0, 1e7, 1e9):
+        unc = analyse(pset, np.zeros(2), r, np.column_stack([x, scale * y]), groups)
+        assert unc.std[0] == pytest.approx(expected, rel=1e-8)
+
+
+def test_confounding_check_applies_to_calibrated_stiffness_fits():
+    """dtwin.identify.confounding: the calibrated excitation's names come from the spec's
+    nonzero arrays; the check runs for what calibration held at the spec's values
+    (stiffness, damping, inertia, a transmission error), not for faults, and never for an uncalibrated spec."""
+    from dtwin.identify.confounding import calibrated_excitation, needs_check
+    from dtwin.spec import load_spec, spec_to_dict
+
+    data = spec_to_dict(preset("paper-bench"))
+    assert calibrated_excitation(load_spec(data)) == ()
+    data["mesh"].update(excitation_sun_cos=[0.0, 0.0], excitation_sun_sin=[0.0, 0.0],
+                        excitation_ring_cos=[1e-7, 2e-8], excitation_ring_sin=[0.0, 3e-8])
+    assert not needs_check(["k_sun_planet"], load_spec(data))  # not calibrated
+    data["calibration"] = {"records": "healthy.h5"}
+    spec = load_spec(data)
+    assert calibrated_excitation(spec) == ("excitation_ring_cos_1", "excitation_ring_cos_2",
+                                           "excitation_ring_sin_1", "excitation_ring_sin_2")
+    assert needs_check(["k_sun_planet", "sun_fault"], spec)
+    assert needs_check(["zeta_mesh"], spec) and needs_check(["m_sun"], spec)
+    assert not needs_check(["sun_fault", "sun_eccentricity"], spec)
+    assert needs_check(["te_amplitude"], spec)
+    assert not needs_check(["excitation_ring_cos_1"], spec)
