@@ -79,6 +79,9 @@ SOLVERS = ("lm", "gauss-newton", "dogleg")
 #: 0.05 a fit could spend 15 steps chasing that noise. A step of 0.1 σ moves no interval
 #: noticeably.
 SIGMA_TOL = 0.1
+#: How many times :func:`fit` goes on from a point of lower loss that a severity's profile
+#: passed (:class:`dtwin.identify.uncertainty.Uncertainty` ``better``).
+MAX_RELOCATIONS = 2
 
 
 class Problem(eqx.Module):
@@ -441,7 +444,10 @@ class FitResult:
     - `converged`, `at_bound` (names), `message`, `iterations` (solver steps), `wall_time` (s),
       `operating_points` (Hz per record), `problem` (for figures and re-evaluation),
       `residuals` and `jacobian` (the residual vector and its Jacobian in θ at the optimum,
-      from the solver's last accepted step).
+      from the solver's last accepted step);
+    - `relocations`: each time the fit went on from a point of lower loss that a severity's
+      profile passed (the first optimum was a local one): the severity's name and the loss
+      before and after.
     """
 
     names: tuple[str, ...]
@@ -463,6 +469,7 @@ class FitResult:
     problem: Problem | None = dataclasses.field(default=None, repr=False)
     residuals: np.ndarray | None = dataclasses.field(default=None, repr=False)
     jacobian: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    relocations: list[dict[str, Any]] = dataclasses.field(default_factory=list)
 
     @property
     def not_determined(self) -> dict[str, str]:
@@ -509,6 +516,10 @@ class FitResult:
                     + ("converged" if self.converged else f"NOT converged ({self.message})")
 
                     + (f"; at bound: {', '.join(self.at_bound)}" if self.at_bound else ""))
+        for m in self.relocations:
+            rows.append(f"local optimum left: the profile of {m['profile_of']} passed a point of "
+                        f"lower loss; refined from it, loss {m['loss_before']:.5g} → "
+                        f"{m['loss_after']:.5g}")
         u = self.uncertainty
         if u is not None and np.isfinite(u.lack_of_fit):
             rows.append(f"lack of fit: loss {u.lack_of_fit:.3g}× what the noise alone leaves"
@@ -526,7 +537,7 @@ class FitResult:
             "start_losses": self.start_losses.tolist(), "refined": self.refined,
             "converged": self.converged, "at_bound": self.at_bound, "message": self.message,
             "iterations": self.iterations, "wall_time_s": self.wall_time,
-            "operating_points": self.operating_points,
+            "operating_points": self.operating_points, "relocations": self.relocations,
         }
         if self.uncertainty is not None:
             out["uncertainty"] = self.uncertainty.to_dict()
@@ -753,10 +764,13 @@ def fit(
       many standard errors (:func:`gauss_newton_step_in_sigma`; 0 turns the test off).
     - `batch`: how the start grid and several refined starts run in their one compiled call,
       ``"auto"``, ``"vmap"`` or ``"map"`` (:func:`batch_mode`).
-    - `uncertainty`: compute covariance, intervals and flags.
+    - `uncertainty`: compute covariance, intervals and flags. When a severity's profile
+      likelihood passes a point of lower loss than the optimum (by more than the χ²₁ 95 %
+      level), the optimum was a local one: the solver goes on from that point (up to
+      ``MAX_RELOCATIONS`` times) and the result lists it in `relocations`.
     - `confounding`: with a calibrated spec and a free stiffness, damping ratio, mass or
-      inertia, flag the parameters the calibrated mesh excitation confounds
-      (:mod:`dtwin.identify.confounding`; one more Jacobian with the excitation's columns).
+      inertia, flag the parameters the calibrated mesh excitation and load-share clearances
+      confound (:mod:`dtwin.identify.confounding`; one more Jacobian with their columns).
     - `progress`: print the stages and losses (stderr).
     - `throw`: raise `FitError` when not converged or at a bound.
     - keyword arguments of :func:`make_problem`: ``f_sun``, ``runup``, ``features``,
@@ -811,18 +825,43 @@ def fit(
     say(f"refined losses: {np.array2string(fl, precision=5)}; best {fl[best]:.6g} after "
         f"{int(steps[best])} steps")
     unc = None
-    if uncertainty:
+    relocated = []
+    rs, Js, hist, n_hist = (np.asarray(a) for a in (rs, Js, hist, n_hist))
+    while uncertainty:
         # the residuals and Jacobian at the optimum from the solver's last accepted step
-        r, J = rs[best], Js[best]
-        unc = analyse(pset, theta, np.asarray(r), np.asarray(J),
-                      point_groups(problem.observations),
+        unc = analyse(pset, theta, rs[best], Js[best], point_groups(problem.observations),
                       n_profiled_gains=problem.n_profiled_gains,
                       profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem, mode),
                       expected_rss=expected_noise_rss(problem.observations))
+        if unc.better is None or len(relocated) >= MAX_RELOCATIONS:
+            break
+        # a severity's profile passed a point of lower loss: the optimum was a local one, and
+        # the solver goes on from that point (the same compiled refinement)
+        name, th_b, _ = unc.better
+        say(f"the profile of {name} passed a point of lower loss ({name} = "
+            f"{pset.as_dict(th_b)[name]:.4g}): refining from it")
+        out = _refine(jnp.asarray(th_b)[None, :], problem, solver, tol, tol, jac, max_steps,
+                      sigma_tol, mode)
+        th2, ok2, steps2, fl2, rs2, Js2, hist2, n_hist2 = (np.asarray(a) for a in out)
+        refined.append({"theta": th2[0].tolist(), "converged": bool(ok2[0]),
+                        "steps": int(steps2[0]), "loss": float(fl2[0]),
+                        "values": pset.as_dict(th2[0]), "from_profile_of": name})
+        if not fl2[0] < fl[best]:
+            break
+        relocated.append((name, float(fl[best]), float(fl2[0])))
+        th, ok, steps, fl, rs, Js, hist, n_hist = (
+            np.concatenate([a, b]) for a, b in zip((th, ok, steps, fl, rs, Js, hist, n_hist),
+                                                   (th2, ok2, steps2, fl2, rs2, Js2, hist2,
+                                                    n_hist2), strict=True))
+        best = th.shape[0] - 1
+        theta = th[best]
+        say(f"refined from the profile: loss {fl[best]:.6g} after {int(steps[best])} steps")
+    if uncertainty:
         spec = _calibrated_spec(spec_or_twin)
         if confounding and spec is not None and needs_check(pset.free, spec):
-            say("checking the fitted values against the calibrated excitation (one Jacobian "
-                f"with {len(calibrated_excitation(spec))} more columns) …")
+            say("checking the fitted values against the calibration (one more Jacobian, with "
+                f"its {len(calibrated_excitation(spec))} excitation coefficients and load-share "
+                "clearances free) …")
             unc, _ = calibration_confounding(
                 problem, theta, unc, spec, groups=point_groups(problem.observations),
                 expected_rss=expected_noise_rss(problem.observations),
@@ -854,6 +893,8 @@ def fit(
         at_bound=at_bound, message=message, iterations=int(steps[best]),
         wall_time=time.perf_counter() - t0, operating_points=ops, problem=problem,
         residuals=np.asarray(rs[best]), jacobian=np.asarray(Js[best]),
+        relocations=[{"profile_of": n, "loss_before": a, "loss_after": b}
+                     for n, a, b in relocated],
     )
     say(res.table())
     if throw and (not converged or at_bound):

@@ -64,7 +64,10 @@ the optimum (with ``J`` at the optimum), and the interval is where
 ``(‖r‖² - ‖r*‖²)/(s² κ_i) ≤ 3.84`` (χ²₁, 95 %); ``κ_i`` is the sandwich's inflation of that
 parameter's variance. A second grid of the same size lies between the values that bracket each
 edge, and the edge is interpolated where the profile crosses 3.84 between its nearest values
-inside and outside (a single grid would leave an edge anywhere within one grid step).
+inside and outside (a single grid would leave an edge anywhere within one grid step). A
+profile point whose loss lies below the optimum's by more than the χ² level shows that the
+optimum is a local one: it is reported (``Uncertainty.better``), and
+:func:`dtwin.identify.fit.fit` goes on from it.
 """
 
 from __future__ import annotations
@@ -98,7 +101,10 @@ class Uncertainty:
     - `not_determined`: name → reason; `s2`, `kappa` (neighbour correlation factor), `m`,
       `m_eff`, `dof`; `profiled`: names whose interval is a profile-likelihood interval;
     - `lack_of_fit`: ``‖r‖²`` over the loss expected from the noise alone (nan when unknown);
-      `widened`: the factor every interval was widened by for lack of fit (1: none).
+      `widened`: the factor every interval was widened by for lack of fit (1: none);
+    - `better`: ``(name, θ, ‖r‖²)`` when a severity's profile passed a point whose loss lies
+      below the optimum's by more than the χ²₁ 95 % level (the optimum is a local one), else
+      None.
     """
 
     names: tuple[str, ...]
@@ -119,6 +125,7 @@ class Uncertainty:
     profiled: tuple[str, ...] = ()
     lack_of_fit: float = float("nan")
     widened: float = 1.0
+    better: tuple[str, np.ndarray, float] | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -283,6 +290,7 @@ def analyse(
     hi = np.asarray(pset.values(np.clip(hi_t, -50, 50)))
     interval = np.stack([np.minimum(lo, hi), np.maximum(lo, hi)], axis=1)
     profiled = []
+    better = None
     if profile_fn is not None:
         for i, n in enumerate(names):
             if not n.endswith("_fault") or pset.transforms[i] != "logit":
@@ -291,11 +299,17 @@ def analyse(
                     or pset.upper[i] - values[i] < 2 * abs(d[i]) * std_t[i])
             if not near or not np.isfinite(std_t[i]):
                 continue
-            iv = _profile_interval(pset, theta, r, J, i, widen * s2 * inflation[i], profile_fn,
-                                   m_data)
-            if iv is not None:
-                interval[i] = iv
-                profiled.append(n)
+            out = _profile_interval(pset, theta, r, J, i, widen * s2 * inflation[i],
+                                    profile_fn, m_data)
+            if out is None:
+                continue
+            interval[i], (th_best, rss_best) = out
+            profiled.append(n)
+            # a profile point whose loss lies below the optimum's by more than the χ²₁ level:
+            # the optimum is a local one (fit refits from it, dtwin.identify.fit)
+            if (rss - rss_best) / (widen * s2 * inflation[i]) > CHI2_95 and (
+                    better is None or rss_best < better[1]):
+                better = (n, np.asarray(th_best), rss_best)
     std = np.abs(d) * std_t
     flags: dict[str, str] = {}
     for i, n in enumerate(names):
@@ -316,7 +330,7 @@ def analyse(
         names=tuple(names), values=values, std=std, interval=interval, cov_theta=cov_t, cov=cov,
         correlation=corr, singular_values=sv, null_directions=null, not_determined=flags,
         s2=s2, kappa=kappa, m=m_data, m_eff=m_data / kappa, dof=dof, profiled=tuple(profiled),
-        lack_of_fit=float(lack), widened=float(np.sqrt(widen)),
+        lack_of_fit=float(lack), widened=float(np.sqrt(widen)), better=better,
     )
 
 
@@ -335,7 +349,7 @@ def _profile_rss(pset, theta, J, i, xs, profile_fn, m_data):
         step = -np.linalg.lstsq(J[:, others], rr.T, rcond=None)[0].T
         thetas[:, others] += step
     rr = np.asarray(profile_fn(thetas))
-    return np.sum(rr[:, :m_data] ** 2, axis=1)
+    return np.sum(rr[:, :m_data] ** 2, axis=1), thetas
 
 
 def _crossing(x0, x1, q0, q1):
@@ -348,7 +362,8 @@ def _crossing(x0, x1, q0, q1):
 
 
 def _profile_interval(pset, theta, r, J, i, s2_i, profile_fn, m_data, n_grid: int = 13):
-    """Profile-likelihood 95 % interval of parameter `i` (a bounded severity).
+    """Profile-likelihood 95 % interval of parameter `i` (a bounded severity) and the profile
+    point of lowest loss, ``(interval, (θ, ‖r‖²))``.
 
     The profile is evaluated on `n_grid` values across the parameter's range, then on
     `n_grid` more between the grid values that bracket each edge of the interval (a batch of
@@ -356,7 +371,7 @@ def _profile_interval(pset, theta, r, J, i, s2_i, profile_fn, m_data, n_grid: in
     crosses the χ² level between its two nearest values, inside and outside."""
     lo, hi = pset.lower[i], pset.upper[i]
     xs = np.linspace(lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo), n_grid)
-    rss = _profile_rss(pset, theta, J, i, xs, profile_fn, m_data)
+    rss, thetas = _profile_rss(pset, theta, J, i, xs, profile_fn, m_data)
     rss0 = min(float(np.sum(r[:m_data] ** 2)), float(rss.min()))
     inside = (rss - rss0) / s2_i <= CHI2_95
     if not inside.any():
@@ -368,16 +383,18 @@ def _profile_interval(pset, theta, r, J, i, s2_i, profile_fn, m_data, n_grid: in
         k = n_grid // len(brackets)
         fine = np.concatenate([np.linspace(x0, x1, k + 2)[1:-1] for x0, x1 in brackets])
         fine = np.concatenate([fine, np.full(n_grid - fine.size, fine[-1])])
-        rss_fine = _profile_rss(pset, theta, J, i, fine, profile_fn, m_data)
+        rss_fine, thetas_fine = _profile_rss(pset, theta, J, i, fine, profile_fn, m_data)
         order = np.argsort(np.concatenate([xs, fine]), kind="stable")
         xs = np.concatenate([xs, fine])[order]
         rss = np.concatenate([rss, rss_fine])[order]
+        thetas = np.concatenate([thetas, thetas_fine])[order]
         rss0 = min(rss0, float(rss_fine.min()))
     q = (rss - rss0) / s2_i
     a, b = np.flatnonzero(q <= CHI2_95)[[0, -1]]
     lo_v = lo if a == 0 else _crossing(xs[a], xs[a - 1], q[a], q[a - 1])
     hi_v = hi if b == xs.size - 1 else _crossing(xs[b], xs[b + 1], q[b], q[b + 1])
-    return np.array([lo_v, hi_v])
+    best = int(np.argmin(rss))
+    return np.array([lo_v, hi_v]), (thetas[best], float(rss[best]))
 
 
 def band_jackknife(theta, r, J, groups, *, level: float = 0.95):

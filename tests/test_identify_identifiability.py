@@ -202,3 +202,43 @@ def test_confounding_check_applies_to_calibrated_stiffness_fits():
     assert not needs_check(["sun_fault", "sun_eccentricity"], spec)
     assert needs_check(["te_amplitude"], spec)
     assert not needs_check(["excitation_ring_cos_1"], spec)
+
+
+def test_severity_profile_reports_a_point_of_lower_loss():
+    """A severity's profile likelihood that passes a point whose loss lies below the optimum's
+    by more than the χ²₁ level says so (Uncertainty.better; fit then goes on from it). Closed
+    form: residuals (u, c(u² − h²), t|x_t − x|) + noise, u = x − 0.3, h = 0.297, have two wells,
+    near x = 0.003 (within 2σ of 0: profiled) and x = 0.597, a tilt making one of them the
+    lower."""
+    from scipy.optimize import minimize_scalar
+
+    from dtwin.identify.params import ParameterSet
+
+    rng = np.random.default_rng(3)
+    noise = 0.01 * rng.normal(size=60)
+    pset = ParameterSet.build(["sun_fault"], initial={"sun_fault": 0.3})
+
+    def res(x, tilt):
+        u = x - 0.3
+        # the tilt's residual grows away from the well it favours
+        return np.concatenate([[u, 20.0 * (u * u - 0.297**2), 0.3 * abs(tilt - x)], noise])
+
+    def analyse_at(tilt):
+        def profile_fn(thetas):
+            return np.stack([res(float(pset.values(t)[0]), tilt) for t in np.asarray(thetas)])
+
+        x = minimize_scalar(lambda x: np.sum(res(x, tilt) ** 2), bounds=(1e-4, 0.2),
+                            method="bounded", options={"xatol": 1e-10}).x
+        th = pset.theta([x])
+        h = 1e-6
+        J = ((profile_fn([th + h]) - profile_fn([th - h])) / (2 * h)).T
+        unc = analyse(pset, th, res(x, tilt), J, np.arange(63), profile_fn=profile_fn)
+        return x, unc, np.sum(res(x, tilt) ** 2)
+
+    x_local, unc, rss = analyse_at(1.0)
+    assert x_local < 0.02 and unc.profiled == ("sun_fault",)
+    assert unc.better is not None and unc.better[0] == "sun_fault"
+    assert 0.5 < float(pset.values(unc.better[1])[0]) < 0.7 and unc.better[2] < rss
+    # the same well when it is the lower one: profiled, nothing better
+    x_global, unc, _ = analyse_at(0.0)
+    assert x_global < 0.02 and unc.profiled == ("sun_fault",) and unc.better is None

@@ -209,11 +209,11 @@ def test_bench_identify_severity_and_fleet_agree(bench_spec, tmp_path):
 def test_bench_identify_flags_mesh_stiffness(bench_spec):
     """A 5 kHz record cannot determine k_sun_planet (README): identify flags it, or its
     interval holds the truth's value (the ISO stiffness of paper-bench).
-    Measured: with the calibrated excitation held the fit reads 2.88e8 [2.14e8, 3.86e8] N/m
-    (the product of the stiffness with the transmission error calibration fitted at the ISO
-    value); dtwin.identify.confounding frees the excitation's four harmonics at the optimum and
-    the interval becomes [1.09e8, 7.58e8]: flagged, with the reason given. The sun fault's
-    interval barely moves and stays determined."""
+    Measured: with the calibration held the fit reads 2.88e8 [2.14e8, 3.86e8] N/m (the
+    stiffness times the transmission error and share clearances calibration fitted at the
+    ISO value); dtwin.identify.confounding frees the excitation's four harmonics and the two
+    clearances at the optimum and the interval becomes [1.08e8, 7.67e8]: flagged, with the
+    reason given. The sun fault stays determined."""
     from dtwin.spec import load_spec, lumped_from_spec
 
     ident = _bench_identify(bench_spec)

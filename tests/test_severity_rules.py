@@ -108,7 +108,10 @@ def test_profile_interval_edges_against_the_closed_form(v_hat, sigma):
         v = np.array([float(pset.values(t)[0]) for t in np.asarray(thetas)])
         return ((v - v_hat) / sigma)[:, None]
 
-    iv = _profile_interval(pset, theta, np.zeros(1), np.ones((1, 1)), 0, 1.0, profile_fn, 1)
+    iv, (th_best, rss_best) = _profile_interval(pset, theta, np.zeros(1), np.ones((1, 1)), 0,
+                                                1.0, profile_fn, 1)
+    # the lowest profile point: the optimum's, within the grid (no better point)
+    assert rss_best >= 0.0 and abs(float(pset.values(th_best)[0]) - v_hat) < 0.05
     half = sigma * np.sqrt(CHI2_95)
     want = [max(0.0, v_hat - half), min(1.0, v_hat + half)]
     np.testing.assert_allclose(iv, want, atol=2e-3)
