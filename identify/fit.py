@@ -961,7 +961,7 @@ def fit_batch(
     ``vmap`` over the records on a GPU, ``jax.lax.map`` on a CPU (`batch`, :func:`batch_mode`). Records must share length, rate and speed to 0.1 Hz (:func:`stack_problems`);
     per-record keyword lists (``f_sun``…) are not taken here: pass scalars. Uncertainties come
     from the residuals and Jacobian of each record's last accepted LM step, checked against a
-    calibrated spec's excitation as in :func:`fit` (`confounding`). **Returns:** one
+    spec's calibration as in :func:`fit` (`confounding`). **Returns:** one
     :class:`FitResult` per record, as :func:`fit` would."""
     t0 = time.perf_counter()
     made = [make_problem(r, spec_or_twin, free, jac=jac, **problem_kwargs) for r in records]
