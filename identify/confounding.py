@@ -47,6 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from dtwin.build import is_calibrated
 from dtwin.parts.imperfections import MeshOffsets
 from dtwin.registry import N_EXCITATION_HARMONICS, lookup
 
@@ -65,7 +66,7 @@ def calibrated_excitation(spec) -> tuple[str, ...]:
     """Registry names of the transmission-error harmonics a calibrated spec carries (the
     ``[mesh] excitation_<mesh>_<cos|sin>`` arrays of a mesh type with any nonzero value, up to
     the registry's ``N_EXCITATION_HARMONICS``); empty for a spec without ``[calibration]``."""
-    if spec["calibration"]["records"] is None:
+    if not is_calibrated(spec):
         return ()
     mesh = spec["mesh"]
     out = []
@@ -85,8 +86,7 @@ def _confoundable(name: str) -> bool:
 
 
 def _has_shares(spec) -> bool:
-    return (spec["calibration"]["records"] is not None
-            and spec["imperfections"]["load_sharing"] is not None)
+    return is_calibrated(spec) and spec["imperfections"]["load_sharing"] is not None
 
 
 def needs_check(free, spec) -> bool:
@@ -97,27 +97,29 @@ def needs_check(free, spec) -> bool:
             and any(_confoundable(n) for n in free))
 
 
+@eqx.filter_jit
+def _clearance_jacobian(problem, i: int):
+    """The residuals' forward-mode Jacobian at θ = 0 in the clearances of planets 1 … N-1 (m,
+    both meshes of a planet), those of the `MeshOffsets` part ``problem.twin.parts[i]``."""
+    part = problem.twin.parts[i]
+    theta = jnp.zeros(problem.pset.size)
+
+    def residuals(d):
+        moved = MeshOffsets(part.e_sp.at[1:].add(d), part.e_rp.at[1:].add(d))
+        return eqx.tree_at(lambda q: q.twin.parts[i], problem, moved).residuals(theta)
+
+    return jax.jacfwd(residuals)(jnp.zeros(part.e_sp.shape[0] - 1))
+
+
 def _clearance_columns(problem, spec):
-    """``(e0, J)``: the load-share clearances of planets 1 … N-1 (m, both meshes of a planet;
-    planet 0 held: a common clearance moves no share) and the residuals' forward-mode
-    Jacobian in them at θ = 0, or None when the twin carries no calibrated shares."""
+    """``(e0, J)``: the load-share clearances of planets 1 … N-1 (planet 0 held: a common
+    clearance moves no share) and :func:`_clearance_jacobian`, or None when the twin carries
+    no calibrated shares."""
     twin = problem.twin
     i = next((k for k, p in enumerate(twin.parts) if isinstance(p, MeshOffsets)), None)
     if i is None or not _has_shares(spec) or twin.n_planets < 2:
         return None
-    part = twin.parts[i]
-    theta = jnp.zeros(problem.pset.size)
-
-    @eqx.filter_jit
-    def jac(prob):
-        def residuals(d):
-            moved = MeshOffsets(part.e_sp.at[1:].add(d), part.e_rp.at[1:].add(d))
-            tw = eqx.tree_at(lambda t: t.parts[i], prob.twin, moved)
-            return eqx.tree_at(lambda q: q.twin, prob, tw).residuals(theta)
-
-        return jax.jacfwd(residuals)(jnp.zeros(twin.n_planets - 1))
-
-    return np.asarray(part.e_sp[1:]), np.asarray(jac(problem))
+    return np.asarray(twin.parts[i].e_sp[1:]), np.asarray(_clearance_jacobian(problem, i))
 
 
 def calibration_confounding(problem, theta, unc: Uncertainty, spec, *, groups, expected_rss,

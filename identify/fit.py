@@ -865,7 +865,7 @@ def fit(
             unc, _ = calibration_confounding(
                 problem, theta, unc, spec, groups=point_groups(problem.observations),
                 expected_rss=expected_noise_rss(problem.observations),
-                jacobian=_value_and_jacfwd)
+                jacobian=_jacobian)
     at_bound = pset.at_bound(theta)
     hit_limit = int(steps[best]) >= max_steps
     converged = bool(ok[best]) and not hit_limit
@@ -988,7 +988,7 @@ def fit_batch(
                 unc, _ = calibration_confounding(
                     prob, th[i], unc, spec, groups=point_groups(prob.observations),
                     expected_rss=expected_noise_rss(prob.observations),
-                    jacobian=_value_and_jacfwd)
+                    jacobian=_jacobian)
         at_bound = pset.at_bound(th[i])
         out.append(FitResult(
             names=pset.free, values=pset.as_dict(th[i]), theta=th[i],
