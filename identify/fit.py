@@ -79,9 +79,12 @@ SOLVERS = ("lm", "gauss-newton", "dogleg")
 #: 0.05 a fit could spend 15 steps chasing that noise. A step of 0.1 σ moves no interval
 #: noticeably.
 SIGMA_TOL = 0.1
-#: How many times :func:`fit` goes on from a point of lower loss that a severity's profile
-#: passed (:class:`dtwin.identify.uncertainty.Uncertainty` ``better``).
+#: How many times :func:`fit` goes on from a point of lower loss that a severity's profile or a
+#: stiffness's scan passed (:class:`dtwin.identify.uncertainty.Uncertainty` ``better``).
 MAX_RELOCATIONS = 2
+#: Registry sections whose ``log`` parameters (stiffnesses, masses, inertias) :func:`fit` scans
+#: over a decade each side of the optimum (:mod:`dtwin.identify.uncertainty`, "Scan").
+SCANNED_SECTIONS = ("mesh", "supports", "lumped")
 
 
 class Problem(eqx.Module):
@@ -446,7 +449,8 @@ class FitResult:
       `residuals` and `jacobian` (the residual vector and its Jacobian in θ at the optimum,
       from the solver's last accepted step);
     - `relocations`: each time the fit went on from a point of lower loss that a severity's
-      profile passed (the first optimum was a local one): the severity's name and the loss
+      profile or a stiffness's scan passed (the first optimum was a local one): the
+      parameter's name (``profile_of``), ``by`` (``"profile"`` or ``"scan"``) and the loss
       before and after.
     """
 
@@ -517,8 +521,9 @@ class FitResult:
 
                     + (f"; at bound: {', '.join(self.at_bound)}" if self.at_bound else ""))
         for m in self.relocations:
-            rows.append(f"local optimum left: the profile of {m['profile_of']} passed a point of "
-                        f"lower loss; refined from it, loss {m['loss_before']:.5g} → "
+            rows.append(f"local optimum left: the {m.get('by', 'profile')} of {m['profile_of']} "
+                        f"passed a point of lower loss; refined from it, loss "
+                        f"{m['loss_before']:.5g} → "
                         f"{m['loss_after']:.5g}")
         u = self.uncertainty
         if u is not None and np.isfinite(u.lack_of_fit):
@@ -738,6 +743,7 @@ def fit(
     sigma_tol: float = SIGMA_TOL,
     batch: str = "auto",
     uncertainty: bool = True,
+    scan: bool = True,
     confounding: bool = True,
     progress: bool = False,
     throw: bool = False,
@@ -768,6 +774,10 @@ def fit(
       likelihood passes a point of lower loss than the optimum (by more than the χ²₁ 95 %
       level), the optimum was a local one: the solver goes on from that point (up to
       ``MAX_RELOCATIONS`` times) and the result lists it in `relocations`.
+    - `scan`: with `uncertainty`, also scan the loss of each free stiffness, mass and inertia
+      over a decade each side of the optimum (8 points, two batched evaluations each): a point
+      of lower loss is refitted from as above, a second minimum within the 95 % level flags
+      the parameter (:mod:`dtwin.identify.uncertainty`, "Scan").
     - `confounding`: with a calibrated spec and a free stiffness, damping ratio, mass or
       inertia, flag the parameters the calibrated mesh excitation and load-share clearances
       confound (:mod:`dtwin.identify.confounding`; one more Jacobian with their columns).
@@ -832,13 +842,14 @@ def fit(
         unc = analyse(pset, theta, rs[best], Js[best], point_groups(problem.observations),
                       n_profiled_gains=problem.n_profiled_gains,
                       profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem, mode),
-                      expected_rss=expected_noise_rss(problem.observations))
+                      expected_rss=expected_noise_rss(problem.observations),
+                      scan=_scanned(pset) if scan else ())
         if unc.better is None or len(relocated) >= MAX_RELOCATIONS:
             break
         # a severity's profile passed a point of lower loss: the optimum was a local one, and
         # the solver goes on from that point (the same compiled refinement)
         name, th_b, _ = unc.better
-        say(f"the profile of {name} passed a point of lower loss ({name} = "
+        say(f"the profile or scan of {name} passed a point of lower loss ({name} = "
             f"{pset.as_dict(th_b)[name]:.4g}): refining from it")
         out = _refine(jnp.asarray(th_b)[None, :], problem, solver, tol, tol, jac, max_steps,
                       sigma_tol, mode)
@@ -848,14 +859,15 @@ def fit(
                         "values": pset.as_dict(th2[0]), "from_profile_of": name})
         if not fl2[0] < fl[best]:
             break
-        relocated.append((name, float(fl[best]), float(fl2[0])))
+        relocated.append((name, float(fl[best]), float(fl2[0]),
+                          "scan" if name in unc.scanned else "profile"))
         th, ok, steps, fl, rs, Js, hist, n_hist = (
             np.concatenate([a, b]) for a, b in zip((th, ok, steps, fl, rs, Js, hist, n_hist),
                                                    (th2, ok2, steps2, fl2, rs2, Js2, hist2,
                                                     n_hist2), strict=True))
         best = th.shape[0] - 1
         theta = th[best]
-        say(f"refined from the profile: loss {fl[best]:.6g} after {int(steps[best])} steps")
+        say(f"refined from that point: loss {fl[best]:.6g} after {int(steps[best])} steps")
     if uncertainty:
         spec = _calibrated_spec(spec_or_twin)
         if confounding and spec is not None and needs_check(pset.free, spec):
@@ -893,13 +905,26 @@ def fit(
         at_bound=at_bound, message=message, iterations=int(steps[best]),
         wall_time=time.perf_counter() - t0, operating_points=ops, problem=problem,
         residuals=np.asarray(rs[best]), jacobian=np.asarray(Js[best]),
-        relocations=[{"profile_of": n, "loss_before": a, "loss_after": b}
-                     for n, a, b in relocated],
+        relocations=[{"profile_of": n, "loss_before": a, "loss_after": b, "by": by}
+                     for n, a, b, by in relocated],
     )
     say(res.table())
     if throw and (not converged or at_bound):
         raise FitError(message)
     return res
+
+
+def _scanned(pset: ParameterSet) -> tuple[str, ...]:
+    """The free ``log`` parameters of `pset` in :data:`SCANNED_SECTIONS`."""
+    out = []
+    for n, tr in zip(pset.free, pset.transforms, strict=True):
+        try:
+            section = lookup(n).spec_path.split(".")[0]
+        except ParameterError:
+            continue
+        if tr == "log" and section in SCANNED_SECTIONS:
+            out.append(n)
+    return tuple(out)
 
 
 def check_free(free: Sequence[str] | str) -> list[str]:
@@ -961,8 +986,9 @@ def fit_batch(
     ``vmap`` over the records on a GPU, ``jax.lax.map`` on a CPU (`batch`, :func:`batch_mode`). Records must share length, rate and speed to 0.1 Hz (:func:`stack_problems`);
     per-record keyword lists (``f_sun``…) are not taken here: pass scalars. Uncertainties come
     from the residuals and Jacobian of each record's last accepted LM step, checked against a
-    spec's calibration as in :func:`fit` (`confounding`). **Returns:** one
-    :class:`FitResult` per record, as :func:`fit` would."""
+    spec's calibration as in :func:`fit` (`confounding`); no severity is profiled and no
+    stiffness scanned (:func:`fit` does both). **Returns:** one :class:`FitResult` per record,
+    as :func:`fit` would."""
     t0 = time.perf_counter()
     made = [make_problem(r, spec_or_twin, free, jac=jac, **problem_kwargs) for r in records]
     problems = [m[0] for m in made]

@@ -68,11 +68,25 @@ inside and outside (a single grid would leave an edge anywhere within one grid s
 profile point whose loss lies below the optimum's by more than the χ² level shows that the
 optimum is a local one: it is reported (``Uncertainty.better``), and
 :func:`dtwin.identify.fit.fit` goes on from it.
+
+**Scan** of a ``log`` parameter (``scan`` of :func:`analyse`; :func:`dtwin.identify.fit.fit`
+scans the free stiffnesses, masses and inertias). A stiffness moves the twin's modes, and a
+record measures it through products with other quantities and through a mode's passage near
+the record's lines, so its loss can have more than one minimum; the Jacobian at one of them
+says nothing of the others. The loss is evaluated at the fitted value times ``10^u`` for ``u``
+= ±0.25, ±0.5, ±0.75, ±1 (the other parameters following by one Gauss–Newton step, a point
+kept before the step where the step raises its loss): a scan point of lower loss by more than
+the χ²₁ level is reported as above (``better``); the interval becomes the hull of the
+Gaussian one and the range over which the scan stays within the level (edges interpolated in
+log value); and a scan point within the level that a point outside it separates from the
+optimum is a second minimum the record does not rule out: the parameter is flagged NOT
+DETERMINED with the range.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.stats import t as student_t
@@ -102,9 +116,11 @@ class Uncertainty:
       `m_eff`, `dof`; `profiled`: names whose interval is a profile-likelihood interval;
     - `lack_of_fit`: ``‖r‖²`` over the loss expected from the noise alone (nan when unknown);
       `widened`: the factor every interval was widened by for lack of fit (1: none);
-    - `better`: ``(name, θ, ‖r‖²)`` when a severity's profile passed a point whose loss lies
-      below the optimum's by more than the χ²₁ 95 % level (the optimum is a local one), else
-      None.
+    - `better`: ``(name, θ, ‖r‖²)`` when a severity's profile or a scan passed a point whose
+      loss lies below the optimum's by more than the χ²₁ 95 % level (the optimum is a local
+      one), else None;
+    - `scanned`: names whose loss was scanned over a decade each side (``scan`` of
+      :func:`analyse`).
     """
 
     names: tuple[str, ...]
@@ -126,6 +142,7 @@ class Uncertainty:
     lack_of_fit: float = float("nan")
     widened: float = 1.0
     better: tuple[str, np.ndarray, float] | None = None
+    scanned: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         return {
@@ -137,7 +154,7 @@ class Uncertainty:
             "singular_values": self.singular_values.tolist(),
             "not_determined": dict(self.not_determined),
             "s2": self.s2, "kappa": self.kappa, "m": self.m, "m_eff": self.m_eff, "dof": self.dof,
-            "profiled": list(self.profiled),
+            "profiled": list(self.profiled), "scanned": list(self.scanned),
             "lack_of_fit": self.lack_of_fit, "widened": self.widened,
         }
 
@@ -234,7 +251,7 @@ def expected_noise_rss(observations) -> float:
 
 def analyse(
     pset, theta, r, J, groups, *, n_profiled_gains: int = 0, profile_fn=None,
-    expected_rss: float | None = None,
+    expected_rss: float | None = None, scan: Sequence[str] = (),
 ) -> Uncertainty:
     """Covariance, intervals and identifiability flags (module docstring).
 
@@ -242,7 +259,9 @@ def analyse(
     (residuals, ``(m,)``); `J` (``(m, p)`` at the optimum); `groups` (point groups); the number
     of profiled gains; `profile_fn(thetas) -> residuals` (batched, ``(k, p) → (k, m)``) for the
     profile likelihood of severities (optional); `expected_rss`: the loss the noise alone
-    would leave (:func:`expected_noise_rss`; None: no lack-of-fit test).
+    would leave (:func:`expected_noise_rss`; None: no lack-of-fit test); `scan`: free
+    ``log`` parameters whose loss is scanned over a decade each side of the optimum (module
+    docstring, "Scan"; needs `profile_fn`).
     """
     theta = np.asarray(theta, dtype=float)
     r = np.asarray(r, dtype=float)
@@ -310,6 +329,24 @@ def analyse(
             if (rss - rss_best) / (widen * s2 * inflation[i]) > CHI2_95 and (
                     better is None or rss_best < better[1]):
                 better = (n, np.asarray(th_best), rss_best)
+    scanned = []
+    second: dict[str, str] = {}
+    if profile_fn is not None:
+        for i, n in enumerate(names):
+            if n not in scan or pset.transforms[i] != "log" or not np.isfinite(std_t[i]):
+                continue
+            s2_i = widen * s2 * inflation[i]
+            span, far, (th_best, rss_best) = _profile_scan(pset, theta, r, J, i, s2_i,
+                                                           profile_fn, m_data)
+            scanned.append(n)
+            if span is not None:
+                interval[i] = [min(interval[i, 0], span[0]), max(interval[i, 1], span[1])]
+            if far is not None:
+                second[n] = (f"the loss along it comes back within the 95 % level at "
+                             f"{far:.4g} (a second minimum the record does not rule out); "
+                             f"95 % range [{interval[i, 0]:.4g}, {interval[i, 1]:.4g}]")
+            if (rss - rss_best) / s2_i > CHI2_95 and (better is None or rss_best < better[1]):
+                better = (n, np.asarray(th_best), rss_best)
     std = np.abs(d) * std_t
     flags: dict[str, str] = {}
     for i, n in enumerate(names):
@@ -326,11 +363,14 @@ def analyse(
                 others = [names[j] for j in range(p) if j != i and abs(v[j]) > 0.3]
                 flags[n] = (f"near-null singular direction (σ/σmax = {s / sv[0]:.1e})"
                             + (f" shared with {', '.join(others)}" if others else ""))
+    for n, reason in second.items():
+        flags[n] = reason
     return Uncertainty(
         names=tuple(names), values=values, std=std, interval=interval, cov_theta=cov_t, cov=cov,
         correlation=corr, singular_values=sv, null_directions=null, not_determined=flags,
         s2=s2, kappa=kappa, m=m_data, m_eff=m_data / kappa, dof=dof, profiled=tuple(profiled),
         lack_of_fit=float(lack), widened=float(np.sqrt(widen)), better=better,
+        scanned=tuple(scanned),
     )
 
 
@@ -343,13 +383,69 @@ def _profile_rss(pset, theta, J, i, xs, profile_fn, m_data):
     for g, x in enumerate(xs):
         v[i] = x
         thetas[g, i] = pset.theta(v)[i]
-    others = [j for j in range(theta.size) if j != i]
-    if others:
-        rr = np.asarray(profile_fn(thetas))
-        step = -np.linalg.lstsq(J[:, others], rr.T, rcond=None)[0].T
-        thetas[:, others] += step
+    return _follow(thetas, J, i, profile_fn, m_data)
+
+
+def _follow(thetas, J, i, profile_fn, m_data):
+    """``(‖r‖², θ)`` at each row of `thetas` after the parameters other than `i` follow by one
+    Gauss–Newton step (`J` the Jacobian at the optimum); a row where the step raises the loss
+    keeps its point before the step (each loss then bounds the profile from above)."""
+    thetas = np.array(thetas, dtype=float)
     rr = np.asarray(profile_fn(thetas))
-    return np.sum(rr[:, :m_data] ** 2, axis=1), thetas
+    rss = np.sum(rr[:, :m_data] ** 2, axis=1)
+    others = [j for j in range(thetas.shape[1]) if j != i]
+    if not others:
+        return rss, thetas
+    moved = thetas.copy()
+    moved[:, others] += -np.linalg.lstsq(J[:, others], rr.T, rcond=None)[0].T
+    rr2 = np.asarray(profile_fn(moved))
+    rss2 = np.sum(rr2[:, :m_data] ** 2, axis=1)
+    take = np.isfinite(rss2) & ~(rss2 > rss)
+    return np.where(take, rss2, rss), np.where(take[:, None], moved, thetas)
+
+
+#: Decades (log10 of the factor on the fitted value) at which :func:`_profile_scan` evaluates
+#: the loss: a decade each side in quarter-decade steps.
+SCAN_DECADES = np.array([-1.0, -0.75, -0.5, -0.25, 0.25, 0.5, 0.75, 1.0])
+
+
+def _profile_scan(pset, theta, r, J, i, s2_i, profile_fn, m_data):
+    """Loss along ``log`` parameter `i` over a decade each side of the optimum (module
+    docstring, "Scan").
+
+    **Returns:** ``(span, far, (θ, ‖r‖²))``: the range (SI) over which the loss stays within
+    the χ²₁ 95 % level (edges interpolated in log value where it crosses; None when no scan
+    point lies inside), the value of the farthest scan point inside that level which a point
+    outside it separates from the optimum (None when the inside points are contiguous), and
+    the scan point of lowest loss."""
+    ln = np.log(10.0) * SCAN_DECADES
+    thetas = np.repeat(np.asarray(theta, dtype=float)[None, :], ln.size, axis=0)
+    thetas[:, i] += ln
+    rss, thetas = _follow(thetas, J, i, profile_fn, m_data)
+    rss = np.where(np.isfinite(rss), rss, np.inf)
+    rss_opt = float(np.sum(np.asarray(r)[:m_data] ** 2))
+    # the optimum itself at 0 decades, in order
+    u = np.concatenate([ln[ln < 0], [0.0], ln[ln > 0]])
+    loss = np.concatenate([rss[ln < 0], [rss_opt], rss[ln > 0]])
+    q = (loss - min(rss_opt, float(rss.min()))) / s2_i
+    inside = q <= CHI2_95
+    x0 = float(pset.values(theta)[i])
+    best = int(np.argmin(rss))
+    if not inside.any():
+        return None, None, (thetas[best], float(rss[best]))
+    a, b = np.flatnonzero(inside)[[0, -1]]
+    lo = u[a] if a == 0 else _crossing(u[a], u[a - 1], q[a], q[a - 1])
+    hi = u[b] if b == u.size - 1 else _crossing(u[b], u[b + 1], q[b], q[b + 1])
+    centre = int(np.flatnonzero(u == 0.0)[0])
+    far = None
+    gaps = [k for k in range(a, b + 1) if not inside[k]]
+    if gaps:
+        # inside points beyond an outside one: the farthest of them from the optimum
+        cands = [k for k in (a, b) if any((g - centre) * (k - g) > 0 for g in gaps)]
+        if cands:
+            k = max(cands, key=lambda k: abs(u[k]))
+            far = x0 * float(np.exp(u[k]))
+    return x0 * np.exp(np.array([lo, hi])), far, (thetas[best], float(rss[best]))
 
 
 def _crossing(x0, x1, q0, q1):

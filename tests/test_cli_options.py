@@ -486,3 +486,25 @@ def test_twin_kind_resolution():
         assert twin_kind(cal, "torsional") == "torsional"
     with pytest.raises(SpecError, match="model.kind"):
         twin_kind(cal, "rigid")
+
+
+def test_a_warning_text_is_shown_once_per_command(capsys):
+    """A warning raised again from another call site (the CLI and the library both resolving
+    the twin kind) is one line on stderr; the next command shows it again."""
+    import warnings
+
+    from dtwin.cli.logs import setup_logging
+
+    old = warnings.showwarning
+    try:
+        for _ in range(2):
+            setup_logging()
+            with warnings.catch_warnings():
+                warnings.simplefilter("always")
+                warnings.warn("the same text", UserWarning, stacklevel=1)
+                warnings.warn("the same text", UserWarning, stacklevel=1)
+                warnings.warn("another text", UserWarning, stacklevel=1)
+            err = capsys.readouterr().err
+            assert err.count("the same text") == 1 and err.count("another text") == 1, err
+    finally:
+        warnings.showwarning = old

@@ -242,3 +242,58 @@ def test_severity_profile_reports_a_point_of_lower_loss():
     # the same well when it is the lower one: profiled, nothing better
     x_global, unc, _ = analyse_at(0.0)
     assert x_global < 0.02 and unc.profiled == ("sun_fault",) and unc.better is None
+
+
+def test_stiffness_scan_finds_another_minimum():
+    """The scan of a log parameter (fit scans stiffnesses, masses and inertias) over a decade
+    each side. Closed form in v = ln(k / 1e8): residuals (v² − u², 10 (ln g − 0.2 v), tilt
+    (v − u)) + noise, wells at v = ±u, 2u = 0.75 ln 10 (three quarter-decades apart, on the
+    scan's grid), the gain g following k. From the well at −u: with the tilt the other well is
+    lower (``better``); without it the two are equal and the parameter is flagged with a
+    range holding both; a single well keeps its Gaussian interval."""
+    from scipy.optimize import minimize_scalar
+
+    from dtwin.identify.params import ParameterSet
+
+    rng = np.random.default_rng(5)
+    noise = 0.01 * rng.normal(size=60)
+    u = 0.375 * np.log(10.0)
+    pset = ParameterSet.build(["k_sun_planet", "sensor_gain"],
+                              initial={"k_sun_planet": 1e8, "sensor_gain": 1.0})
+
+    def res(v, lg, tilt, wells):
+        shape = v * v - u * u if wells else v + u
+        return np.concatenate([[shape, 10.0 * (lg - 0.2 * v), tilt * (v - u)], noise])
+
+    def analyse_at(tilt, wells=True, scan=("k_sun_planet",)):
+        def profile_fn(thetas):
+            return np.stack([res(t[0], t[1], tilt, wells) for t in np.asarray(thetas)])
+
+        v = minimize_scalar(lambda v: np.sum(res(v, 0.2 * v, tilt, wells) ** 2),
+                            bounds=(-1.5, 0.0), method="bounded", options={"xatol": 1e-12}).x
+        th = np.array([v, 0.2 * v])
+        h = 1e-6
+        J = np.stack([(profile_fn([th + h * e]) - profile_fn([th - h * e]))[0] / (2 * h)
+                      for e in np.eye(2)], axis=1)
+        return v, analyse(pset, th, res(v, 0.2 * v, tilt, wells), J, np.arange(63),
+                          profile_fn=profile_fn, scan=scan)
+
+    v, unc = analyse_at(0.05)
+    assert abs(v + u) < 0.05 and unc.scanned == ("k_sun_planet",)
+    assert unc.better is not None and unc.better[0] == "k_sun_planet"
+    # the other well, the gain following it by the Gauss–Newton step
+    assert abs(unc.better[1][0] - u) < 0.05 and abs(unc.better[1][1] - 0.2 * unc.better[1][0]) < 1e-6
+    # equal wells: a second minimum within the 95 % level, flagged, the range holds both
+    _, unc = analyse_at(0.0)
+    assert unc.better is None
+    reason = unc.not_determined["k_sun_planet"]
+    assert "second minimum" in reason, reason
+    lo, hi = unc.interval[0]
+    assert lo < 1e8 * np.exp(-u) and hi > 1e8 * np.exp(u)
+    assert "sensor_gain" not in unc.not_determined
+    # one well: nothing found, the Gaussian interval kept
+    _, unc = analyse_at(0.0, wells=False)
+    _, plain = analyse_at(0.0, wells=False, scan=())
+    assert unc.scanned == ("k_sun_planet",) and plain.scanned == ()
+    assert unc.better is None and not unc.not_determined
+    np.testing.assert_allclose(unc.interval, plain.interval, rtol=1e-9)

@@ -36,12 +36,22 @@ class _StderrHandler(logging.StreamHandler):
         super().emit(record)
 
 
+#: Warning texts shown in this command (one line each, whichever call site raised it again).
+_SHOWN: set[str] = set()
+
+
 def _showwarning(message, category, filename, lineno, file=None, line=None) -> None:
-    LOGGER.warning("%s", message)
+    text = str(message)
+    if text in _SHOWN:
+        return
+    _SHOWN.add(text)
+    LOGGER.warning("%s", text)
 
 
 def setup_logging(quiet: bool = False) -> None:
-    """One stderr handler on the ``dtwin`` logger; Python warnings go through it."""
+    """One stderr handler on the ``dtwin`` logger; Python warnings go through it, each text
+    once per command."""
+    _SHOWN.clear()
     if not any(isinstance(h, _StderrHandler) for h in LOGGER.handlers):
         handler = _StderrHandler()
         handler.setFormatter(_Format())
