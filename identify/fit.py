@@ -775,9 +775,10 @@ def fit(
       level), the optimum was a local one: the solver goes on from that point (up to
       ``MAX_RELOCATIONS`` times) and the result lists it in `relocations`.
     - `scan`: with `uncertainty`, also scan the loss of each free stiffness, mass and inertia
-      over a decade each side of the optimum (8 points, two batched evaluations each): a point
-      of lower loss is refitted from as above, a second minimum within the 95 % level flags
-      the parameter (:mod:`dtwin.identify.uncertainty`, "Scan").
+      that the Gaussian analysis finds determined over a decade each side of the optimum (8
+      points, two batched evaluations each): a point of lower loss is refitted from as above,
+      a second minimum within the 95 % level flags the parameter
+      (:mod:`dtwin.identify.uncertainty`, "Scan").
     - `confounding`: with a calibrated spec and a free stiffness, damping ratio, mass or
       inertia, flag the parameters the calibrated mesh excitation and load-share clearances
       confound (:mod:`dtwin.identify.confounding`; one more Jacobian with their columns).

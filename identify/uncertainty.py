@@ -80,7 +80,9 @@ the χ²₁ level is reported as above (``better``); the interval becomes the hu
 Gaussian one and the range over which the scan stays within the level (edges interpolated in
 log value); and a scan point within the level that a point outside it separates from the
 optimum is a second minimum the record does not rule out: the parameter is flagged NOT
-DETERMINED with the range.
+DETERMINED with the range. Only parameters the rules above find determined are scanned: a
+value that looks determined is what a second minimum would make wrong, while a flagged one is
+already reported as not known.
 """
 
 from __future__ import annotations
@@ -329,11 +331,33 @@ def analyse(
             if (rss - rss_best) / (widen * s2 * inflation[i]) > CHI2_95 and (
                     better is None or rss_best < better[1]):
                 better = (n, np.asarray(th_best), rss_best)
+    std = np.abs(d) * std_t
+
+    def flag(i, n):
+        half = 0.5 * (interval[i, 1] - interval[i, 0])
+        if pset.transforms[i] == "logit":
+            ref = max(abs(values[i]), 0.1 * (pset.upper[i] - pset.lower[i]))
+        else:
+            ref = abs(values[i])
+        out = None
+        if not np.isfinite(half) or half > HALF_WIDTH_LIMIT * ref:
+            out = (f"95 % half-width {half:.3g} exceeds {100 * HALF_WIDTH_LIMIT:.0f} % of "
+                   f"{ref:.3g}")
+        for v, s in zip(null, sv[ratio < NULL_RATIO], strict=True):
+            if abs(v[i]) > 0.3:
+                others = [names[j] for j in range(p) if j != i and abs(v[j]) > 0.3]
+                out = (f"near-null singular direction (σ/σmax = {s / sv[0]:.1e})"
+                       + (f" shared with {', '.join(others)}" if others else ""))
+        return out
+
+    flags: dict[str, str] = {n: f for i, n in enumerate(names) if (f := flag(i, n))}
+    # the scan, of the parameters the Gaussian analysis finds determined (a value that looks
+    # determined is what a second minimum would make wrong)
     scanned = []
-    second: dict[str, str] = {}
     if profile_fn is not None:
         for i, n in enumerate(names):
-            if n not in scan or pset.transforms[i] != "log" or not np.isfinite(std_t[i]):
+            if (n not in scan or n in flags or pset.transforms[i] != "log"
+                    or not np.isfinite(std_t[i])):
                 continue
             s2_i = widen * s2 * inflation[i]
             span, far, (th_best, rss_best) = _profile_scan(pset, theta, r, J, i, s2_i,
@@ -342,29 +366,13 @@ def analyse(
             if span is not None:
                 interval[i] = [min(interval[i, 0], span[0]), max(interval[i, 1], span[1])]
             if far is not None:
-                second[n] = (f"the loss along it comes back within the 95 % level at "
-                             f"{far:.4g} (a second minimum the record does not rule out); "
-                             f"95 % range [{interval[i, 0]:.4g}, {interval[i, 1]:.4g}]")
+                flags[n] = (f"the loss along it comes back within the 95 % level at "
+                            f"{far:.4g} (a second minimum the record does not rule out); "
+                            f"95 % range [{interval[i, 0]:.4g}, {interval[i, 1]:.4g}]")
+            elif (f := flag(i, n)):
+                flags[n] = f
             if (rss - rss_best) / s2_i > CHI2_95 and (better is None or rss_best < better[1]):
                 better = (n, np.asarray(th_best), rss_best)
-    std = np.abs(d) * std_t
-    flags: dict[str, str] = {}
-    for i, n in enumerate(names):
-        half = 0.5 * (interval[i, 1] - interval[i, 0])
-        if pset.transforms[i] == "logit":
-            ref = max(abs(values[i]), 0.1 * (pset.upper[i] - pset.lower[i]))
-        else:
-            ref = abs(values[i])
-        if not np.isfinite(half) or half > HALF_WIDTH_LIMIT * ref:
-            flags[n] = (f"95 % half-width {half:.3g} exceeds {100 * HALF_WIDTH_LIMIT:.0f} % of "
-                        f"{ref:.3g}")
-        for v, s in zip(null, sv[ratio < NULL_RATIO], strict=True):
-            if abs(v[i]) > 0.3:
-                others = [names[j] for j in range(p) if j != i and abs(v[j]) > 0.3]
-                flags[n] = (f"near-null singular direction (σ/σmax = {s / sv[0]:.1e})"
-                            + (f" shared with {', '.join(others)}" if others else ""))
-    for n, reason in second.items():
-        flags[n] = reason
     return Uncertainty(
         names=tuple(names), values=values, std=std, interval=interval, cov_theta=cov_t, cov=cov,
         correlation=corr, singular_values=sv, null_directions=null, not_determined=flags,
