@@ -62,6 +62,11 @@ class ParameterInfo:
     address: AbstractAddress | None = None
 
     @property
+    def section(self) -> str:
+        """The spec section it lives in (first part of `spec_path`, e.g. ``mesh``)."""
+        return self.spec_path.split(".")[0]
+
+    @property
     def settable(self) -> bool:
         """Whether a fit can write this parameter into a twin."""
         return self.address is not None

@@ -80,9 +80,7 @@ def calibrated_excitation(spec) -> tuple[str, ...]:
 
 
 def _confoundable(name: str) -> bool:
-    info = lookup(name)
-    return (info.spec_path.split(".")[0] in CONFOUNDABLE_SECTIONS
-            and not name.startswith("excitation_"))
+    return lookup(name).section in CONFOUNDABLE_SECTIONS and not name.startswith("excitation_")
 
 
 def _has_shares(spec) -> bool:

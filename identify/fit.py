@@ -46,7 +46,7 @@ from dtwin import _heap
 from dtwin.build import build_twin, is_calibrated, twin_kind
 from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
 from dtwin.parts.drive import DrivePart
-from dtwin.registry import lookup
+from dtwin.registry import REGISTRY, lookup
 from dtwin.simulate import SolverOptions
 from dtwin.spec import Spec, load_spec
 from dtwin.twin import Twin
@@ -521,9 +521,8 @@ class FitResult:
 
                     + (f"; at bound: {', '.join(self.at_bound)}" if self.at_bound else ""))
         for m in self.relocations:
-            rows.append(f"local optimum left: the {m.get('by', 'profile')} of {m['profile_of']} "
-                        f"passed a point of lower loss; refined from it, loss "
-                        f"{m['loss_before']:.5g} → "
+            rows.append(f"local optimum left: the {m['by']} of {m['profile_of']} passed a point "
+                        f"of lower loss; refined from it, loss {m['loss_before']:.5g} → "
                         f"{m['loss_after']:.5g}")
         u = self.uncertainty
         if u is not None and np.isfinite(u.lack_of_fit):
@@ -838,17 +837,19 @@ def fit(
     unc = None
     relocated = []
     rs, Js, hist, n_hist = (np.asarray(a) for a in (rs, Js, hist, n_hist))
+    if uncertainty:
+        groups = point_groups(problem.observations)
+        expected = expected_noise_rss(problem.observations)
     while uncertainty:
         # the residuals and Jacobian at the optimum from the solver's last accepted step
-        unc = analyse(pset, theta, rs[best], Js[best], point_groups(problem.observations),
+        unc = analyse(pset, theta, rs[best], Js[best], groups,
                       n_profiled_gains=problem.n_profiled_gains,
                       profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem, mode),
-                      expected_rss=expected_noise_rss(problem.observations),
-                      scan=_scanned(pset) if scan else ())
+                      expected_rss=expected, scan=_scanned(pset) if scan else ())
         if unc.better is None or len(relocated) >= MAX_RELOCATIONS:
             break
-        # a severity's profile passed a point of lower loss: the optimum was a local one, and
-        # the solver goes on from that point (the same compiled refinement)
+        # a severity's profile or a stiffness's scan passed a point of lower loss: the optimum
+        # was a local one, and the solver goes on from that point (the same compiled refinement)
         name, th_b, _ = unc.better
         say(f"the profile or scan of {name} passed a point of lower loss ({name} = "
             f"{pset.as_dict(th_b)[name]:.4g}): refining from it")
@@ -875,10 +876,8 @@ def fit(
             say("checking the fitted values against the calibration (one more Jacobian, with "
                 f"its {len(calibrated_excitation(spec))} excitation coefficients and load-share "
                 "clearances free) …")
-            unc, _ = calibration_confounding(
-                problem, theta, unc, spec, groups=point_groups(problem.observations),
-                expected_rss=expected_noise_rss(problem.observations),
-                jacobian=_jacobian)
+            unc, _ = calibration_confounding(problem, theta, unc, spec, groups=groups,
+                                             expected_rss=expected, jacobian=_jacobian)
     at_bound = pset.at_bound(theta)
     hit_limit = int(steps[best]) >= max_steps
     converged = bool(ok[best]) and not hit_limit
@@ -917,15 +916,8 @@ def fit(
 
 def _scanned(pset: ParameterSet) -> tuple[str, ...]:
     """The free ``log`` parameters of `pset` in :data:`SCANNED_SECTIONS`."""
-    out = []
-    for n, tr in zip(pset.free, pset.transforms, strict=True):
-        try:
-            section = lookup(n).spec_path.split(".")[0]
-        except ParameterError:
-            continue
-        if tr == "log" and section in SCANNED_SECTIONS:
-            out.append(n)
-    return tuple(out)
+    return tuple(n for n, tr in zip(pset.free, pset.transforms, strict=True)
+                 if tr == "log" and n in REGISTRY and REGISTRY[n].section in SCANNED_SECTIONS)
 
 
 def check_free(free: Sequence[str] | str) -> list[str]:

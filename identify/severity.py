@@ -55,8 +55,8 @@ more than ``χ²₁(95 %)`` in units of the residual variance (neighbour-correla
 lack-of-fit factors included), the data cannot reject a healthy tooth and the interval's lower
 ends (severity and peak loss) move to the range's lower edge: 0, unless the user bounded it. A
 healthy tooth is a point of the fitted model, not another model form, so the shapes' second
-term (what the best fit leaves unexplained) does not apply. Holding the other parameters makes the test conservative: the profile over them
-could only lower the healthy twin's loss.
+term (what the best fit leaves unexplained) does not apply. Holding the other parameters makes
+the test conservative: the profile over them could only lower the healthy twin's loss.
 
 **Band jackknife** (``jackknife=True``). Each accepted shape's interval is also the hull with
 the delete-one-band jackknife interval (:func:`dtwin.identify.uncertainty.band_jackknife`):

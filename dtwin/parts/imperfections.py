@@ -118,9 +118,9 @@ def load_share_offsets(twin, shares, f_sun) -> Float[Array, " N"]:
 
     Static model of `dtwin.simulate.initial_state` (the same balance): mean mesh stiffness,
     linear contact, the parts' linear springs, the carrier angle held and the twin's load
-    torque on it. The mesh forces are ``f = K_m (L A z - C e)`` (``C`` puts ``e_i`` on both meshes of planet ``i``), so
-    equilibrium ``K_z z = F + A^T L^T K_m C e`` makes the sun-mesh forces affine in ``e``:
-    ``f_sp = f_0 + G e``. The clearances are the least-norm solution of
+    torque on it. The mesh forces are ``f = K_m (L A z - C e)`` (``C`` puts ``e_i`` on both
+    meshes of planet ``i``), so equilibrium ``K_z z = F + A^T L^T K_m C e`` makes the
+    sun-mesh forces affine in ``e``: ``f_sp = f_0 + G e``. The clearances are the least-norm solution of
     ``G e = s_i mean(f_0) - f_0``; a common clearance of every planet moves the central members
     and changes no share, so the result has zero mean where the twin allows that freedom. The
     torsional twin with a sun held on its centre gives the closed form
