@@ -146,7 +146,7 @@ def calibration_confounding(problem, theta, unc: Uncertainty, spec, *, groups, e
         priors={n: (m, s) for n, m, s in pset.priors})
     prob = type(problem)(joint.prepare(problem.twin), joint, problem.observations,
                          rtol=problem.rtol, atol=problem.atol, adjoint="forward",
-                         periodic=problem.periodic)
+                         periodic=problem.periodic, periodic_settle=problem.periodic_settle)
     r, J = jacobian(jnp.zeros(joint.size), prob)
     r, J = np.asarray(r), np.asarray(J)
     what = [f"{len(nuisance) // 2} transmission-error harmonics"] if nuisance else []

@@ -47,7 +47,7 @@ from dtwin.build import build_twin, is_calibrated, twin_kind
 from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
 from dtwin.parts.drive import DrivePart
 from dtwin.registry import REGISTRY, lookup
-from dtwin.simulate import SolverOptions
+from dtwin.simulate import SolverOptions, longer_settle
 from dtwin.spec import Spec, load_spec
 from dtwin.twin import Twin
 
@@ -61,6 +61,7 @@ from .residuals import (
     _check,
     fitted_levels,
     levels_from_residuals,
+    model_periodic_defect,
     model_signal,
     observation_residuals,
     observe,
@@ -102,10 +103,11 @@ class Problem(eqx.Module):
     atol: float = eqx.field(static=True, default=1e-5)
     adjoint: str = eqx.field(static=True, default="forward")
     periodic: str = eqx.field(static=True, default="off")
+    periodic_settle: float = eqx.field(static=True, default=0.1)
 
     def solver_options(self):
         return SolverOptions(rtol=self.rtol, atol=self.atol, adjoint=self.adjoint,
-                             periodic=self.periodic)
+                             periodic=self.periodic, periodic_settle=self.periodic_settle)
 
     def signals(self, theta):
         values = self.pset.values(theta)
@@ -134,6 +136,46 @@ class Problem(eqx.Module):
         if "sensor_gain" in self.pset.free:
             return noise
         return noise + sum(1 for o in self.observations if o.gain_mode == "profile")
+
+
+@eqx.filter_jit
+def _periodic_defects(theta, problem: Problem):
+    values = problem.pset.values(theta)
+    tw = problem.pset.apply(problem.twin, values)
+    return [model_periodic_defect(tw, o, problem.solver_options())
+            for o in problem.observations]
+
+
+def settled(problem: Problem, theta) -> tuple[Problem, str | None]:
+    """`problem` with a settling time after which its responses at `theta` are periodic.
+
+    A fit cannot check the periodic steady state inside its compiled solve (the parameters
+    are traced), so it checks once here, with concrete values, as `dtwin.simulate.simulate`
+    does: where one hunting period after the settling time is not periodic within
+    `SolverOptions.periodic_tolerance` (a lightly damped mode of the drive or the housing has
+    not died out), a longer settling time (`dtwin.simulate.longer_settle`) is tried, then the
+    whole record. **Returns** ``(problem, note)``, the note None when nothing changed.
+    """
+    if problem.periodic == "off":
+        return problem, None
+    tol = problem.solver_options().periodic_tolerance
+
+    def worst(prob):
+        d = [float(v) for v in _periodic_defects(jnp.asarray(theta), prob) if v is not None]
+        return max(d) if d else None
+
+    first = worst(problem)
+    if first is None or first <= tol:
+        return problem, None
+    longer = longer_settle(problem.solver_options()).periodic_settle
+    prob = dataclasses.replace(problem, periodic_settle=longer)
+    second = worst(prob)
+    if second is not None and second <= tol:
+        return prob, (f"the response was not periodic after {problem.periodic_settle:g} s "
+                      f"(defect {first:.2g}): settling {longer:g} s")
+    return dataclasses.replace(problem, periodic="off"), (
+        f"the response was not periodic after {problem.periodic_settle:g} s (defect "
+        f"{first:.2g}) nor after {longer:g} s: integrating the whole record")
 
 
 def _loss(theta, problem: Problem):
@@ -823,6 +865,9 @@ def fit(
         say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
     else:
         say("one start: refining it (its loss is the first of the history)")
+    problem, note = settled(problem, chosen[0])
+    if note:
+        say(note)
     _heap.before_first_fit()
     th, ok, steps, fl, rs, Js, hist, n_hist = _refine(chosen, problem, solver, tol, tol, jac,
                                                       max_steps, sigma_tol, mode)
@@ -985,8 +1030,13 @@ def fit_batch(
     t0 = time.perf_counter()
     made = [make_problem(r, spec_or_twin, free, jac=jac, **problem_kwargs) for r in records]
     problems = [m[0] for m in made]
-    stacked = stack_problems(problems)
     p = problems[0].pset.size
+    # the periodic steady state checked once, on the first record, for the batch (one
+    # structure: the records share length, rate and speed)
+    first, _ = settled(problems[0], jnp.zeros(p))
+    problems = [dataclasses.replace(pr, periodic=first.periodic,
+                                    periodic_settle=first.periodic_settle) for pr in problems]
+    stacked = stack_problems(problems)
     thetas = jnp.zeros((len(problems), p))
     _heap.before_first_fit()
     th, ok, steps, fl, rs, Js, hist, n_hist = _refine_records(thetas, stacked, solver, tol, tol, jac,

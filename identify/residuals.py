@@ -435,12 +435,15 @@ def _start_speed(obs: Observation) -> float:
     return obs.f_ref
 
 
-def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=None):
+def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=None,
+                       with_defect=False):
     """`dtwin.simulate.simulate` for use inside `jit`/`vmap`/`jacfwd`: the same pipeline
     (steady start, Tsit5 with the sensor computed inside the model, DAQ FIR + decimation) with
     the time grid built in numpy — `simulate` itself converts a jnp grid with `float()`, which
     fails on tracers. `f_sun` (static, Hz) sets the step limit; the steady initial state is
-    taken at `f_init` (Hz, may be traced) when given, else at `f_sun`."""
+    taken at `f_init` (Hz, may be traced) when given, else at `f_sun`. With `with_defect`:
+    ``(signal, defect)``, the periodicity defect of a tiled response (None when integrated in
+    full; `dtwin.simulate.SimResult.periodic_defect`)."""
     fs_out = float(daq.sample_rate)
     fs_hi = fs_out * daq.oversample
     taps = daq_filter(daq.oversample)
@@ -454,9 +457,10 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
     dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
     # in full, or over one hunting period when `solver.periodic` allows (dtwin.simulate)
-    ys, _, nsteps, _, _ = _observables(twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity, solver,
-                                       dtmax)
-    return _daq(ys, taps, daq, fs_out, nsteps, 0, float(discard)).signal
+    ys, _, nsteps, _, defect = _observables(twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity,
+                                            solver, dtmax)
+    sig = _daq(ys, taps, daq, fs_out, nsteps, 0, float(discard)).signal
+    return (sig, defect) if with_defect else sig
 
 
 def model_signal(twin, obs: Observation, solver=None):
@@ -470,6 +474,18 @@ def model_signal(twin, obs: Observation, solver=None):
                              f_init=f_init)
     n = obs.n_samples
     return sig[:n] if sig.shape[0] >= n else jnp.pad(sig, (0, n - sig.shape[0]))
+
+
+def model_periodic_defect(twin, obs: Observation, solver):
+    """The periodicity defect of the twin's response for `obs` when `solver` tiles one hunting
+    period (relative rms change of the signal over one period, `SimResult.periodic_defect`),
+    or None when the record is integrated in full. JAX."""
+    daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample, quantity=obs.quantity,
+              frf_hz=obs.frf_hz, frf_db=obs.frf_db)
+    f_init = obs.speed[0] if obs.order_domain else None
+    return _simulate_jittable(_with_speed(twin, obs), duration=obs.duration,
+                              f_sun=_start_speed(obs), daq=daq, discard=obs.discard,
+                              solver=solver, f_init=f_init, with_defect=True)[1]
 
 
 def model_amplitudes(signal, obs: Observation):
