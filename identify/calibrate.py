@@ -835,7 +835,9 @@ def calibrate(
     say(f"held-out gap {gap_before.total:.2f} dB before, {gap_held.total:.2f} dB calibrated")
 
     every = np.ones(len(half_idx), bool)
-    tried = []  # (confirmed gap, θ, linearisation, steps, converged, data, a_after) per point
+    # per linearisation: (confirmed gap, θ, linearisation, steps, converged, spec data,
+    # confirmed amplitudes, departure of the confirmed gap from the linearised one)
+    tried = []
     for attempt in range(settings.relinearize + 1):
         say("final fit on all data" if attempt == 0 else
             f"final fit on all data, linearised at the fitted values ({attempt} of "
