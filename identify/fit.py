@@ -63,6 +63,7 @@ from .residuals import (
     levels_from_residuals,
     model_periodic_defect,
     model_signal,
+    model_tiles,
     observation_residuals,
     observe,
     point_groups,
@@ -157,6 +158,10 @@ def settled(problem: Problem, theta) -> tuple[Problem, str | None]:
     whole record. **Returns** ``(problem, note)``, the note None when nothing changed.
     """
     if problem.periodic == "off":
+        return problem, None
+    # nothing to check where no record is tiled (run-ups, periods too long for the record)
+    twin = problem.pset.apply(problem.twin, problem.pset.values(jnp.asarray(theta)))
+    if not any(model_tiles(twin, o, problem.solver_options()) for o in problem.observations):
         return problem, None
     tol = problem.solver_options().periodic_tolerance
 

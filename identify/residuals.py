@@ -60,7 +60,15 @@ import numpy as np
 from dtwin.errors import RecordError, SettingsError
 from dtwin.parts.drive import DrivePart
 from dtwin.parts.speed_source import SpeedProfile
-from dtwin.simulate import DAQ, SolverOptions, _daq, _observables, daq_filter, initial_state
+from dtwin.simulate import (
+    DAQ,
+    SolverOptions,
+    _daq,
+    _observables,
+    daq_filter,
+    initial_state,
+    periodic_plan,
+)
 from dtwin.spectrum import analytic_signal, get_window, noise_floor
 
 from .operating_point import gear_orders
@@ -435,6 +443,16 @@ def _start_speed(obs: Observation) -> float:
     return obs.f_ref
 
 
+def _daq_grid(duration, discard, daq):
+    """The DAQ's oversampled rate (Hz), its anti-alias taps and the simulated time grid (s):
+    the output samples plus the filter's half-length on each side, as `dtwin.simulate`."""
+    fs_hi = float(daq.sample_rate) * daq.oversample
+    taps = daq_filter(daq.oversample)
+    half = (len(taps) - 1) // 2
+    n_hi = int(round(duration * float(daq.sample_rate))) * daq.oversample
+    return fs_hi, taps, float(discard) + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
+
+
 def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=None,
                        with_defect=False):
     """`dtwin.simulate.simulate` for use inside `jit`/`vmap`/`jacfwd`: the same pipeline
@@ -445,12 +463,7 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     ``(signal, defect)``, the periodicity defect of a tiled response (None when integrated in
     full; `dtwin.simulate.SimResult.periodic_defect`)."""
     fs_out = float(daq.sample_rate)
-    fs_hi = fs_out * daq.oversample
-    taps = daq_filter(daq.oversample)
-    half = (len(taps) - 1) // 2
-    n_out = int(round(duration * fs_out))
-    n_hi = n_out * daq.oversample
-    ts_np = float(discard) + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
+    fs_hi, taps, ts_np = _daq_grid(duration, discard, daq)
     t0 = float(ts_np[0])
     y0 = initial_state(twin, f_sun if f_init is None else f_init, "steady")
     rs, _ = twin.kinematic_ratios
@@ -474,6 +487,16 @@ def model_signal(twin, obs: Observation, solver=None):
                              f_init=f_init)
     n = obs.n_samples
     return sig[:n] if sig.shape[0] >= n else jnp.pad(sig, (0, n - sig.shape[0]))
+
+
+def model_tiles(twin, obs: Observation, solver) -> bool:
+    """Whether the twin's response for `obs` is simulated over one hunting period and tiled
+    (`dtwin.simulate.periodic_plan`) rather than in full. Needs concrete values."""
+    daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample)
+    fs_hi, _, ts = _daq_grid(obs.duration, obs.discard, daq)
+    period, _ = periodic_plan(_with_speed(twin, obs), _start_speed(obs), float(ts[0]),
+                              float(ts[-1]), solver, fs_hi)
+    return period is not None
 
 
 def model_periodic_defect(twin, obs: Observation, solver):

@@ -14,6 +14,7 @@ ring's translation reaches the sensor, so the torsional twin cannot reproduce th
 by item 6's criterion, i.e. not reported as precise). Fit the translational twin to such data.
 """
 
+import dataclasses
 import json
 
 import numpy as np
@@ -327,6 +328,7 @@ def test_a_fit_settles_its_tiled_response_before_solving():
 
     from dtwin.build import daq_from_spec
     from dtwin.identify.fit import make_problem, settled
+    from dtwin.identify.residuals import model_tiles
     from dtwin.spec import load_spec
 
     slow = load_spec(SLOW_SETTLING)
@@ -346,3 +348,9 @@ def test_a_fit_settles_its_tiled_response_before_solving():
     problem, _ = make_problem(rec, paper, ["sun_fault"], kind="torsional", f_sun=60.0)
     same, note = settled(problem, np.zeros(1))
     assert same is problem and note is None
+    # a record shorter than the settling time and a hunting period (1.13 s at 30 Hz) is
+    # integrated in full: nothing to check, nothing simulated
+    problem = dataclasses.replace(problem, observations=(
+        dataclasses.replace(problem.observations[0], speed=np.array([30.0, 30.0]), f_ref=30.0),))
+    assert not model_tiles(problem.twin, problem.observations[0], problem.solver_options())
+    assert settled(problem, np.zeros(1))[0] is problem
