@@ -643,9 +643,10 @@ def simulate(
                       + ("" if defect is None else
                          f", {float(defect):.2g} after {longer.periodic_settle:g} s")
                       + f", above periodic_tol = {solver.periodic_tolerance:g})")
-            ys, result, nsteps, _, defect = _observables(
-                twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity,
-                dataclasses.replace(solver, periodic="off"), dtmax, progress, start)
+            if defect is not None:  # (None: the longer settling did not fit, so in full)
+                ys, result, nsteps, _, defect = _observables(
+                    twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity,
+                    dataclasses.replace(solver, periodic="off"), dtmax, progress, start)
     if check:
         _raise_for(result, t1)
     # compiled as one program (op by op, its first call compiles each operation separately)

@@ -249,3 +249,10 @@ def test_a_slowly_settling_twin_is_tiled_after_a_longer_settle():
     assert np.std(y - full) < 2e-4 * np.std(full), np.std(y - full) / np.std(full)
     # the unsettled tiling is what the check protects against: far off the whole record
     assert np.std(np.asarray(unchecked.signal) - full) > 1e-3 * np.std(full)
+    # a record too short for the longer settling time is integrated in full, once
+    kw = dict(kw, duration=0.6, discard=0.05)
+    short = simulate(twin, solver=PERIODIC, **kw)
+    assert short.method.startswith("full (periodic: signal changes by"), short.method
+    whole = np.asarray(simulate(twin, solver=SolverOptions(), **kw).signal)
+    np.testing.assert_allclose(np.asarray(short.signal), whole, rtol=0,
+                               atol=1e-9 * np.std(whole))
