@@ -836,18 +836,19 @@ def calibrate(
 
     every = np.ones(len(half_idx), bool)
     # per linearisation: (confirmed gap, θ, linearisation, steps, converged, spec data,
-    # confirmed amplitudes, departure of the confirmed gap from the linearised one)
+    # confirmed amplitudes, departure of the confirmed gap from the linearised one, the fit's
+    # data and its response gains)
     tried = []
     for attempt in range(settings.relinearize + 1):
         say("final fit on all data" if attempt == 0 else
             f"final fit on all data, linearised at the fitted values ({attempt} of "
             f"{settings.relinearize})")
-        theta, steps, converged = _fit(data_for(rec_idx, half_idx, lin), lin[2],
-                                       settings.max_steps, settings.loss_rtol,
+        d_all = data_for(rec_idx, half_idx, lin)
+        theta, steps, converged = _fit(d_all, lin[2], settings.max_steps, settings.loss_rtol,
                                        settings.run_steps, settings.restart_rtol)
         gap_lin = gap(freqs, a_meas, amp_at(theta, every, every, lin), bands)
         # the calibrated spec, then its confirmation by a full simulation
-        _, G = _model_amp(jnp.asarray(theta), data_for(rec_idx, half_idx, lin))
+        _, G = _model_amp(jnp.asarray(theta), d_all)
         data = _calibrated_data(spec, theta, np.asarray(G), knots, layout, twin, i_exc, f_sun,
                                 names, kind)
         say("confirming: the calibrated twin simulated in full")
@@ -860,7 +861,7 @@ def calibrate(
         a_after = np.abs(Zc)[half_idx]
         gap_conf = gap(freqs, a_meas, a_after, bands)
         tried.append((gap_conf, theta, lin, steps, converged, data, a_after,
-                      gap_conf.total - gap_lin.total))
+                      gap_conf.total - gap_lin.total, d_all, np.asarray(G)))
         say(f"confirmed gap {gap_conf.total:.2f} dB; the linearised twin's "
             f"{gap_lin.total:.2f} dB ({steps} LM steps" + ("" if converged else
                                                           ", stopped at the step limit") + ")")
@@ -875,15 +876,12 @@ def calibrate(
                 "values")
             lin = linearised(theta)
     best = min(range(len(tried)), key=lambda i: tried[i][0].total)
-    gap_conf, theta, lin_best, steps, converged, data, a_after, departure = tried[best]
-    relinearized = best > 0
-    if relinearized:
+    gap_conf, theta, lin_best, steps, converged, data, a_after, departure, d_all, G = tried[best]
+    if best > 0:
         say("cross-validation again, about the chosen linearisation point")
         gap_held = cross_validated(lin_best)
         say(f"held-out gap {gap_held.total:.2f} dB")
-    d_all = data_for(rec_idx, half_idx, lin_best)
-    _, G = _model_amp(jnp.asarray(theta), d_all)
-    params = _intervals(theta, np.asarray(G), d_all, layout, knots, Wl, B, twin, i_exc,
+    params = _intervals(theta, G, d_all, layout, knots, Wl, B, twin, i_exc,
                         settings)
     data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
     return CalibrationResult(data, params, f_sun, gap_before, gap_held, gap_conf, freqs,
