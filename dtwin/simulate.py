@@ -435,6 +435,14 @@ def longer_settle(solver: SolverOptions) -> SolverOptions:
         solver, periodic_settle=max(SETTLE_FACTOR * solver.periodic_settle, SETTLE_MIN))
 
 
+def settling_sequence(solver: SolverOptions) -> tuple[SolverOptions, ...]:
+    """The options tried in turn until a tiled response is periodic within
+    `solver.periodic_tolerance`: `solver`, then :func:`longer_settle`, then the whole record
+    (``periodic="off"``). `simulate`, the calibration's linearisation and a fit each move to
+    the next where the periodicity defect of the last one exceeds the tolerance."""
+    return (solver, longer_settle(solver), dataclasses.replace(solver, periodic="off"))
+
+
 def periodic_plan(twin: Twin, f_sun: float, t0: float, t_end: float, solver: SolverOptions,
                   fs_hi: float, start: str = "steady") -> tuple[float | None, str]:
     """Whether a record over ``[t0, t_end]`` (s) is integrated over one hunting period:
@@ -628,25 +636,19 @@ def simulate(
     rs, _ = twin.kinematic_ratios
     f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
     dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
-    ys, result, nsteps, method, defect = _observables(twin, y0, t0, ts_np, fs_hi, f_sun,
-                                                      daq.quantity, solver, dtmax, progress, start)
-    if check and defect is not None and not float(defect) <= solver.periodic_tolerance:
-        # the start-up transient has not decayed within the settling time: settle longer, and
-        # where that fails too (or the response is not periodic) integrate in full
-        first = float(defect)
-        longer = longer_settle(solver)
-        ys, result, nsteps, method, defect = _observables(
-            twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity, longer, dtmax, progress, start)
-        if defect is None or not float(defect) <= solver.periodic_tolerance:
-            method = (f"full (periodic: signal changes by {first:.2g} of its rms over one "
-                      f"period after {solver.periodic_settle:g} s"
-                      + ("" if defect is None else
-                         f", {float(defect):.2g} after {longer.periodic_settle:g} s")
-                      + f", above periodic_tol = {solver.periodic_tolerance:g})")
-            if defect is not None:  # (None: the longer settling did not fit, so in full)
-                ys, result, nsteps, _, defect = _observables(
-                    twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity,
-                    dataclasses.replace(solver, periodic="off"), dtmax, progress, start)
+    # where the start-up transient has not decayed within the settling time: settle longer,
+    # and where that fails too (or the response is not periodic) integrate in full
+    tried = []
+    for option in settling_sequence(solver):
+        ys, result, nsteps, method, defect = _observables(twin, y0, t0, ts_np, fs_hi, f_sun,
+                                                          daq.quantity, option, dtmax, progress,
+                                                          start)
+        if not check or defect is None or float(defect) <= solver.periodic_tolerance:
+            break
+        tried.append(f"{float(defect):.2g} after {option.periodic_settle:g} s")
+    if tried and defect is None:
+        method = (f"full (periodic: the signal's rms change over one period was "
+                  f"{', '.join(tried)}, above periodic_tol = {solver.periodic_tolerance:g})")
     if check:
         _raise_for(result, t1)
     # compiled as one program (op by op, its first call compiles each operation separately)

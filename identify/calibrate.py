@@ -110,7 +110,7 @@ from dtwin.parts.imperfections import MeshOffsets, load_share_offsets
 from dtwin.parts.mesh_excitation import MeshExcitation
 from dtwin.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
 from dtwin.sensor_response import knot_basis
-from dtwin.simulate import SolverOptions, longer_settle, simulate
+from dtwin.simulate import SolverOptions, settling_sequence, simulate
 from dtwin.spec import Spec, load_spec, spec_to_dict
 from dtwin.spec_writer import spec_to_toml
 from dtwin.spectrum import noise_floor
@@ -539,7 +539,7 @@ def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings, theta_lin):
     # within the settling time (as `simulate` checks with concrete values): otherwise the
     # tiles' joins put a broadband hump under the twin's lightly damped modes. Settle longer,
     # then integrate the whole record.
-    for option in (solver, longer_settle(solver), dataclasses.replace(solver, periodic="off")):
+    for option in settling_sequence(solver):
         (y0, defect), jvp_fn = linearise(option)
         if defect is None or float(defect) <= solver.periodic_tolerance:
             break

@@ -47,7 +47,7 @@ from dtwin.build import build_twin, is_calibrated, twin_kind
 from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
 from dtwin.parts.drive import DrivePart
 from dtwin.registry import REGISTRY, lookup
-from dtwin.simulate import SolverOptions, longer_settle
+from dtwin.simulate import SolverOptions, settling_sequence
 from dtwin.spec import Spec, load_spec
 from dtwin.twin import Twin
 
@@ -61,9 +61,7 @@ from .residuals import (
     _check,
     fitted_levels,
     levels_from_residuals,
-    model_periodic_defect,
     model_signal,
-    model_tiles,
     observation_residuals,
     observe,
     point_groups,
@@ -111,13 +109,34 @@ class Problem(eqx.Module):
                              periodic=self.periodic, periodic_settle=self.periodic_settle)
 
     def signals(self, theta):
+        """``(signals, values)``: the twin's signal per record and the parameter values (SI)
+        at the unconstrained `theta`."""
+        sigs, values, _ = self.simulated(theta)
+        return sigs, values
+
+    def simulated(self, theta):
+        """``(signals, values, defect)``: :meth:`signals` and the largest periodicity defect
+        of the records simulated over one hunting period and tiled (relative rms change of a
+        signal over one period, `dtwin.simulate.SimResult.periodic_defect`; 0 where no record
+        is tiled). A defect above `SolverOptions.periodic_tolerance` means the start-up
+        transient had not died out within the settling time (:func:`fit` then fits again)."""
         values = self.pset.values(theta)
         tw = self.pset.apply(self.twin, values)
-        return [model_signal(tw, o, self.solver_options()) for o in self.observations], values
+        out = [model_signal(tw, o, self.solver_options(), with_defect=True)
+               for o in self.observations]
+        defects = [d for _, d in out if d is not None]
+        worst = jnp.max(jnp.stack(defects)) if defects else jnp.zeros(())
+        return [sig for sig, _ in out], values, worst
 
     def residuals(self, theta):
         """The residual vector (all records, then priors) at the unconstrained `theta`."""
         return self.residuals_from(self.signals(theta)[0], theta)
+
+    def residuals_and_defect(self, theta):
+        """``(residuals, defect)`` at `theta`: :meth:`residuals` and the periodicity defect of
+        :meth:`simulated`, from one simulation."""
+        sigs, _, defect = self.simulated(theta)
+        return self.residuals_from(sigs, theta), defect
 
     def residuals_from(self, sigs, theta):
         """The residual vector from simulated signals `sigs` (one per record) at `theta`:
@@ -139,48 +158,38 @@ class Problem(eqx.Module):
         return noise + sum(1 for o in self.observations if o.gain_mode == "profile")
 
 
-@eqx.filter_jit
-def _periodic_defects(theta, problem: Problem):
-    values = problem.pset.values(theta)
-    tw = problem.pset.apply(problem.twin, values)
-    return [model_periodic_defect(tw, o, problem.solver_options())
-            for o in problem.observations]
+def _settled_fit(problem: Problem, refine, defect_of, say) -> tuple[Problem, Any]:
+    """``(problem, outcome)``: ``refine(problem)``, run again with a longer settling time, then
+    on the whole record, while the fitted response is not periodic.
+
+    A fit simulates one hunting period after `Problem.periodic_settle` and tiles it inside its
+    compiled solve, where the parameters are traced and nothing can be checked; the solve
+    returns the periodicity defect of its last accepted point instead
+    (:meth:`Problem.simulated`), and ``defect_of(outcome)`` picks the one that counts (the best
+    start's, a batch's largest). Where it exceeds `SolverOptions.periodic_tolerance` (a lightly
+    damped mode of the drive or the housing outlasted the settling time, and the tiles' joins
+    put a broadband hump in the spectrum) the fit is run again, from the same starts, with the
+    next option of `dtwin.simulate.settling_sequence`; `say` reports why."""
+    options = settling_sequence(problem.solver_options())
+    tol = options[0].periodic_tolerance
+    out = refine(problem)
+    for nxt in options[1:]:
+        defect = float(defect_of(out))
+        if problem.periodic == "off" or not (np.isfinite(defect) and defect > tol):
+            break
+        say(f"the fitted response was not periodic after {problem.periodic_settle:g} s (defect "
+            f"{defect:.2g} > {tol:g}): fitting again, " + (
+                f"settling {nxt.periodic_settle:g} s" if nxt.periodic != "off"
+                else "integrating the whole record"))
+        problem = dataclasses.replace(problem, periodic=nxt.periodic,
+                                      periodic_settle=nxt.periodic_settle)
+        out = refine(problem)
+    return problem, out
 
 
-def settled(problem: Problem, theta) -> tuple[Problem, str | None]:
-    """`problem` with a settling time after which its responses at `theta` are periodic.
-
-    A fit cannot check the periodic steady state inside its compiled solve (the parameters
-    are traced), so it checks once here, with concrete values, as `dtwin.simulate.simulate`
-    does: where one hunting period after the settling time is not periodic within
-    `SolverOptions.periodic_tolerance` (a lightly damped mode of the drive or the housing has
-    not died out), a longer settling time (`dtwin.simulate.longer_settle`) is tried, then the
-    whole record. **Returns** ``(problem, note)``, the note None when nothing changed.
-    """
-    if problem.periodic == "off":
-        return problem, None
-    # nothing to check where no record is tiled (run-ups, periods too long for the record)
-    twin = problem.pset.apply(problem.twin, problem.pset.values(jnp.asarray(theta)))
-    if not any(model_tiles(twin, o, problem.solver_options()) for o in problem.observations):
-        return problem, None
-    tol = problem.solver_options().periodic_tolerance
-
-    def worst(prob):
-        d = [float(v) for v in _periodic_defects(jnp.asarray(theta), prob) if v is not None]
-        return max(d) if d else None
-
-    first = worst(problem)
-    if first is None or first <= tol:
-        return problem, None
-    longer = longer_settle(problem.solver_options()).periodic_settle
-    prob = dataclasses.replace(problem, periodic_settle=longer)
-    second = worst(prob)
-    if second is not None and second <= tol:
-        return prob, (f"the response was not periodic after {problem.periodic_settle:g} s "
-                      f"(defect {first:.2g}): settling {longer:g} s")
-    return dataclasses.replace(problem, periodic="off"), (
-        f"the response was not periodic after {problem.periodic_settle:g} s (defect "
-        f"{first:.2g}) nor after {longer:g} s: integrating the whole record")
+def _best(losses) -> int:
+    """Index of the least finite loss (the first when none is finite)."""
+    return int(np.argmin(np.where(np.isfinite(losses), losses, np.inf)))
 
 
 def _loss(theta, problem: Problem):
@@ -234,16 +243,23 @@ def _value_and_jacfwd(theta, problem: Problem):
     joins the two: with ``S(θ_twin)`` the simulated signals and ``dS`` their Jacobian,
     ``r(θ) = post(S(θ_twin), θ)`` has ``∂r/∂θ`` = the Jacobian of
     ``post(S + dS (θ_twin − θ_twin⁰), θ)`` at θ⁰ — exact, not an approximation."""
+    r, J, _ = _value_jacfwd_defect(theta, problem)
+    return r, J
+
+
+def _value_jacfwd_defect(theta, problem: Problem):
+    """``(r, ∂r/∂θ, defect)``: :func:`_value_and_jacfwd` and the periodicity defect of the
+    same simulation (:meth:`Problem.simulated`)."""
     idx = problem.pset.twin_indices
     sel = np.asarray(idx, dtype=int)
     if len(idx):
         def sim(sub):
-            sigs = problem.signals(theta.at[sel].set(sub))[0]
-            return sigs, sigs
+            sigs, _, defect = problem.simulated(theta.at[sel].set(sub))
+            return sigs, (sigs, defect)
 
-        dS, sigs = jax.jacfwd(sim, has_aux=True)(theta[sel])
+        dS, (sigs, defect) = jax.jacfwd(sim, has_aux=True)(theta[sel])
     else:
-        sigs, dS = problem.signals(theta)[0], None
+        (sigs, _, defect), dS = problem.simulated(theta), None
 
     def post(t):
         if dS is None:
@@ -255,7 +271,7 @@ def _value_and_jacfwd(theta, problem: Problem):
         return r, r
 
     J, r = jax.jacfwd(post, has_aux=True)(theta)
-    return r, J
+    return r, J, defect
 
 
 @eqx.filter_jit
@@ -274,8 +290,10 @@ def _residuals_fwd(theta, *, problem: Problem):
     cost one simulation (the linearisation) plus a primal-and-tangents solve (the
     materialisation). With this rule the forward pass computes ``r`` and ``J`` in one
     primal-and-tangents solve and the linear function is ``J @ t``: one solve per LM step.
-    The values are those of ``jax.jacfwd`` (the same computation)."""
-    return problem.residuals(theta)
+    The values are those of ``jax.jacfwd`` (the same computation). Returns
+    ``(residuals, defect)`` (:meth:`Problem.residuals_and_defect`); the defect has no
+    derivative."""
+    return problem.residuals_and_defect(theta)
 
 
 @_residuals_fwd.def_jvp
@@ -283,16 +301,17 @@ def _residuals_fwd_jvp(primals, tangents, *, problem: Problem):
     (theta,), (t_theta,) = primals, tangents
     if t_theta is None:
         return _residuals_fwd(theta, problem=problem), None
-    r, J = _value_and_jacfwd(theta, problem)
-    return r, J @ t_theta
+    r, J, defect = _value_jacfwd_defect(theta, problem)
+    return (r, defect), (J @ t_theta, jnp.zeros_like(defect))
 
 
 def _residual_fn(jac: str):
-    """The residual function handed to optimistix: `_residuals_fwd` for forward-mode Jacobians,
-    plain `Problem.residuals` for reverse mode."""
+    """The residual function handed to optimistix, returning ``(residuals, defect)`` (the
+    defect as the solve's auxiliary output): `_residuals_fwd` for forward-mode Jacobians,
+    `Problem.residuals_and_defect` for reverse mode."""
     if jac == "fwd":
         return lambda t, prob: _residuals_fwd(t, problem=prob)
-    return lambda t, prob: prob.residuals(t)
+    return lambda t, prob: prob.residuals_and_defect(t)
 
 
 def gauss_newton_step_in_sigma(r, J) -> jax.Array:
@@ -438,13 +457,15 @@ def _make_solver(name: str, rtol: float, atol: float, sigma_tol: float, history:
 
 
 def _outcome(sol):
-    """``(θ, converged, steps, loss, r, J, losses, n)`` of an optimistix Gauss–Newton-type
-    solution; ``losses[:n]`` are the losses of the residual evaluations, in order, from
-    :class:`_LossRecording` in the solver's search state.
+    """``(θ, converged, steps, loss, r, J, losses, n, defect)`` of an optimistix
+    Gauss–Newton-type solution; ``losses[:n]`` are the losses of the residual evaluations, in
+    order, from :class:`_LossRecording` in the solver's search state, and `defect` the
+    periodicity defect at θ (:meth:`Problem.simulated`).
 
-    The residuals and Jacobian come from the solver's state: they belong to the last accepted
-    point, which is the returned value (optimistix keeps ``f_info`` of the accepted ``y``), so
-    neither the final loss nor the uncertainty's Jacobian costs another simulation. With
+    The residuals, Jacobian and defect come from the solver's state: they belong to the last
+    accepted point, which is the returned value (optimistix keeps ``f_info`` and the auxiliary
+    output of the accepted ``y``), so neither the final loss, the uncertainty's Jacobian nor
+    the periodicity check costs another simulation. With
     forward-mode Jacobians the state holds ``t ↦ J t`` (:func:`_residuals_fwd`); materialising
     it applies that product to the identity, no solve."""
     f_info = sol.state.f_info
@@ -453,13 +474,13 @@ def _outcome(sol):
     _, losses, count = sol.state.search_state  # _LossRecording's (inner, losses, count)
     count = jnp.minimum(count, losses.shape[0])
     return (sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"],
-            0.5 * jnp.sum(r * r), r, J, losses, count)
+            0.5 * jnp.sum(r * r), r, J, losses, count, sol.state.aux)
 
 
 def _least_squares(fn, solver, theta0, problem, jac: str, max_steps: int):
     """One `optimistix.least_squares` refinement from `theta0` (Jacobian in forward mode for
     ``jac="fwd"``, else reverse), returning :func:`_outcome` of its solution."""
-    sol = optx.least_squares(fn, solver, theta0, args=problem,
+    sol = optx.least_squares(fn, solver, theta0, args=problem, has_aux=True,
                              options=dict(jac="fwd" if jac == "fwd" else "bwd"),
                              max_steps=max_steps, throw=False)
     return _outcome(sol)
@@ -689,7 +710,8 @@ def make_problem(
     Arguments as :func:`fit`; `periodic`: ``"auto"`` (default: a constant-speed record whose
     settling time (0.1 s) and hunting period fit in 3/4 of it is simulated over those only and
     tiled, ``dtwin.simulate.SolverOptions.periodic``; run-ups and twins whose response is not
-    periodic are simulated in full) or ``"off"`` (always in full).
+    periodic are simulated in full; :func:`fit` settles longer where the tiled response at its
+    optimum was not periodic) or ``"off"`` (always in full).
     **Returns:** ``(problem, operating_points)``.
     """
     if isinstance(free, ParameterSet):
@@ -870,17 +892,16 @@ def fit(
         say(f"start losses: {np.array2string(losses, precision=4)}; refining {chosen.shape[0]}")
     else:
         say("one start: refining it (its loss is the first of the history)")
-    problem, note = settled(problem, chosen[0])
-    if note:
-        say(note)
     _heap.before_first_fit()
-    th, ok, steps, fl, rs, Js, hist, n_hist = _refine(chosen, problem, solver, tol, tol, jac,
-                                                      max_steps, sigma_tol, mode)
+    problem, out = _settled_fit(
+        problem, lambda prob: _refine(chosen, prob, solver, tol, tol, jac, max_steps, sigma_tol,
+                                      mode),
+        lambda out: np.asarray(out[-1])[_best(np.asarray(out[3]))], say)
+    th, ok, steps, fl, rs, Js, hist, n_hist, _ = out
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     refined = [{"theta": th[i].tolist(), "converged": bool(ok[i]), "steps": int(steps[i]),
                 "loss": float(fl[i]), "values": pset.as_dict(th[i])} for i in range(th.shape[0])]
-    score = np.where(np.isfinite(fl), fl, np.inf)
-    best = int(np.argmin(score))
+    best = _best(fl)
     theta = th[best]
     say(f"refined losses: {np.array2string(fl, precision=5)}; best {fl[best]:.6g} after "
         f"{int(steps[best])} steps")
@@ -905,7 +926,7 @@ def fit(
             f"{pset.as_dict(th_b)[name]:.4g}): refining from it")
         out = _refine(jnp.asarray(th_b)[None, :], problem, solver, tol, tol, jac, max_steps,
                       sigma_tol, mode)
-        th2, ok2, steps2, fl2, rs2, Js2, hist2, n_hist2 = (np.asarray(a) for a in out)
+        th2, ok2, steps2, fl2, rs2, Js2, hist2, n_hist2, _ = (np.asarray(a) for a in out)
         refined.append({"theta": th2[0].tolist(), "converged": bool(ok2[0]),
                         "steps": int(steps2[0]), "loss": float(fl2[0]),
                         "values": pset.as_dict(th2[0]), "from_profile_of": name})
@@ -1036,16 +1057,23 @@ def fit_batch(
     made = [make_problem(r, spec_or_twin, free, jac=jac, **problem_kwargs) for r in records]
     problems = [m[0] for m in made]
     p = problems[0].pset.size
-    # the periodic steady state checked once, on the first record, for the batch (one
-    # structure: the records share length, rate and speed)
-    first, _ = settled(problems[0], jnp.zeros(p))
-    problems = [dataclasses.replace(pr, periodic=first.periodic,
-                                    periodic_settle=first.periodic_settle) for pr in problems]
-    stacked = stack_problems(problems)
     thetas = jnp.zeros((len(problems), p))
     _heap.before_first_fit()
-    th, ok, steps, fl, rs, Js, hist, n_hist = _refine_records(thetas, stacked, solver, tol, tol, jac,
-                                                max_steps, sigma_tol, batch_mode(batch))
+
+    def refine(settings: Problem):
+        # one structure: the records share length, rate, speed and so the settling time
+        stacked = stack_problems([dataclasses.replace(
+            pr, periodic=settings.periodic, periodic_settle=settings.periodic_settle)
+            for pr in problems])
+        return _refine_records(thetas, stacked, solver, tol, tol, jac, max_steps, sigma_tol,
+                               batch_mode(batch))
+
+    settings, out = _settled_fit(problems[0], refine,
+                                 lambda out: max((d for d in np.asarray(out[-1]) if np.isfinite(d)),
+                                                 default=0.0), lambda m: None)
+    problems = [dataclasses.replace(pr, periodic=settings.periodic,
+                                    periodic_settle=settings.periodic_settle) for pr in problems]
+    th, ok, steps, fl, rs, Js, hist, n_hist, _ = out
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     wall = time.perf_counter() - t0
     spec = _calibrated_spec(spec_or_twin)

@@ -67,7 +67,6 @@ from dtwin.simulate import (
     _observables,
     daq_filter,
     initial_state,
-    periodic_plan,
 )
 from dtwin.spectrum import analytic_signal, get_window, noise_floor
 
@@ -453,15 +452,14 @@ def _daq_grid(duration, discard, daq):
     return fs_hi, taps, float(discard) + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
 
 
-def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=None,
-                       with_defect=False):
+def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=None):
     """`dtwin.simulate.simulate` for use inside `jit`/`vmap`/`jacfwd`: the same pipeline
     (steady start, Tsit5 with the sensor computed inside the model, DAQ FIR + decimation) with
     the time grid built in numpy — `simulate` itself converts a jnp grid with `float()`, which
     fails on tracers. `f_sun` (static, Hz) sets the step limit; the steady initial state is
-    taken at `f_init` (Hz, may be traced) when given, else at `f_sun`. With `with_defect`:
-    ``(signal, defect)``, the periodicity defect of a tiled response (None when integrated in
-    full; `dtwin.simulate.SimResult.periodic_defect`)."""
+    taken at `f_init` (Hz, may be traced) when given, else at `f_sun`. **Returns**
+    ``(signal, defect)``, `defect` the periodicity defect of a tiled response (None when
+    integrated in full; `dtwin.simulate.SimResult.periodic_defect`)."""
     fs_out = float(daq.sample_rate)
     fs_hi, taps, ts_np = _daq_grid(duration, discard, daq)
     t0 = float(ts_np[0])
@@ -473,42 +471,24 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     ys, _, nsteps, _, defect = _observables(twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity,
                                             solver, dtmax)
     sig = _daq(ys, taps, daq, fs_out, nsteps, 0, float(discard)).signal
-    return (sig, defect) if with_defect else sig
+    return sig, defect
 
 
-def model_signal(twin, obs: Observation, solver=None):
-    """The twin's sensor signal for `obs` (same rate, length, quantity and speed), JAX."""
+def model_signal(twin, obs: Observation, solver=None, with_defect: bool = False):
+    """The twin's sensor signal for `obs` (same rate, length, quantity and speed), JAX. With
+    `with_defect`: ``(signal, defect)``, `defect` the periodicity defect of a tiled response
+    (relative rms change of the signal over one hunting period,
+    `dtwin.simulate.SimResult.periodic_defect`), None where the record is integrated in full."""
     solver = solver or SolverOptions()
     daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample, quantity=obs.quantity,
               frf_hz=obs.frf_hz, frf_db=obs.frf_db)
     f_init = obs.speed[0] if obs.order_domain else None
-    sig = _simulate_jittable(_with_speed(twin, obs), duration=obs.duration,
-                             f_sun=_start_speed(obs), daq=daq, discard=obs.discard, solver=solver,
-                             f_init=f_init)
+    sig, defect = _simulate_jittable(_with_speed(twin, obs), duration=obs.duration,
+                                     f_sun=_start_speed(obs), daq=daq, discard=obs.discard,
+                                     solver=solver, f_init=f_init)
     n = obs.n_samples
-    return sig[:n] if sig.shape[0] >= n else jnp.pad(sig, (0, n - sig.shape[0]))
-
-
-def model_tiles(twin, obs: Observation, solver) -> bool:
-    """Whether the twin's response for `obs` is simulated over one hunting period and tiled
-    (`dtwin.simulate.periodic_plan`) rather than in full. Needs concrete values."""
-    daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample)
-    fs_hi, _, ts = _daq_grid(obs.duration, obs.discard, daq)
-    period, _ = periodic_plan(_with_speed(twin, obs), _start_speed(obs), float(ts[0]),
-                              float(ts[-1]), solver, fs_hi)
-    return period is not None
-
-
-def model_periodic_defect(twin, obs: Observation, solver):
-    """The periodicity defect of the twin's response for `obs` when `solver` tiles one hunting
-    period (relative rms change of the signal over one period, `SimResult.periodic_defect`),
-    or None when the record is integrated in full. JAX."""
-    daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample, quantity=obs.quantity,
-              frf_hz=obs.frf_hz, frf_db=obs.frf_db)
-    f_init = obs.speed[0] if obs.order_domain else None
-    return _simulate_jittable(_with_speed(twin, obs), duration=obs.duration,
-                              f_sun=_start_speed(obs), daq=daq, discard=obs.discard,
-                              solver=solver, f_init=f_init, with_defect=True)[1]
+    sig = sig[:n] if sig.shape[0] >= n else jnp.pad(sig, (0, n - sig.shape[0]))
+    return (sig, defect) if with_defect else sig
 
 
 def model_amplitudes(signal, obs: Observation):
