@@ -158,9 +158,10 @@ class Problem(eqx.Module):
         return noise + sum(1 for o in self.observations if o.gain_mode == "profile")
 
 
-def _settled_fit(problem: Problem, refine, defect_of, say) -> tuple[Problem, Any]:
-    """``(problem, outcome)``: ``refine(problem)``, run again with a longer settling time, then
-    on the whole record, while the fitted response is not periodic.
+def _settled_fit(problem: Problem, refine, defect_of, say) -> tuple[Problem, Any, list[str]]:
+    """``(problem, outcome, notes)``: ``refine(problem)``, run again with a longer settling
+    time, then on the whole record, while the fitted response is not periodic; `notes` say why
+    each time (for the fit's message).
 
     A fit simulates one hunting period after `Problem.periodic_settle` and tiles it inside its
     compiled solve, where the parameters are traced and nothing can be checked; the solve
@@ -169,22 +170,24 @@ def _settled_fit(problem: Problem, refine, defect_of, say) -> tuple[Problem, Any
     start's, a batch's largest). Where it exceeds `SolverOptions.periodic_tolerance` (a lightly
     damped mode of the drive or the housing outlasted the settling time, and the tiles' joins
     put a broadband hump in the spectrum) the fit is run again, from the same starts, with the
-    next option of `dtwin.simulate.settling_sequence`; `say` reports why."""
+    next option of `dtwin.simulate.settling_sequence`; `say` reports it as it happens."""
     options = settling_sequence(problem.solver_options())
     tol = options[0].periodic_tolerance
     out = refine(problem)
+    notes = []
     for nxt in options[1:]:
         defect = float(defect_of(out))
         if problem.periodic == "off" or not (np.isfinite(defect) and defect > tol):
             break
-        say(f"the fitted response was not periodic after {problem.periodic_settle:g} s (defect "
-            f"{defect:.2g} > {tol:g}): fitting again, " + (
-                f"settling {nxt.periodic_settle:g} s" if nxt.periodic != "off"
-                else "integrating the whole record"))
+        notes.append(f"the fitted response was not periodic after {problem.periodic_settle:g} s "
+                     f"(defect {defect:.2g} > {tol:g}): fitted again, " + (
+                         f"settling {nxt.periodic_settle:g} s" if nxt.periodic != "off"
+                         else "integrating the whole record"))
+        say(notes[-1])
         problem = dataclasses.replace(problem, periodic=nxt.periodic,
                                       periodic_settle=nxt.periodic_settle)
         out = refine(problem)
-    return problem, out
+    return problem, out, notes
 
 
 def _best(losses) -> int:
@@ -586,8 +589,9 @@ class FitResult:
         rows.append(f"loss {self.loss:.5g}, {self.iterations} iterations, "
                     f"{self.wall_time:.1f} s, "
                     + ("converged" if self.converged else f"NOT converged ({self.message})")
-
                     + (f"; at bound: {', '.join(self.at_bound)}" if self.at_bound else ""))
+        if self.converged and self.message != "converged":
+            rows.append(self.message.removeprefix("converged; "))
         for m in self.relocations:
             rows.append(f"local optimum left: the {m['by']} of {m['profile_of']} passed a point "
                         f"of lower loss; refined from it, loss {m['loss_before']:.5g} → "
@@ -893,7 +897,7 @@ def fit(
     else:
         say("one start: refining it (its loss is the first of the history)")
     _heap.before_first_fit()
-    problem, out = _settled_fit(
+    problem, out, settle_notes = _settled_fit(
         problem, lambda prob: _refine(chosen, prob, solver, tol, tol, jac, max_steps, sigma_tol,
                                       mode),
         lambda out: np.asarray(out[-1])[_best(np.asarray(out[3]))], say)
@@ -966,7 +970,7 @@ def fit(
     if at_bound:
         msgs.append(f"parameters at a bound: {', '.join(at_bound)} (the data push them out of "
                     "their range: check the spec, the bounds or the model)")
-    message = "; ".join(msgs) or "converged"
+    message = "; ".join((msgs or ["converged"]) + settle_notes)
     res = FitResult(
         names=pset.free, values=pset.as_dict(theta), theta=theta,
         initial=pset.as_dict(np.zeros(p)), uncertainty=unc, loss=float(fl[best]),
@@ -1068,7 +1072,7 @@ def fit_batch(
         return _refine_records(thetas, stacked, solver, tol, tol, jac, max_steps, sigma_tol,
                                batch_mode(batch))
 
-    settings, out = _settled_fit(problems[0], refine,
+    settings, out, settle_notes = _settled_fit(problems[0], refine,
                                  lambda out: max((d for d in np.asarray(out[-1]) if np.isfinite(d)),
                                                  default=0.0), lambda m: None)
     problems = [dataclasses.replace(pr, periodic=settings.periodic,
@@ -1099,10 +1103,11 @@ def fit_batch(
             start_losses=np.zeros(0),  # no start evaluated alone
             starts=np.zeros((1, p)), refined=[],
             converged=bool(ok[i]) and int(steps[i]) < max_steps, at_bound=at_bound,
-            message=("converged" if ok[i] and int(steps[i]) < max_steps else
-                     f"stopped at the step limit ({int(steps[i])} of max_steps={max_steps})"
-                     if int(steps[i]) >= max_steps else
-                     f"not converged after {int(steps[i])} steps"),
+            message="; ".join([
+                "converged" if ok[i] and int(steps[i]) < max_steps else
+                f"stopped at the step limit ({int(steps[i])} of max_steps={max_steps})"
+                if int(steps[i]) >= max_steps else
+                f"not converged after {int(steps[i])} steps"] + settle_notes),
 
             iterations=int(steps[i]), wall_time=wall, operating_points=made[i][1], problem=prob,
             residuals=np.asarray(rs[i]), jacobian=np.asarray(Js[i]),

@@ -339,6 +339,8 @@ def test_a_fit_settles_its_tiled_response_before_solving():
                    daq=daq_from_spec(slow, snr_db=30.0)).to_record()
     res = fit(rec, slow, ["sun_fault"], kind="torsional", f_sun=20.0, uncertainty=False)
     assert res.problem.periodic == "auto" and res.problem.periodic_settle == 0.5
+    assert "not periodic after 0.1 s" in res.message and "settling 0.5 s" in res.message
+    assert "settling 0.5 s" in res.table()
     _, _, defect = res.problem.simulated(jnp.asarray(res.theta))
     assert float(defect) <= res.problem.solver_options().periodic_tolerance
     assert abs(res.values["sun_fault"] - 0.5) < 0.02, res.values
@@ -355,3 +357,26 @@ def test_a_fit_settles_its_tiled_response_before_solving():
     problem = dataclasses.replace(problem, observations=(
         dataclasses.replace(problem.observations[0], speed=np.array([30.0, 30.0]), f_ref=30.0),))
     assert float(problem.simulated(jnp.zeros(1))[2]) == 0.0
+
+
+@pytest.mark.slow
+def test_a_batch_settles_its_tiled_response_before_solving():
+    """`fit_batch` reads the same periodicity defect from its compiled solve of every record and
+    fits the batch again, settling longer, where the largest is too large."""
+    from _gearboxes import SLOW_SETTLING
+
+    from dtwin.build import daq_from_spec
+    from dtwin.identify.fit import fit_batch
+    from dtwin.spec import load_spec
+
+    slow = load_spec(SLOW_SETTLING)
+    recs = []
+    for i, severity in enumerate((0.3, 0.5)):
+        twin = build_twin(slow, kind="torsional", f_sun=20.0,
+                          faults=(MissingTooth(severity, location="sun"),))
+        recs.append(simulate(twin, duration=1.5, f_sun=20.0, discard=0.3, seed=i,
+                             daq=daq_from_spec(slow, snr_db=30.0)).to_record())
+    out = fit_batch(recs, slow, ["sun_fault"], kind="torsional", f_sun=20.0, uncertainty=False)
+    for res, truth in zip(out, (0.3, 0.5), strict=True):
+        assert res.problem.periodic_settle == 0.5 and "settling 0.5 s" in res.message
+        assert abs(res.values["sun_fault"] - truth) < 0.02, (res.values, truth)
