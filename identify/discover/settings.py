@@ -35,8 +35,8 @@ class DiscoverySettings:
       ``"jvp"`` (:meth:`ExtendedModel.ensure_responses`).
     - `periodic`: ``"auto"`` (default) simulates a constant-speed, periodic model over a
       settling time and one hunting period and tiles it, checking the periodicity and
-      integrating the whole record where it fails (`dtwin.simulate.SolverOptions.periodic`);
-      ``"off"`` always integrates the whole record.
+      settling longer, then integrating the whole record, where it fails
+      (`dtwin.simulate.settling_sequence`); ``"off"`` always integrates the whole record.
     """
 
     n_folds: int = 2
