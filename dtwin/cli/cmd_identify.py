@@ -182,7 +182,7 @@ def _files(result, name: str, report: dict, unit: str | None, headline: dict | N
                      "converged": result.converged, "wall time (s)": result.wall_time},
             notes=[f"{k}: not determined by these data ({v})"
                    for k, v in result.not_determined.items()]
-            + ([result.message] if not result.converged else []),
+            + ([result.message] if result.message != "converged" else []),
             figures=figures,
             tables={"Fitted parameters (95 % intervals)": fit_rows(result),
                     "Operating points": result.operating_points})
