@@ -61,7 +61,7 @@ from .residuals import (
     _check,
     fitted_levels,
     levels_from_residuals,
-    model_signal,
+    model_signal_and_defect,
     observation_residuals,
     observe,
     point_groups,
@@ -122,8 +122,7 @@ class Problem(eqx.Module):
         transient had not died out within the settling time (:func:`fit` then fits again)."""
         values = self.pset.values(theta)
         tw = self.pset.apply(self.twin, values)
-        out = [model_signal(tw, o, self.solver_options(), with_defect=True)
-               for o in self.observations]
+        out = [model_signal_and_defect(tw, o, self.solver_options()) for o in self.observations]
         defects = [d for _, d in out if d is not None]
         worst = jnp.max(jnp.stack(defects)) if defects else jnp.zeros(())
         return [sig for sig, _ in out], values, worst

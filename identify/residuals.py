@@ -474,11 +474,16 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     return sig, defect
 
 
-def model_signal(twin, obs: Observation, solver=None, with_defect: bool = False):
-    """The twin's sensor signal for `obs` (same rate, length, quantity and speed), JAX. With
-    `with_defect`: ``(signal, defect)``, `defect` the periodicity defect of a tiled response
+def model_signal(twin, obs: Observation, solver=None):
+    """The twin's sensor signal for `obs` (same rate, length, quantity and speed), JAX."""
+    return model_signal_and_defect(twin, obs, solver)[0]
+
+
+def model_signal_and_defect(twin, obs: Observation, solver=None):
+    """``(signal, defect)``: :func:`model_signal` and the periodicity defect of a tiled response
     (relative rms change of the signal over one hunting period,
-    `dtwin.simulate.SimResult.periodic_defect`), None where the record is integrated in full."""
+    `dtwin.simulate.SimResult.periodic_defect`), None where the record is integrated in full.
+    JAX."""
     solver = solver or SolverOptions()
     daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample, quantity=obs.quantity,
               frf_hz=obs.frf_hz, frf_db=obs.frf_db)
@@ -487,8 +492,7 @@ def model_signal(twin, obs: Observation, solver=None, with_defect: bool = False)
                                      f_sun=_start_speed(obs), daq=daq, discard=obs.discard,
                                      solver=solver, f_init=f_init)
     n = obs.n_samples
-    sig = sig[:n] if sig.shape[0] >= n else jnp.pad(sig, (0, n - sig.shape[0]))
-    return (sig, defect) if with_defect else sig
+    return (sig[:n] if sig.shape[0] >= n else jnp.pad(sig, (0, n - sig.shape[0]))), defect
 
 
 def model_amplitudes(signal, obs: Observation):
