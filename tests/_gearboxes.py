@@ -11,3 +11,13 @@ SLOW_SETTLING = {
     "operating": {"f_sun": 20.0, "load_torque": 120.0},
     "sensor": {"sample_rate": 8000.0},
 }
+
+#: A four-planet, sequentially phased gearbox (22/38/98, module 2, 25 Hz input, 60 N·m;
+#: Zs/N = 5.5, Zr/N = 24.5): records of it made by the translational twin carry a sun fault's
+#: comb lifted by translational modes the torsional twin lacks.
+SEQUENTIAL = {
+    "gears": {"z_sun": 22, "z_planet": 38, "z_ring": 98, "n_planets": 4, "module": 0.002,
+              "pressure_angle": 0.3490658503988659, "face_width": 0.02},
+    "operating": {"f_sun": 25.0, "load_torque": 60.0},
+    "sensor": {"sample_rate": 5000.0},
+}

@@ -85,6 +85,45 @@ def test_locate_resonance_recovers_frequency():
     assert locate_resonance(f, np.zeros_like(f), 2500.0) is None  # nothing to explain
 
 
+def test_located_resonance_amplifies_the_models_own_lines():
+    """A resonance located against a model that carries lines off the mesh grid (a fault's
+    comb, once the fault is in the model) counts those lines in its signature: the mode lifts
+    every line of the model in its band. A line only the measurement has (a tone) stays out."""
+    spec = load_spec(_spec())
+    tw = build_twin(spec, kind="torsional")
+    kin = Kinematics.from_spec(spec)
+    freqs = np.arange(0.0, 2500.0, 0.25)
+    floor = np.full_like(freqs, 1e-4)
+    model = floor.copy()
+    grid = [m * kin.f_mesh + n * kin.f_carrier for m in range(1, 5) for n in range(-8, 9)]
+    grid = [f for f in grid if 0 < f < 2500.0]
+    comb = [k * kin.f_sun_fault + n * kin.f_carrier for k in range(1, 40) for n in (-1, 1)]
+    comb = [f for f in comb if 1200.0 < f < 1700.0 and min(abs(np.array(grid) - f)) > 1.0]
+    for f in grid:
+        model[int(round(f / 0.25))] = 1.0
+    for f in comb:
+        model[int(round(f / 0.25))] = 0.05
+    measured = model * np.abs(1.0 + 0.6 * (np.asarray(resonance_gain(freqs, 1450.0, 0.05, 1.0))
+                                           - 1.0)) * 1.3
+    # a tone in the band, off the grid and the comb
+    every = np.array(grid + comb)
+    tone = next(f for f in np.arange(1400.0, 1500.0, 0.25) if np.min(np.abs(every - f)) > 2.0)
+    measured[int(round(tone / 0.25))] = 0.5
+    ctx = EffectContext(spec, tw, kin, freqs=freqs, measured=measured, model=model,
+                        floor=floor)
+    e = E.HousingResonanceEffect().adapt(ctx)
+    assert e is not None and e.f_res == pytest.approx(1450.0, rel=0.01)
+    lo, hi = e.f_res * (1 - 3 * e.zeta), e.f_res * (1 + 3 * e.zeta)
+    sig = np.array([s.frequency for s in e.signature(kin, 2500.0)])
+    inside = [f for f in comb if lo <= f <= hi]
+    assert inside and all(np.min(np.abs(sig - f)) <= 0.25 for f in inside)
+    assert all(lo <= f <= hi for f in e.model_lines)
+    assert np.min(np.abs(sig - tone)) > 1.0
+    # the grid lines are not listed twice
+    assert len(sig) == len(np.unique(np.round(sig, 6)))
+    assert e.summary == f"housing resonance at {e.f_res:.1f} Hz, damping ratio {e.zeta:g}"
+
+
 def _spec(**sensor):
     d = spec_to_dict(preset("paper-sim"))
     d.pop("source", None)

@@ -55,6 +55,9 @@ def markdown_report(result, record_name: str) -> str:
            "![gap](gap.png)", "", "![base](spectrum_step0.png)", ""]
     for s in result.steps:
         out += [f"## Step {s.number}: {s.named}", "",
+                "- before this step the candidates were specialised again from the current "
+                "model's residual and its responses linearised about it"
+                if s.number in result.respecialised else "",
                 f"- what: {s.summary}" if s.summary else "",
                 f"- effect fitted: `{s.effect}` (group `{s.group}`"
                 + (f"; not told apart from {', '.join(s.indistinguishable_from)}"
@@ -170,6 +173,9 @@ def discover(
         for s in result.steps:
             if s.summary:
                 typer.echo(f"step {s.number}: {s.summary}")
+        for k in result.respecialised:
+            typer.echo(f"before step {k}: candidates specialised again from the current "
+                       "model's residual")
         set_aside = {c.name: c.rejected for s in result.steps for c in s.candidates
                      if c.rejected}
         set_aside.update({c.name: c.rejected for c in result.last_candidates if c.rejected})

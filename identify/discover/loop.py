@@ -233,21 +233,51 @@ def discover(
     stop = "budget"
     last_cands: list[CandidateResult] = []
     initial_gap = None
-    for step_no in range(1, settings.max_steps + 2):
+    added_here: list[int] = []  # indices (in `model`) of the effects added since it was built
+    respecialised: list[int] = []
+
+    def current(m_sig):
+        """The current model's fold spectra and log gains, held-out gap, gain-matched
+        whole-record spectrum and labelled residual lines."""
         _, Z0 = segment_spectra(m_sig, fs, settings.n_folds)
         lg0 = fold_gains(Z0)
         # held-out gap of the current model: gains fitted on the other fold
         gap_now = heldout_gap(np.exp(swap(lg0))[:, None] * np.abs(Z0))
-        if initial_gap is None:
-            initial_gap = gap_now
-        g_full = float(np.exp(np.mean(lg0)))
-        _, m_full = amplitude_spectrum(m_sig * g_full, fs, "hann")
+        _, m_full = amplitude_spectrum(m_sig * float(np.exp(np.mean(lg0))), fs, "hann")
         m_full = np.asarray(m_full)
-        models.append(m_full)
         lines = residual_lines(freqs_full, np.asarray(a_full), m_full, kin,
                                threshold_db=settings.threshold_db, excess_db=settings.excess_db,
                                tolerance_bins=settings.tolerance_bins, f_max=f_max)
-        lines, combs, modulation = _labelled(lines, kin, tol_full, f_max, added_fx)
+        return (Z0, lg0, gap_now, m_full) + _labelled(lines, kin, tol_full, f_max, added_fx)
+
+    for step_no in range(1, settings.max_steps + 2):
+        Z0, lg0, gap_now, m_full, lines, combs, modulation = current(m_sig)
+        if steps and settings.respecialise and step_no <= settings.max_steps:
+            # 2b. the candidates specialised again from the current model's residual: where
+            # that offers one the earlier residual withdrew (a housing resonance that lifts
+            # the comb of the fault just added), the model is rebuilt about the current twin
+            # (the added effects at their fitted values), so every response is linearised
+            # there
+            twin_now = model.twin_with(theta_units, added_here)
+            ctx_now = dataclasses.replace(ctx, base_twin=twin_now, model=m_full,
+                                          lines=tuple(lines), modulation=modulation)
+            again = [e for e in _adapted(originals, ctx_now) if e.name not in added]
+            new = [e for e in again if e.name not in {c.name for c in candidates}]
+            if new:
+                say(f"step {step_no}: the current residual offers "
+                    + ", ".join(getattr(e, "summary", e.name) for e in new)
+                    + "; candidates specialised again and linearised about the current model")
+                candidates = again
+                model = extended_model(twin_now, candidates, kin, daq, n, f_sun,
+                                       settings.solver(), settings.response)
+                theta_units = np.zeros(model.size)
+                added_here = []
+                m_sig = model.base_signal()
+                Z0, lg0, gap_now, m_full, lines, combs, modulation = current(m_sig)
+                respecialised.append(step_no)
+        if initial_gap is None:
+            initial_gap = gap_now
+        models.append(m_full)
         residual_sets.append(lines)
         if step_no > settings.max_steps:
             break
@@ -272,7 +302,7 @@ def discover(
                              > floor * 10 ** (settings.threshold_db / 20.0))
         spectra: dict[int, np.ndarray] = {}
 
-        def response_spectra(i, spectra=spectra):
+        def response_spectra(i, spectra=spectra, model=model):
             if i not in spectra:
                 _, Jc = segment_spectra(model.response(i).T, fs, settings.n_folds)  # (p, F, K)
                 spectra[i] = np.moveaxis(Jc, 0, -1)  # (F, K, p)
@@ -440,6 +470,7 @@ def discover(
                           signature_labels(e_best, kin, best.matched, tol_full, f_max),
                           getattr(e_best, "summary", e_best.description)))
         added.add(best.name)
+        added_here.append(i_best)
         if getattr(e_best, "f_x", None) is not None:
             added_fx.append((float(e_best.f_x), step_no))
         say(f"  added {best.name} (named {named}); gap {gap_now.total:.2f} → {gap_lin:.2f} dB "
@@ -452,4 +483,5 @@ def discover(
     final_gap = heldout_gap(np.exp(swap(lgf))[:, None] * np.abs(Zf))
     return DiscoveryResult(kin, f_sun, fs, settings, steps, initial_gap, final_gap, unexplained,
                            extra, chance, stop, last_cands, freqs_full, np.asarray(a_full), models,
-                           residual_sets, time.perf_counter() - t_start, combs, modulation)
+                           residual_sets, time.perf_counter() - t_start, combs, modulation,
+                           respecialised)

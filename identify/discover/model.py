@@ -85,6 +85,16 @@ class ExtendedModel:
             parts += list(e.parts(theta[self.slice(i)], self.base_twin, self.kin))
         return self.base_twin.with_parts(*parts)
 
+    def twin_with(self, theta_units, indices: Sequence[int]):
+        """The base twin plus only the effects `indices`, at `theta_units` (fitting units of
+        this model; the other effects are left out, not added at zero amplitude)."""
+        theta = np.asarray(theta_units) * self.scales
+        parts = []
+        for i in indices:
+            parts += list(self.effects[i].parts(jnp.asarray(theta[self.slice(i)]),
+                                                self.base_twin, self.kin))
+        return self.base_twin.with_parts(*parts)
+
     def signal(self, theta_units) -> np.ndarray:
         """Simulated sensor signal (no noise) at `theta_units`."""
         return np.asarray(_ext_signal(self, jnp.asarray(theta_units, dtype=jnp.float64)))

@@ -116,6 +116,9 @@ class DiscoveryResult:
     #: combs and the located modulation in the last residual lines (scored as families)
     combs: list = dataclasses.field(default_factory=list)
     modulation: object = None
+    #: the steps before which the candidates were specialised again from the current model's
+    #: residual and the model rebuilt about it (`DiscoverySettings.respecialise`)
+    respecialised: list[int] = dataclasses.field(default_factory=list)
 
     @property
     def named(self) -> list[str]:
@@ -139,5 +142,5 @@ class DiscoveryResult:
             last_candidates=[c.to_dict() for c in self.last_candidates],
             combs=[c.to_dict() for c in self.combs],
             modulation=None if self.modulation is None else self.modulation.to_dict(),
-            timing_s=self.timing_s)
+            respecialised=list(self.respecialised), timing_s=self.timing_s)
 

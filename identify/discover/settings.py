@@ -37,6 +37,10 @@ class DiscoverySettings:
       settling time and one hunting period and tiles it, checking the periodicity and
       settling longer, then integrating the whole record, where it fails
       (`dtwin.simulate.settling_sequence`); ``"off"`` always integrates the whole record.
+    - `respecialise`: after each added effect, specialise the candidates again from the current
+      model's residual; where that offers a candidate the earlier residual withdrew, rebuild
+      the model about the current twin (one more compilation and one response per candidate
+      parameter). ``False``: candidates specialised once, from the base twin's residual.
     """
 
     n_folds: int = 2
@@ -56,6 +60,7 @@ class DiscoverySettings:
     atol: float = 1e-4
     response: str = "fd"
     periodic: str = "auto"
+    respecialise: bool = True
 
     def __post_init__(self):
         if self.screen not in ("score", "coverage"):

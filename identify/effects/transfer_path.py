@@ -52,6 +52,15 @@ def common_line_excess(context):
     return f[k], 20.0 * np.log10(y[k] / a[k])
 
 
+def model_line_frequencies(context):
+    """Frequencies (Hz) of the lines the model carries (local maxima of its spectrum over the
+    detection threshold above the measured floor)."""
+    f, a, fl = (np.asarray(v) for v in (context.freqs, context.model, context.floor))
+    thr = fl * 10 ** (context.threshold_db / 20.0)
+    peak = np.r_[False, (a[1:-1] >= a[:-2]) & (a[1:-1] >= a[2:]), False]
+    return f[peak & (a > thr)]
+
+
 def locate_resonance(freqs, excess_db, f_max):
     """Resonance (f_res, zeta, gain) whose path gain ``|1 + g (H − 1)|`` best explains the level
     excess of the common lines (least squares in dB, grid over f_res, zeta, g), or ``None``
@@ -82,11 +91,16 @@ class HousingResonanceEffect(AbstractEffect):
     `f_res` and `zeta` come from the data (:meth:`adapt`: the resonance curve that best explains
     the level excess of the lines the base model already has); the fit finds the gain. No new
     lines: the signature is the model's grid ``m fm + n fc`` (|n| ≤ 8) within
-    ``f_res (1 ± 3 zeta)``, which the mode amplifies. Group ``housing_resonance``.
+    ``f_res (1 ± 3 zeta)``, which the mode amplifies, and `model_lines`: the other lines the
+    model it was located against carries in that band (a fault's comb once the fault is in the
+    model), which it amplifies as well. Group ``housing_resonance``.
     """
 
     f_res: float | None = eqx.field(static=True, default=None)
     zeta: float = eqx.field(static=True, default=0.05)
+    #: frequencies (Hz) of the lines the model carried within ``f_res (1 ± 3 zeta)`` when the
+    #: resonance was located (:meth:`adapt`), besides the grid ``m fm + n fc``
+    model_lines: tuple[float, ...] = eqx.field(static=True, default=())
     modifies_model_lines: ClassVar[bool] = True
     name: ClassVar[str] = "housing_resonance"
     group: ClassVar[str] = "housing_resonance"
@@ -99,6 +113,13 @@ class HousingResonanceEffect(AbstractEffect):
         "resonance) are the rule on industrial casings; the share of the path through one mode "
         "is 0.1–1")
 
+    @property
+    def summary(self) -> str:
+        """What the step adds, in words ("housing resonance at 1541.9 Hz, damping ratio 0.1")."""
+        if self.f_res is None:
+            return "housing resonance"
+        return f"housing resonance at {self.f_res:.1f} Hz, damping ratio {self.zeta:g}"
+
     def adapt(self, context):
         if self.f_res is not None:
             return self
@@ -108,7 +129,15 @@ class HousingResonanceEffect(AbstractEffect):
         found = locate_resonance(f, ex, float(np.asarray(context.freqs)[-1]))
         if found is None:
             return None
-        return HousingResonanceEffect(f_res=found[0], zeta=found[1])
+        f_res, zeta = found[0], found[1]
+        lo, hi = f_res * (1 - 3 * zeta), f_res * (1 + 3 * zeta)
+        grid = np.array([s.frequency for s in _grid_lines(context.kin, float(np.asarray(
+            context.freqs)[-1]), lambda m, n, f: lo <= f <= hi)])
+        tol = context.tolerance_bins * float(np.asarray(context.freqs)[1] - np.asarray(
+            context.freqs)[0])
+        own = tuple(float(x) for x in model_line_frequencies(context)
+                    if lo <= x <= hi and (grid.size == 0 or np.min(np.abs(grid - x)) > tol))
+        return HousingResonanceEffect(f_res=f_res, zeta=zeta, model_lines=own)
 
     def parameters(self, twin):
         return (EffectParameter("housing_resonance_gain", "1", 0.1,
@@ -127,7 +156,9 @@ class HousingResonanceEffect(AbstractEffect):
         if self.f_res is None:
             return []
         lo, hi = self.f_res * (1 - 3 * self.zeta), self.f_res * (1 + 3 * self.zeta)
-        return _grid_lines(kin, f_max, lambda m, n, f: lo <= f <= hi)
+        return (_grid_lines(kin, f_max, lambda m, n, f: lo <= f <= hi)
+                + [SignatureLine(f, f"{f:.2f} Hz, a line of the model the mode amplifies")
+                   for f in self.model_lines if f < f_max])
 
     def main(self, theta):
         return jnp.abs(theta[0])
