@@ -254,15 +254,19 @@ def discover(
         Z0, lg0, gap_now, m_full, lines, combs, modulation = current(m_sig)
         if steps and settings.respecialise and step_no <= settings.max_steps:
             # 2b. the candidates specialised again from the current model's residual: where
-            # that offers one the earlier residual withdrew (a housing resonance that lifts
-            # the comb of the fault just added), the model is rebuilt about the current twin
+            # that offers one the earlier residual withdrew and it covers the residual lines
+            # (a housing resonance that lifts the comb of the fault just added), the model is
+            # rebuilt about the current twin
             # (the added effects at their fitted values), so every response is linearised
             # there
             twin_now = model.twin_with(theta_units, added_here)
             ctx_now = dataclasses.replace(ctx, base_twin=twin_now, model=m_full,
                                           lines=tuple(lines), modulation=modulation)
             again = [e for e in _adapted(originals, ctx_now) if e.name not in added]
-            new = [e for e in again if e.name not in {c.name for c in candidates}]
+            # only a new candidate that covers the current residual is worth a rebuild: one
+            # that does not would be neither scored nor refit in this step
+            new = [e for e in again if e.name not in {c.name for c in candidates}
+                   and coverage(e, kin, lines, tol_full, f_max)[0] >= settings.min_coverage]
             if new:
                 say(f"step {step_no}: the current residual offers "
                     + ", ".join(getattr(e, "summary", e.name) for e in new)

@@ -38,9 +38,9 @@ class DiscoverySettings:
       settling longer, then integrating the whole record, where it fails
       (`dtwin.simulate.settling_sequence`); ``"off"`` always integrates the whole record.
     - `respecialise`: after each added effect, specialise the candidates again from the current
-      model's residual; where that offers a candidate the earlier residual withdrew, rebuild
-      the model about the current twin (one more compilation and one response per candidate
-      parameter). ``False``: candidates specialised once, from the base twin's residual.
+      model's residual; where that offers a candidate the earlier residual withdrew and it
+      covers `min_coverage` of the residual lines, rebuild the model about the current twin
+      (one more compilation and one response per candidate parameter). ``False``: candidates specialised once, from the base twin's residual.
     """
 
     n_folds: int = 2

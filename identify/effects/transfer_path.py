@@ -41,24 +41,26 @@ def _grid_lines(kin, f_max, keep, carrier: int = 8):
     return out
 
 
+def _model_peaks(context):
+    """Bins where the model has a line: local maxima of its spectrum over the detection
+    threshold above the measured floor."""
+    a, fl = np.asarray(context.model), np.asarray(context.floor)
+    peak = np.r_[False, (a[1:-1] >= a[:-2]) & (a[1:-1] >= a[2:]), False]
+    return peak & (a > fl * 10 ** (context.threshold_db / 20.0))
+
+
 def common_line_excess(context):
     """Lines the base model has (over the threshold, local maxima) that the measurement also
     has: their frequencies (Hz) and the level excess measured − model (dB)."""
     f, y, a, fl = (np.asarray(v) for v in (context.freqs, context.measured, context.model,
                                             context.floor))
-    thr = fl * 10 ** (context.threshold_db / 20.0)
-    peak = np.r_[False, (a[1:-1] >= a[:-2]) & (a[1:-1] >= a[2:]), False]
-    k = np.flatnonzero(peak & (a > thr) & (y > thr))
+    k = np.flatnonzero(_model_peaks(context) & (y > fl * 10 ** (context.threshold_db / 20.0)))
     return f[k], 20.0 * np.log10(y[k] / a[k])
 
 
 def model_line_frequencies(context):
-    """Frequencies (Hz) of the lines the model carries (local maxima of its spectrum over the
-    detection threshold above the measured floor)."""
-    f, a, fl = (np.asarray(v) for v in (context.freqs, context.model, context.floor))
-    thr = fl * 10 ** (context.threshold_db / 20.0)
-    peak = np.r_[False, (a[1:-1] >= a[:-2]) & (a[1:-1] >= a[2:]), False]
-    return f[peak & (a > thr)]
+    """Frequencies (Hz) of the lines the model carries (:func:`_model_peaks`)."""
+    return np.asarray(context.freqs)[_model_peaks(context)]
 
 
 def locate_resonance(freqs, excess_db, f_max):
