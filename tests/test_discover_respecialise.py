@@ -94,3 +94,34 @@ def test_specialising_again_closes_more_of_the_gap_slow(sequential):
     left_once = _comb_lines(once.unexplained, lo, hi)
     left_again = _comb_lines(again.unexplained, lo, hi)
     assert len(left_again) <= len(left_once) // 4, (len(left_once), len(left_again))
+
+
+@pytest.mark.slow
+def test_a_rebuild_that_fails_leaves_the_current_model_slow(sequential, monkeypatch):
+    """The model about the current twin cannot be simulated (injected): the search goes on
+    with the candidates it had, as without re-specialisation, and says why."""
+    import importlib
+
+    from dtwin.errors import FitError
+
+    # the module, not the function `discover` that the package exports under that name
+    loop = importlib.import_module("dtwin.identify.discover.loop")
+
+    built = []
+
+    def failing(*args, **kw):
+        built.append(args[0])
+        if args[0] is not built[0]:  # a model about another twin than the base: the rebuild
+            raise FitError("injected")
+        return extended_model(*args, **kw)
+
+    extended_model = loop.extended_model
+    monkeypatch.setattr(loop, "extended_model", failing)
+    lines = []
+    res = loop.discover(sequential[1], sequential[0],
+                        settings=loop.DiscoverySettings(**QUICK), log=lines.append)
+    assert built[-1] is not built[0] and res.respecialised == []
+    assert any("failed (FitError: injected); the candidates stay as they were" in t
+               for t in lines), lines
+    assert res.steps and res.steps[0].effect == "sun_local_fault"
+    assert "housing_resonance" not in [s.effect for s in res.steps]

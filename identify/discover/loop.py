@@ -268,17 +268,23 @@ def discover(
             new = [e for e in again if e.name not in {c.name for c in candidates}
                    and coverage(e, kin, lines, tol_full, f_max)[0] >= settings.min_coverage]
             if new:
-                say(f"step {step_no}: the current residual offers "
-                    + ", ".join(getattr(e, "summary", e.name) for e in new)
-                    + "; candidates specialised again and linearised about the current model")
-                candidates = again
-                model = extended_model(twin_now, candidates, kin, daq, n, f_sun,
-                                       settings.solver(), settings.response)
-                theta_units = np.zeros(model.size)
-                added_here = []
-                m_sig = model.base_signal()
-                Z0, lg0, gap_now, m_full, lines, combs, modulation = current(m_sig)
-                respecialised.append(step_no)
+                offered = ", ".join(getattr(e, "summary", e.name) for e in new)
+                try:  # a model that cannot be built or simulated leaves the current one
+                    rebuilt = extended_model(twin_now, again, kin, daq, n, f_sun,
+                                             settings.solver(), settings.response)
+                    sig_new = rebuilt.base_signal()
+                except (DtwinError, FloatingPointError, ValueError) as err:
+                    say(f"step {step_no}: the current residual offers {offered}, but the model "
+                        f"about the current twin failed ({type(err).__name__}: {err}); the "
+                        "candidates stay as they were")
+                else:
+                    say(f"step {step_no}: the current residual offers {offered}; candidates "
+                        "specialised again and linearised about the current model")
+                    candidates, model, m_sig = again, rebuilt, sig_new
+                    theta_units = np.zeros(model.size)
+                    added_here = []
+                    Z0, lg0, gap_now, m_full, lines, combs, modulation = current(m_sig)
+                    respecialised.append(step_no)
         if initial_gap is None:
             initial_gap = gap_now
         models.append(m_full)
