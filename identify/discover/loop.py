@@ -233,7 +233,6 @@ def discover(
     stop = "budget"
     last_cands: list[CandidateResult] = []
     initial_gap = None
-    added_here: list[int] = []  # indices (in `model`) of the effects added since it was built
     respecialised: list[int] = []
 
     def current(m_sig):
@@ -256,10 +255,11 @@ def discover(
             # 2b. the candidates specialised again from the current model's residual: where
             # that offers one the earlier residual withdrew and it covers the residual lines
             # (a housing resonance that lifts the comb of the fault just added), the model is
-            # rebuilt about the current twin
-            # (the added effects at their fitted values), so every response is linearised
-            # there
-            twin_now = model.twin_with(theta_units, added_here)
+            # rebuilt about the current twin (the added effects at their fitted values), so
+            # every response is linearised there
+            # the effects added since `model` was built (those before are in its base twin)
+            twin_now = model.twin(theta_units, [i for i, e in enumerate(candidates)
+                                                if e.name in added])
             ctx_now = dataclasses.replace(ctx, base_twin=twin_now, model=m_full,
                                           lines=tuple(lines), modulation=modulation)
             again = [e for e in _adapted(originals, ctx_now) if e.name not in added]
@@ -282,7 +282,6 @@ def discover(
                         "specialised again and linearised about the current model")
                     candidates, model, m_sig = again, rebuilt, sig_new
                     theta_units = np.zeros(model.size)
-                    added_here = []
                     Z0, lg0, gap_now, m_full, lines, combs, modulation = current(m_sig)
                     respecialised.append(step_no)
         if initial_gap is None:
@@ -493,7 +492,6 @@ def discover(
                           signature_labels(e_best, kin, best.matched, tol_full, f_max),
                           getattr(e_best, "summary", e_best.description)))
         added.add(best.name)
-        added_here.append(i_best)
         if getattr(e_best, "f_x", None) is not None:
             added_fx.append((float(e_best.f_x), step_no))
         say(f"  added {best.name} (named {named}); gap {gap_now.total:.2f} → {gap_lin:.2f} dB "

@@ -77,22 +77,13 @@ class ExtendedModel:
     def slice(self, i: int) -> slice:
         return slice(int(self.offsets[i]), int(self.offsets[i + 1]))
 
-    def twin(self, theta_units):
-        """The twin at fitting units `theta_units` (all effects)."""
+    def twin(self, theta_units, indices: Sequence[int] | None = None):
+        """The twin at fitting units `theta_units`: the base twin plus the effects `indices`
+        (default: all; the others are left out, not added at zero amplitude)."""
         theta = jnp.asarray(theta_units) * jnp.asarray(self.scales)
         parts = []
-        for i, e in enumerate(self.effects):
-            parts += list(e.parts(theta[self.slice(i)], self.base_twin, self.kin))
-        return self.base_twin.with_parts(*parts)
-
-    def twin_with(self, theta_units, indices: Sequence[int]):
-        """The base twin plus only the effects `indices`, at `theta_units` (fitting units of
-        this model; the other effects are left out, not added at zero amplitude)."""
-        theta = np.asarray(theta_units) * self.scales
-        parts = []
-        for i in indices:
-            parts += list(self.effects[i].parts(jnp.asarray(theta[self.slice(i)]),
-                                                self.base_twin, self.kin))
+        for i in range(len(self.effects)) if indices is None else indices:
+            parts += list(self.effects[i].parts(theta[self.slice(i)], self.base_twin, self.kin))
         return self.base_twin.with_parts(*parts)
 
     def signal(self, theta_units) -> np.ndarray:

@@ -40,7 +40,8 @@ class DiscoverySettings:
     - `respecialise`: after each added effect, specialise the candidates again from the current
       model's residual; where that offers a candidate the earlier residual withdrew and it
       covers `min_coverage` of the residual lines, rebuild the model about the current twin
-      (one more compilation and one response per candidate parameter). ``False``: candidates specialised once, from the base twin's residual.
+      (one more compilation and one response per candidate parameter). ``False``: candidates
+      specialised once, from the base twin's residual.
     """
 
     n_folds: int = 2

@@ -131,15 +131,18 @@ class HousingResonanceEffect(AbstractEffect):
         found = locate_resonance(f, ex, float(np.asarray(context.freqs)[-1]))
         if found is None:
             return None
-        f_res, zeta = found[0], found[1]
-        lo, hi = f_res * (1 - 3 * zeta), f_res * (1 + 3 * zeta)
-        grid = np.array([s.frequency for s in _grid_lines(context.kin, float(np.asarray(
-            context.freqs)[-1]), lambda m, n, f: lo <= f <= hi)])
-        tol = context.tolerance_bins * float(np.asarray(context.freqs)[1] - np.asarray(
-            context.freqs)[0])
+        located = HousingResonanceEffect(f_res=found[0], zeta=found[1])
+        freqs = np.asarray(context.freqs)
+        lo, hi = located.band()
+        grid = np.array([s.frequency for s in located.signature(context.kin, float(freqs[-1]))])
+        tol = context.tolerance_bins * float(freqs[1] - freqs[0])
         own = tuple(float(x) for x in model_line_frequencies(context)
                     if lo <= x <= hi and (grid.size == 0 or np.min(np.abs(grid - x)) > tol))
-        return HousingResonanceEffect(f_res=f_res, zeta=zeta, model_lines=own)
+        return HousingResonanceEffect(f_res=found[0], zeta=found[1], model_lines=own)
+
+    def band(self) -> tuple[float, float]:
+        """The band the mode amplifies, ``f_res (1 ± 3 zeta)`` (Hz)."""
+        return self.f_res * (1 - 3 * self.zeta), self.f_res * (1 + 3 * self.zeta)
 
     def parameters(self, twin):
         return (EffectParameter("housing_resonance_gain", "1", 0.1,
@@ -157,7 +160,7 @@ class HousingResonanceEffect(AbstractEffect):
     def signature(self, kin, f_max):
         if self.f_res is None:
             return []
-        lo, hi = self.f_res * (1 - 3 * self.zeta), self.f_res * (1 + 3 * self.zeta)
+        lo, hi = self.band()
         return (_grid_lines(kin, f_max, lambda m, n, f: lo <= f <= hi)
                 + [SignatureLine(f, f"{f:.2f} Hz, a line of the model the mode amplifies")
                    for f in self.model_lines if f < f_max])
