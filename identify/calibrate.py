@@ -92,7 +92,7 @@ import dataclasses
 import math
 import os
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import equinox as eqx
 import jax
@@ -835,10 +835,7 @@ def calibrate(
     say(f"held-out gap {gap_before.total:.2f} dB before, {gap_held.total:.2f} dB calibrated")
 
     every = np.ones(len(half_idx), bool)
-    # per linearisation: (confirmed gap, θ, linearisation, steps, converged, spec data,
-    # confirmed amplitudes, departure of the confirmed gap from the linearised one, the fit's
-    # data and its response gains)
-    tried = []
+    tried: list[_Attempt] = []  # one per linearisation point
     for attempt in range(settings.relinearize + 1):
         say("final fit on all data" if attempt == 0 else
             f"final fit on all data, linearised at the fitted values ({attempt} of "
@@ -860,8 +857,8 @@ def calibrate(
         _, Zc = segment_spectra(y_cal, fs, 2)
         a_after = np.abs(Zc)[half_idx]
         gap_conf = gap(freqs, a_meas, a_after, bands)
-        tried.append((gap_conf, theta, lin, steps, converged, data, a_after,
-                      gap_conf.total - gap_lin.total, d_all, np.asarray(G)))
+        tried.append(_Attempt(gap_conf, theta, lin, steps, converged, data, a_after,
+                              gap_conf.total - gap_lin.total, d_all, np.asarray(G)))
         say(f"confirmed gap {gap_conf.total:.2f} dB; the linearised twin's "
             f"{gap_lin.total:.2f} dB ({steps} LM steps" + ("" if converged else
                                                           ", stopped at the step limit") + ")")
@@ -875,19 +872,38 @@ def calibrate(
                 f"{gap_conf.total - gap_lin.total:.1f} dB: linearising again at the fitted "
                 "values")
             lin = linearised(theta)
-    best = min(range(len(tried)), key=lambda i: tried[i][0].total)
-    gap_conf, theta, lin_best, steps, converged, data, a_after, departure, d_all, G = tried[best]
+    best = min(range(len(tried)), key=lambda i: tried[i].gap.total)
+    chosen = tried[best]
     if best > 0:
         say("cross-validation again, about the chosen linearisation point")
-        gap_held = cross_validated(lin_best)
+        gap_held = cross_validated(chosen.lin)
         say(f"held-out gap {gap_held.total:.2f} dB")
-    params = _intervals(theta, G, d_all, layout, knots, Wl, B, twin, i_exc,
-                        settings)
-    data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
-    return CalibrationResult(data, params, f_sun, gap_before, gap_held, gap_conf, freqs,
-                             a_meas, a_before, a_after, noise_rms, list(names), steps,
-                             converged, best + 1, float(departure),
-                             bool(departure > settings.relinearize_db))
+    params = _intervals(chosen.theta, chosen.gains, chosen.fit_data, layout, knots, Wl, B, twin,
+                        i_exc, settings)
+    data = chosen.spec_data
+    data["calibration"]["heldout_gap_db"] = round(float(chosen.gap.total), 3)
+    return CalibrationResult(data, params, f_sun, gap_before, gap_held, chosen.gap, freqs,
+                             a_meas, a_before, chosen.amplitudes, noise_rms, list(names),
+                             chosen.steps, chosen.converged, best + 1, float(chosen.departure),
+                             bool(chosen.departure > settings.relinearize_db))
+
+
+class _Attempt(NamedTuple):
+    """One final fit of :func:`calibrate`, at one linearisation point: its confirmed gap, θ,
+    the linearisation, LM steps, convergence, the calibrated spec's data, the confirmed
+    amplitudes, the confirmed gap's departure from the linearised one (dB), the fit's data
+    and its response gains."""
+
+    gap: GapResult
+    theta: np.ndarray
+    lin: Any
+    steps: int
+    converged: bool
+    spec_data: dict
+    amplitudes: np.ndarray
+    departure: float
+    fit_data: _Data
+    gains: np.ndarray
 
 
 def _quantity(spec: Spec) -> str:
