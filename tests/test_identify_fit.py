@@ -139,6 +139,58 @@ def test_gauss_newton_step_in_sigma_matches_least_squares():
     assert float(d2[-1]) == 0.0
 
 
+def _noisy_decay_fit(theta0: float, max_steps: int = 60):
+    """LM (the fit's solver, `sigma_tol` 0.1) on an exponential decay whose residuals carry
+    ODE-solver-like noise: a chaotic function of θ (amplitude 0.4 × the data's noise) that the
+    Jacobian does not see. Returns (θ, steps, converged) and the noise-free optimum with its
+    standard error."""
+    import importlib
+
+    import jax
+    import jax.numpy as jnp
+    from scipy.optimize import least_squares
+
+    fitmod = importlib.import_module("dtwin.identify.fit")
+    rng = np.random.default_rng(1)
+    x = np.linspace(0.0, 1.0, 400)
+    y = np.exp(-2.1 * x) + 0.05 * rng.normal(size=x.size)
+    phase = rng.uniform(0.0, 2.0 * np.pi, x.size)
+
+    def residuals(theta, _):
+        noise = 0.02 * jnp.sin(1e7 * theta[0] + phase)
+        return jnp.exp(-3.0 * theta[0] * x) + jax.lax.stop_gradient(noise) - y, None
+
+    solver = fitmod._make_solver("lm", 1e-3, 1e-3, 0.1, history=max_steps + 1)
+    th, ok, steps = fitmod._least_squares(residuals, solver, jnp.asarray([theta0]), None,
+                                          "fwd", max_steps)[:3]
+    clean = least_squares(lambda t: np.exp(-3.0 * t[0] * x) - y, [theta0], xtol=1e-14)
+    J = clean.jac
+    se = float(np.sqrt(np.sum(clean.fun ** 2) / (x.size - 1) / (J[:, 0] @ J[:, 0])))
+    return float(th[0]), int(steps), bool(ok), float(clean.x[0]), se
+
+
+def test_a_fit_stalled_in_the_solvers_noise_stops(monkeypatch):
+    """Where the ODE solver's noise in the loss exceeds what a move of 0.1 standard errors
+    changes, the statistical stop is met only by chance: the fit sits at its minimum and its
+    steps aim at the noise. The stall stop ends it (4 evaluations without a gain of
+    ½ (0.1 s)², the step within one standard error) near the noise-free optimum; with the
+    stall stop switched off the same fits run on for tens of steps (seen on 4 s records:
+    minimum at step 3, stopped at step 30)."""
+    import importlib
+
+    fitmod = importlib.import_module("dtwin.identify.fit")
+    starts = (0.3, 1.0, 1.2)  # truth 0.7; fits whose statistical stop was not met by chance
+    with_stall = [_noisy_decay_fit(t0) for t0 in starts]
+    monkeypatch.setattr(fitmod, "_STALL_EVALUATIONS", 10**6)
+    without = [_noisy_decay_fit(t0) for t0 in starts]
+    for (th, steps, ok, best, se), (_, steps_off, _, _, _) in zip(with_stall, without,
+                                                                   strict=True):
+        assert ok and steps <= 12, (steps, th)
+        assert abs(th - best) < 0.5 * se, (th, best, se)
+        assert steps_off >= 2 * steps, (steps, steps_off)
+    assert max(w[1] for w in without) >= 25
+
+
 def test_starts_refined_by_vmap_and_by_map_agree(truth_record, spec):
     """Two starts refined in one call, batched by `vmap` (a GPU's way) and by `lax.map` (the
     CPU default): the same optimum (to the ODE solver's noise) and no deadlock of batched
