@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Fleet throughput on a GPU machine that has JAX with CUDA but no network (benchmarks/README.md,
-# "Fleet throughput on a GPU"). Run from the repository root:
+# "Fleet throughput", "On a GPU"). Run from the repository root:
 #
 #   benchmarks/device_fleet.sh WHEELS OUT PINNED RECORDS:SIZES [RECORDS:SIZES ...]
 #
