@@ -481,7 +481,8 @@ def _solve_tiled(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, set
     sun_turns, car_turns = shaft_turns(twin, hunting_cycles(twin))
     t_ref = t0 + settle
     save, back, turns, t1 = _tiled_grid(jnp.asarray(ts_np), t_ref, period, fs_hi)
-    obs, result, nsteps = _solve(twin, y0, t0, t1, save, quantity, rtol, atol, dtmax, max_steps,
+    obs, result, nsteps = _solve(twin, y0, jnp.asarray(t0, dtype=jnp.float64), t1, save,
+                                 quantity, rtol, atol, dtmax, max_steps,
                                  adjoint, progress, pcoeff, icoeff, unrolled, rate_scale_hz)
     out, defect = _untiled(obs, back, turns, sun_turns, car_turns)
     return out, result, nsteps, defect
@@ -530,21 +531,32 @@ def _observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, f_s
     method, defect)``; `defect` None when integrated in full."""
     t1 = float(ts_np[-1])
     T, method = periodic_plan(twin, f_sun, t0, t1, solver, fs_hi, start)
-    common = (quantity, solver.rtol, solver.atol, dtmax)
+    # times, tolerances and the step limit enter the compiled solve as values, not as constants
+    # of its program: another speed, start time or tolerance reuses the compilation
+    f64 = functools.partial(jnp.asarray, dtype=jnp.float64)
+    common = (quantity, f64(solver.rtol), f64(solver.atol), f64(dtmax))
     rest = (solver.adjoint, progress, solver.pcoeff, solver.icoeff, solver.unrolled,
             solver.rate_scale_hz)
     if T is None:
-        max_steps = solver.max_steps or int(400_000 * (t1 - t0) + 10_000)
-        ys, result, nsteps = _solve(twin, y0, t0, t1, jnp.asarray(ts_np), *common, max_steps,
-                                    *rest)
+        max_steps = solver.max_steps or _step_budget(t1 - t0)
+        ys, result, nsteps = _solve(twin, y0, f64(t0), f64(t1), jnp.asarray(ts_np), *common,
+                                    max_steps, *rest)
         return ys, result, nsteps, method, None
     # the period follows the drive's set point, traced in a fit: its estimate `T` (from the
     # static `f_sun`) decides, the step budget covers the whole record as well
     span = max(solver.periodic_settle + 1.01 * T + PERIODIC_PROBE / fs_hi, t1 - t0)
-    max_steps = solver.max_steps or int(400_000 * span + 10_000)
+    max_steps = solver.max_steps or _step_budget(span)
     ys, result, nsteps, defect = _solve_tiled(twin, y0, t0, ts_np, fs_hi, solver.periodic_settle,
                                               *common, max_steps, *rest)
     return ys, result, nsteps, method, defect
+
+
+def _step_budget(span: float) -> int:
+    """The default step limit of a solve over `span` s: 400 000 steps per simulated second
+    plus 10 000, rounded up to a multiple of 100 000 so that spans a little apart (another
+    speed's hunting period) share one compiled solve (the limit is static in it)."""
+    need = 400_000 * span + 10_000
+    return int(math.ceil(need / 100_000) * 100_000)
 
 
 def _check_finite(twin: Twin) -> None:
@@ -607,6 +619,10 @@ def simulate(
       inside `jax.jit`/`grad`, where failure shows as NaN instead).
 
     **Returns:** `SimResult`.
+
+    The solve is compiled once per twin structure, record length and rate, quantity and
+    solver settings other than the tolerances: another speed, start time, tolerance or
+    parameter value reuses the compiled program.
     """
     daq = daq or DAQ()
     solver = solver or SolverOptions()

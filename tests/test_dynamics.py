@@ -215,6 +215,34 @@ def test_solver_failure_raises_documented_error():
         simulate(tw, duration=-1.0, f_sun=30.0)
 
 
+@pytest.mark.parametrize("duration", [0.3, 1.0])
+def test_another_speed_reuses_the_compiled_solve(duration):
+    """A speed sweep in a notebook: the twin at another input speed traces no new program (its
+    times, tolerances and step limit are values of the compiled solve, not constants), in full
+    (0.3 s) or over one hunting period (1.0 s at 60 Hz: 0.57 s) — and the strongest line is
+    each speed's mesh frequency (a stale time grid or period would leave it where it was)."""
+    spec = preset("paper-sim")
+    solver = SolverOptions(periodic="auto" if duration == 1.0 else "off")
+    traces = []
+    jax.monitoring.register_event_duration_secs_listener(
+        lambda event, secs, **kw: traces.append(event) if event.endswith("trace_duration") else None)
+    peaks = {}
+    for f_sun in (60.0, 61.3):
+        tw = build_twin(spec, kind="torsional", f_sun=f_sun)
+        traces.clear()
+        res = simulate(tw, duration=duration, f_sun=f_sun, daq=DAQ(sample_rate=FS), solver=solver)
+        if f_sun != 60.0:
+            assert traces == [], traces
+        assert res.method == ("periodic" if duration == 1.0 else "full"), res.method
+        f, A = amplitude_spectrum(np.asarray(res.signal), FS, "hann", remove_mean=True)
+        band = (f > 900.0) & (f < 1150.0)  # both speeds' f_mesh (1000.6, 1022.2 Hz)
+        peaks[f_sun] = f[band][np.argmax(A[band])]
+    gs = spec.gear_set()
+    for f_sun, peak in peaks.items():
+        fm = float(characteristic_frequencies(gs, f_sun)["f_mesh"])
+        assert abs(peak - fm) <= 1.5 / duration, (f_sun, peak, fm)
+
+
 # ------------------------------------------------------------------------- gradients
 def _line_level(tw, p, fm, df_line, dur=0.4):
     """Amplitude of the line at fm + df_line (Hz) in a short record, differentiable."""
