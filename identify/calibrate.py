@@ -127,6 +127,10 @@ _DB = 20.0 / math.log(10.0)
 _TE_UNIT = 1e-8
 #: Unit of the load-share coordinates in θ (1 % of planet 0's share).
 _SHARE_UNIT = 0.01
+#: Memory (bytes) the response's tangents may take at once, and what one tangent takes per
+#: sample of the DAQ's oversampled grid (measured: 1.0–1.4 kB on the paper's gearbox, the
+#: torsional twin): the Jacobian is formed in batches of tangents within this budget.
+_TANGENT_BUDGET, _TANGENT_BYTES_PER_SAMPLE = 2**30, 1500
 
 
 @dataclasses.dataclass(frozen=True)
@@ -543,14 +547,25 @@ def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings, theta_lin):
         (y0, defect), jvp_fn = linearise(option)
         if defect is None or float(defect) <= solver.periodic_tolerance:
             break
-    J = jax.vmap(lambda v: jvp_fn(v)[0], in_axes=1, out_axes=1)(jnp.eye(layout.size))
-    y0, J = np.asarray(y0), np.asarray(J)
+    # the tangents in batches: all at once, they held ~170 MB each for a 3 s record at 10 kHz
+    # (5.9 GB in all for 25 of them); each batch runs the solve again
+    eye = jnp.eye(layout.size)
+    batch = _tangent_batch(n * daq.oversample)
+    J = np.concatenate([np.asarray(jax.vmap(lambda v: jvp_fn(v)[0], in_axes=1, out_axes=1)(
+        eye[:, i : i + batch])) for i in range(0, layout.size, batch)], axis=1)
+    y0 = np.asarray(y0)
     if not (np.all(np.isfinite(y0)) and np.all(np.isfinite(J))):
         raise FitError("the twin's simulation failed at the "
                        + ("spec's values" if not np.any(np.asarray(theta_lin)) else
                           "calibration's values") + " (non-finite signal); check the spec with "
                        "`dtwin spec check`")
     return y0, J
+
+
+def _tangent_batch(n_samples: int) -> int:
+    """How many tangents of a response over `n_samples` samples of the oversampled grid are
+    formed at once (at least one): `_TANGENT_BUDGET` over `_TANGENT_BYTES_PER_SAMPLE` each."""
+    return max(1, _TANGENT_BUDGET // (_TANGENT_BYTES_PER_SAMPLE * n_samples))
 
 
 def _family_bins(kin: Kinematics, freqs: np.ndarray) -> np.ndarray:
@@ -751,7 +766,9 @@ def calibrate(
         say(f"{n_orders} carrier orders k f_c (k not a multiple of {kin.n_planets}) above the "
             "line threshold: fitting the planets' load shares")
     twin, i_path, i_exc, layout = _prepare_twin(spec, f_sun, kind, settings, n_harm, fit_shares)
-    daq = daq_from_spec(spec, snr_db=None, quantity=_quantity(spec), frf_hz=None, frf_db=None)
+    # the records' rate, not the spec's `sensor.sample_rate` (which describes other records)
+    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec), frf_hz=None,
+                        frf_db=None)
     say(f"simulating the twin and its response to {layout.size} parameters "
         f"({n / fs:.1f} s at {fs:g} Hz)")
     theta0 = jnp.zeros(layout.size)
@@ -847,11 +864,11 @@ def calibrate(
         # the calibrated spec, then its confirmation by a full simulation
         _, G = _model_amp(jnp.asarray(theta), d_all)
         data = _calibrated_data(spec, theta, np.asarray(G), knots, layout, twin, i_exc, f_sun,
-                                names, kind)
+                                fs, names, kind)
         say("confirming: the calibrated twin simulated in full")
         cal_spec = _spec_from_data(data)
         tw_cal = build_twin(cal_spec, kind=kind, f_sun=f_sun)
-        daq_cal = daq_from_spec(cal_spec, snr_db=None, quantity=_quantity(spec))
+        daq_cal = daq_from_spec(cal_spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec))
         y_cal = np.asarray(simulate(tw_cal, duration=n / fs, f_sun=f_sun, daq=daq_cal,
                                     discard=settings.discard, solver=settings.solver).signal[:n])
         _, Zc = segment_spectra(y_cal, fs, 2)
@@ -1000,8 +1017,8 @@ def _joint(cov, info, prior, names, n_max: int = 3) -> list[tuple[tuple[str, flo
     return out
 
 
-def _calibrated_data(spec: Spec, theta, G, knots, layout: _Layout, twin, i_exc, f_sun, names,
-                     kind) -> dict[str, Any]:
+def _calibrated_data(spec: Spec, theta, G, knots, layout: _Layout, twin, i_exc, f_sun, fs,
+                     names, kind) -> dict[str, Any]:
     data = spec_to_dict(spec)
     data.pop("source", None)
     c = np.asarray(layout.c_init).copy()
@@ -1010,6 +1027,7 @@ def _calibrated_data(spec: Spec, theta, G, knots, layout: _Layout, twin, i_exc, 
     sensor["window_harmonics"] = [float(v) for v in c]
     sensor["frf_hz"] = [float(v) for v in knots]
     sensor["frf_db"] = [float(v) for v in G]
+    sensor["sample_rate"] = float(fs)  # the calibrated records' rate (the knots reach 0.45 of it)
     h = layout.n_harm
     te = np.asarray(theta[layout.n_window: layout.n_window + 2 * h]) * layout.te_scale
     exc = twin.parts[i_exc]
@@ -1057,7 +1075,7 @@ def heldout_gap(
     n = X.shape[1]
     kin0 = Kinematics.from_spec(spec)
     g = spec["gears"]
-    daq = daq_from_spec(spec, snr_db=None, quantity=_quantity(spec))
+    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec))
     a_meas, a_model, kin = [], [], kin0
     for x in X:
         w = np.hanning(n + 1)[:-1]

@@ -367,3 +367,66 @@ def test_calibration_linearises_again_where_the_full_twin_departs(slow_settling_
     tiled = calibrate([rec], spec, kind="torsional", settings=CalibrationSettings(relinearize=0))
     assert tiled.gap_confirmed.total > once.gap_confirmed.total + 3.0, (
         tiled.gap_confirmed.total, once.gap_confirmed.total)
+
+
+def test_response_tangents_in_batches_are_the_jacobian(monkeypatch):
+    """The response's Jacobian formed a few tangents at a time (memory, `_TANGENT_BUDGET`)
+    equals the one formed all at once to rounding, and its columns equal central finite
+    differences of the simulated signal: the window's c_3 (the first harmonic of the carrier
+    that three equally spaced planets pass on; it acts linearly after the solve) and the first
+    mesh harmonic's transmission errors (through the solve; ±100 nm, far above the solver's
+    noise and within the linear range of the engaged contact)."""
+    import dtwin.identify.calibrate as cal
+    from dtwin.build import daq_from_spec
+
+    spec = preset("paper-sim")
+    settings = cal.CalibrationSettings()
+    twin, i_path, i_exc, layout = cal._prepare_twin(spec, 30.0, "torsional", settings, 2)
+    daq = daq_from_spec(spec, snr_db=None, quantity="acceleration", frf_hz=None, frf_db=None)
+    n = 1500  # 0.3 s at 5 kHz
+    theta = np.zeros(layout.size)
+    args = (twin, layout, i_path, i_exc, daq, n, 30.0, settings)
+    y_all, J_all = cal._response(*args, theta)
+    monkeypatch.setattr(cal, "_TANGENT_BUDGET", 3 * cal._TANGENT_BYTES_PER_SAMPLE * n * daq.oversample)
+    assert cal._tangent_batch(n * daq.oversample) == 3 < layout.size
+    y_b, J_b = cal._response(*args, theta)
+    np.testing.assert_array_equal(y_b, y_all)
+    np.testing.assert_allclose(J_b, J_all, rtol=0, atol=1e-12 * np.abs(J_all).max())
+    h_te = 100e-9 / cal._TE_UNIT
+    for j, h, tol in ((2, 1.0, 1e-4), (layout.n_window, h_te, 3e-3),
+                      (layout.n_window + layout.n_harm, h_te, 3e-3)):
+        ys = []
+        for s in (h, -h):
+            th = theta.copy()
+            th[j] = s
+            ys.append(cal._response(*args, th)[0])
+        fd = (ys[0] - ys[1]) / (2.0 * h)
+        err = np.sqrt(np.mean((fd - J_all[:, j]) ** 2) / np.mean(J_all[:, j] ** 2))
+        assert err < tol, (j, err)
+
+
+@needs_independent
+def test_calibration_simulates_at_the_records_rate_not_the_specs():
+    """A spec written for other records (`sensor.sample_rate` 25.6 kHz) calibrated on a 5 kHz
+    record: the twin is simulated at the record's rate, so the calibration and the held-out
+    gap are those of the spec with the right rate, value for value, and the calibrated spec
+    carries the records' rate (it used to simulate the record's number of samples at the
+    spec's rate and read them at the record's: every line in the wrong place, and for a record
+    faster than its spec an internal error at the confirmation)."""
+    from dtwin import read_record
+    from dtwin.identify.calibrate import calibrate, heldout_gap
+
+    rec = read_record(IND / "baseline-1.csv")
+    rec = dataclasses.replace(rec, data=rec.data[:, :10_000], metadata={})  # 2 s
+    right = load_spec(IND / "gearbox.toml")
+    data = spec_to_dict(right)
+    data.pop("source")
+    data["sensor"]["sample_rate"] = 25_600.0
+    wrong = load_spec(data)
+    a, b = calibrate([rec], right), calibrate([rec], wrong)
+    assert b.spec_data["sensor"]["sample_rate"] == a.spec_data["sensor"]["sample_rate"] == 5000.0
+    for name in ("gap_before", "gap_heldout", "gap_confirmed"):
+        assert getattr(b, name).total == getattr(a, name).total, name
+    assert [p.value for p in b.parameters] == [p.value for p in a.parameters]
+    assert a.gap_before.total < 10.0  # the same gearbox: a few dB, not the 30+ of a wrong rate
+    assert heldout_gap(wrong, [rec]).total == heldout_gap(right, [rec]).total
