@@ -114,6 +114,7 @@ from dtwin.simulate import SolverOptions, settling_sequence, simulate
 from dtwin.spec import Spec, load_spec, spec_to_dict
 from dtwin.spec_writer import spec_to_toml
 from dtwin.spectrum import noise_floor
+from dtwin.units import quantity as unit_quantity
 
 from .gap import FLOOR_BINS, PASSBAND, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
 from .lines import Kinematics, estimate_speed
@@ -401,6 +402,16 @@ def _signal_rows(records: Sequence[Record], channel: int) -> tuple[np.ndarray, f
             raise RecordError("a calibration record is constant or holds non-finite samples")
         rows.append(x - x.mean())
     return np.stack(rows), rates.pop()
+
+
+def _records_unit(records: Sequence[Record], channel: int) -> str | None:
+    """The unit of the records' `channel` (they must agree on what it measures)."""
+    units = [r.units[channel] if channel < len(r.units) else "" for r in records]
+    if len({unit_quantity(u) for u in units}) > 1:
+        raise RecordError(f"calibration records measure different quantities ({sorted(set(units))});"
+                          " calibrate on records of one quantity (acceleration, velocity or "
+                          "displacement)")
+    return units[0] or None
 
 
 # ------------------------------------------------------------------------------------ the model
@@ -735,6 +746,7 @@ def calibrate(
         raise RecordError("calibration needs at least one healthy record")
     recs, names = zip(*(_as_record(r) for r in records), strict=True)
     X, fs = _signal_rows(recs, channel)
+    unit = _records_unit(recs, channel)
     n_rec, n = X.shape
     n_half = n // 2
     g = spec["gears"]
@@ -767,8 +779,8 @@ def calibrate(
             "line threshold: fitting the planets' load shares")
     twin, i_path, i_exc, layout = _prepare_twin(spec, f_sun, kind, settings, n_harm, fit_shares)
     # the records' rate, not the spec's `sensor.sample_rate` (which describes other records)
-    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec), frf_hz=None,
-                        frf_db=None)
+    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec, unit),
+                        frf_hz=None, frf_db=None)
     say(f"simulating the twin and its response to {layout.size} parameters "
         f"({n / fs:.1f} s at {fs:g} Hz)")
     theta0 = jnp.zeros(layout.size)
@@ -865,10 +877,13 @@ def calibrate(
         _, G = _model_amp(jnp.asarray(theta), d_all)
         data = _calibrated_data(spec, theta, np.asarray(G), knots, layout, twin, i_exc, f_sun,
                                 fs, names, kind)
+        if unit_quantity(unit):  # what the records measure, as the calibration simulated it
+            data["sensor"]["quantity"] = unit_quantity(unit)
         say("confirming: the calibrated twin simulated in full")
         cal_spec = _spec_from_data(data)
         tw_cal = build_twin(cal_spec, kind=kind, f_sun=f_sun)
-        daq_cal = daq_from_spec(cal_spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec))
+        daq_cal = daq_from_spec(cal_spec, sample_rate=fs, snr_db=None,
+                                quantity=_quantity(spec, unit))
         y_cal = np.asarray(simulate(tw_cal, duration=n / fs, f_sun=f_sun, daq=daq_cal,
                                     discard=settings.discard, solver=settings.solver).signal[:n])
         _, Zc = segment_spectra(y_cal, fs, 2)
@@ -923,8 +938,10 @@ class _Attempt(NamedTuple):
     gains: np.ndarray
 
 
-def _quantity(spec: Spec) -> str:
-    q = spec["sensor"]["quantity"]
+def _quantity(spec: Spec, unit: str | None = None) -> str:
+    """What the records measure: their channel's unit where it says (``mm/s`` → velocity,
+    `dtwin.units.quantity`), else the spec's `sensor.quantity`."""
+    q = unit_quantity(unit) or spec["sensor"]["quantity"]
     return "acceleration" if q == "ring_velocity" else q
 
 
@@ -1072,10 +1089,11 @@ def heldout_gap(
         spec = load_spec(spec)
     recs, _ = zip(*(_as_record(r) for r in records), strict=True)
     X, fs = _signal_rows(recs, channel)
+    unit = _records_unit(recs, channel)
     n = X.shape[1]
     kin0 = Kinematics.from_spec(spec)
     g = spec["gears"]
-    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec))
+    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec, unit))
     a_meas, a_model, kin = [], [], kin0
     for x in X:
         w = np.hanning(n + 1)[:-1]

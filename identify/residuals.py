@@ -69,6 +69,7 @@ from dtwin.simulate import (
     initial_state,
 )
 from dtwin.spectrum import analytic_signal, get_window, noise_floor
+from dtwin.units import quantity as unit_quantity
 
 from .operating_point import gear_orders
 
@@ -84,14 +85,11 @@ MIN_SIDEBAND_BINS = 2.0
 #: Sampling rate per mesh frequency (Nyquist × anti-alias margin, as dtwin.io.validate).
 MIN_RATE_PER_MESH = 2.5
 _STRONG_DB = 20.0
-_UNITS = {"m/s^2": "acceleration", "m/s2": "acceleration", "m/s²": "acceleration",
-          "m/s": "velocity", "m": "displacement"}
-
-
 def quantity_of_unit(unit: str) -> str:
-    """The twin's DAQ quantity for a record channel unit (``m/s^2`` → acceleration …);
-    unknown units (``g``, ``V``) are taken as acceleration (the gain absorbs the scale)."""
-    return _UNITS.get(unit.strip(), "acceleration")
+    """The twin's DAQ quantity for a record channel unit (``m/s^2``, ``g`` → acceleration,
+    ``mm/s`` → velocity, ``um`` → displacement: `dtwin.units.quantity`); units that
+    do not say (``V``) are taken as acceleration (the gain absorbs the scale)."""
+    return unit_quantity(unit) or "acceleration"
 
 
 @dataclasses.dataclass(frozen=True)

@@ -84,3 +84,24 @@ def test_unknown_unit_refused():
     with pytest.raises(RecordError, match="not a vibration unit"):
         units.convert_signal(np.zeros(8), 100.0, "V", "g")
     assert units.normalise_unit("µm") == "um" and units.normalise_unit("m/s2") == "m/s^2"
+
+
+def test_a_records_unit_says_what_the_twin_simulates():
+    """Fits, calibration and discovery simulate what the record's channel measures where its
+    unit says (a velocity record in mm/s is fitted as velocity, not as acceleration with a
+    gain); where it does not (volts, no unit) the fit takes acceleration and calibration the
+    spec's `sensor.quantity`."""
+    from dtwin.identify.calibrate import _quantity
+    from dtwin.identify.residuals import quantity_of_unit
+    from dtwin.spec import load_spec, preset, spec_to_dict
+
+    for unit, q in (("mm/s", "velocity"), ("m/s", "velocity"), ("g", "acceleration"),
+                    ("m/s²", "acceleration"), ("µm", "displacement"), ("V", "acceleration"),
+                    ("", "acceleration")):
+        assert quantity_of_unit(unit) == q, unit
+    data = spec_to_dict(preset("paper-sim"))
+    data.pop("source")
+    acc = load_spec({**data, "sensor": {**data["sensor"], "quantity": "acceleration"}})
+    vel = load_spec({**data, "sensor": {**data["sensor"], "quantity": "velocity"}})
+    assert _quantity(acc, "mm/s") == "velocity" and _quantity(vel, "g") == "acceleration"
+    assert _quantity(acc, "V") == "acceleration" and _quantity(vel, None) == "velocity"

@@ -12,8 +12,10 @@ import numpy as np
 
 from dtwin.build import build_twin, daq_from_spec, twin_kind
 from dtwin.errors import DtwinError
+from dtwin.io.record import Record
 from dtwin.spec import Spec, load_spec
 from dtwin.spectrum import amplitude_spectrum, as_signal, noise_floor
+from dtwin.units import quantity as unit_quantity
 
 from ..effects import registered_effects
 from ..effects.base import EffectContext
@@ -164,7 +166,10 @@ def discover(
     if base_twin is None:
         base_twin = build_twin(spec, kind=twin_kind(spec, kind, default=spec["model"]["kind"]),
                                f_sun=f_sun)
-    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None)
+    # what the record measures: its channel's unit where it says (mm/s → velocity), else the spec's
+    unit = record.units[0] if isinstance(record, Record) and record.units else None
+    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None,
+                        **({"quantity": unit_quantity(unit)} if unit_quantity(unit) else {}))
     # candidates specialised to the machine (spec, base twin) first, then to the record (the
     # base twin's residual lines); a second model only when the record changed the set
     ctx = EffectContext(spec, base_twin, kin, threshold_db=settings.threshold_db,
