@@ -157,10 +157,11 @@ class Problem(eqx.Module):
         return noise + sum(1 for o in self.observations if o.gain_mode == "profile")
 
 
-def _settled_fit(problem: Problem, refine, defect_of, say) -> tuple[Problem, Any, list[str]]:
-    """``(problem, outcome, notes)``: ``refine(problem)``, run again with a longer settling
-    time, then on the whole record, while the fitted response is not periodic; `notes` say why
-    each time (for the fit's message).
+def _settled_fit(problem: Problem, refine, starts, defect_of, say
+                 ) -> tuple[Problem, Any, list[str]]:
+    """``(problem, outcome, notes)``: ``refine(problem, starts)``, run again with a longer
+    settling time, then on the whole record, while the fitted response is not periodic; `notes`
+    say why each time (for the fit's message).
 
     A fit simulates one hunting period after `Problem.periodic_settle` and tiles it inside its
     compiled solve, where the parameters are traced and nothing can be checked; the solve
@@ -168,11 +169,14 @@ def _settled_fit(problem: Problem, refine, defect_of, say) -> tuple[Problem, Any
     (:meth:`Problem.simulated`), and ``defect_of(outcome)`` picks the one that counts (the best
     start's, a batch's largest). Where it exceeds `SolverOptions.periodic_tolerance` (a lightly
     damped mode of the drive or the housing outlasted the settling time, and the tiles' joins
-    put a broadband hump in the spectrum) the fit is run again, from the same starts, with the
-    next option of `dtwin.simulate.settling_sequence`; `say` reports it as it happens."""
+    put a broadband hump in the spectrum) the fit is run again with the next option of
+    `dtwin.simulate.settling_sequence`, from where the last run ended (its start where that is
+    not finite): the hump moves the optimum little, so the next run needs few steps; `say`
+    reports it as it happens. `starts`: one θ per row; ``outcome[0]`` holds the refined θ."""
     options = settling_sequence(problem.solver_options())
     tol = options[0].periodic_tolerance
-    out = refine(problem)
+    starts = jnp.asarray(starts)
+    out = refine(problem, starts)
     notes = []
     for nxt in options[1:]:
         defect = float(defect_of(out))
@@ -185,7 +189,9 @@ def _settled_fit(problem: Problem, refine, defect_of, say) -> tuple[Problem, Any
         say(notes[-1])
         problem = dataclasses.replace(problem, periodic=nxt.periodic,
                                       periodic_settle=nxt.periodic_settle)
-        out = refine(problem)
+        ended = jnp.asarray(out[0])
+        starts = jnp.where(jnp.all(jnp.isfinite(ended), axis=-1, keepdims=True), ended, starts)
+        out = refine(problem, starts)
     return problem, out, notes
 
 
@@ -935,8 +941,8 @@ def fit(
         say("one start: refining it (its loss is the first of the history)")
     _heap.before_first_fit()
     problem, out, settle_notes = _settled_fit(
-        problem, lambda prob: _refine(chosen, prob, solver, tol, tol, jac, max_steps, sigma_tol,
-                                      mode),
+        problem, lambda prob, th: _refine(th, prob, solver, tol, tol, jac, max_steps, sigma_tol,
+                                          mode), chosen,
         lambda out: np.asarray(out[-1])[_best(np.asarray(out[3]))], say)
     th, ok, steps, fl, rs, Js, hist, n_hist, _ = out
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
@@ -1101,15 +1107,15 @@ def fit_batch(
     thetas = jnp.zeros((len(problems), p))
     _heap.before_first_fit()
 
-    def refine(settings: Problem):
+    def refine(settings: Problem, starts):
         # one structure: the records share length, rate, speed and so the settling time
         stacked = stack_problems([dataclasses.replace(
             pr, periodic=settings.periodic, periodic_settle=settings.periodic_settle)
             for pr in problems])
-        return _refine_records(thetas, stacked, solver, tol, tol, jac, max_steps, sigma_tol,
+        return _refine_records(starts, stacked, solver, tol, tol, jac, max_steps, sigma_tol,
                                batch_mode(batch))
 
-    settings, out, settle_notes = _settled_fit(problems[0], refine,
+    settings, out, settle_notes = _settled_fit(problems[0], refine, thetas,
                                  lambda out: max((d for d in np.asarray(out[-1]) if np.isfinite(d)),
                                                  default=0.0), lambda m: None)
     problems = [dataclasses.replace(pr, periodic=settings.periodic,

@@ -85,6 +85,8 @@ MIN_SIDEBAND_BINS = 2.0
 #: Sampling rate per mesh frequency (Nyquist × anti-alias margin, as dtwin.io.validate).
 MIN_RATE_PER_MESH = 2.5
 _STRONG_DB = 20.0
+
+
 def quantity_of_unit(unit: str) -> str:
     """The twin's DAQ quantity for a record channel unit (``m/s^2``, ``g`` → acceleration,
     ``mm/s`` → velocity, ``um`` → displacement: `dtwin.units.quantity`); units that
