@@ -276,6 +276,11 @@ class CalibrationResult:
       `CalibrationSettings.relinearize_db` (the calibrated values lie where the response is
       not first order, and the held-out gap, which scores the linearised response, is
       optimistic: read the confirmed one).
+    - `kept_spec`: the calibrated values did not bring the twin closer to the held-out halves
+      than the spec as written (not `improves`), so `spec_data` keeps the spec's own values
+      with only the response level fitted (one flat gain), as the "before" model; `parameters`
+      and `gap_heldout` still describe the calibration that was not adopted, `gap_confirmed`
+      and `a_after` the spec that was kept, simulated in full.
     """
 
     spec_data: dict[str, Any]
@@ -295,6 +300,7 @@ class CalibrationResult:
     linearisations: int = 1
     departure_db: float = 0.0
     departs: bool = False
+    kept_spec: bool = False
 
     @property
     def improves(self) -> bool:
@@ -328,7 +334,9 @@ class CalibrationResult:
                 f"{self.noise_rms:.3g}",
                 f"gap (dB): before {self.gap_before.total:.2f}, held-out "
                 f"{self.gap_heldout.total:.2f}, confirmed {self.gap_confirmed.total:.2f}"
-                + ("" if self.improves else " (NOT closer than the spec as written)"),
+                + ("" if self.improves else " (NOT closer than the spec as written"
+                   + (": the spec's values kept, with its fitted level)" if self.kept_spec
+                      else ")")),
                 f"final fit: {self.fit_status}",
                 f"{'parameter':<24} {'value':>12} {'sd':>10} {'unit':<6} status"]
         for p in self.parameters:
@@ -358,7 +366,7 @@ class CalibrationResult:
             gap_confirmed=self.gap_confirmed.to_dict(),
             parameters=[p.to_dict() for p in self.parameters],
             not_determined=self.not_determined, jointly_determined=self.jointly_determined,
-            improves=self.improves,
+            improves=self.improves, kept_spec=self.kept_spec,
         )
 
 
@@ -792,7 +800,7 @@ def calibrate(
         _, JZ = segment_spectra(J.T, fs, 2)  # (P, 2, bins)
         return Z, np.moveaxis(JZ, 0, -1), np.asarray(theta_lin)  # JZ: (2, bins, P)
 
-    lin = linearised(theta0)
+    lin = lin0 = linearised(theta0)
     Z0 = lin[0]
     # the noise floor as an rms: a Hann amplitude spectrum of white noise of variance σ² has
     # Rayleigh amplitudes of median sqrt(2 ln 2 · 3 σ² / n_half)
@@ -912,12 +920,53 @@ def calibrate(
         say(f"held-out gap {gap_held.total:.2f} dB")
     params = _intervals(chosen.theta, chosen.gains, chosen.fit_data, layout, knots, Wl, B, twin,
                         i_exc, settings)
-    data = chosen.spec_data
-    data["calibration"]["heldout_gap_db"] = round(float(chosen.gap.total), 3)
-    return CalibrationResult(data, params, f_sun, gap_before, gap_held, chosen.gap, freqs,
-                             a_meas, a_before, chosen.amplitudes, noise_rms, list(names),
+    data, gap_conf, a_after = chosen.spec_data, chosen.gap, chosen.amplitudes
+    kept = not gap_held.total < gap_before.total
+    if kept:
+        # cross-validation rejects the calibrated values (they fit the training half in
+        # directions the records do not determine and generalise worse than the spec as
+        # written): keep the spec, with the level the "before" model fitted, on all the data
+        say("the calibrated values do not bring the twin closer to the held-out halves than "
+            "the spec as written: keeping the spec's values, with its fitted response level")
+        d_flat = eqx.tree_at(lambda x: x.B, data_for(rec_idx, half_idx, lin0), jnp.asarray(B1))
+        _, G1 = _model_amp(theta0, d_flat)
+        data = _kept_data(spec, float(G1[0]), knots, f_sun, fs, names, kind, unit)
+        y_kept = np.asarray(simulate(
+            build_twin(_spec_from_data(data), kind=kind, f_sun=f_sun), duration=n / fs,
+            f_sun=f_sun, daq=daq_from_spec(_spec_from_data(data), sample_rate=fs, snr_db=None,
+                                           quantity=_quantity(spec, unit)),
+            discard=settings.discard, solver=settings.solver).signal[:n])
+        a_after = np.abs(segment_spectra(y_kept, fs, 2)[1])[half_idx]
+        gap_conf = gap(freqs, a_meas, a_after, bands)
+        say(f"confirmed gap of the spec as written {gap_conf.total:.2f} dB")
+    data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
+    return CalibrationResult(data, params, f_sun, gap_before, gap_held, gap_conf, freqs,
+                             a_meas, a_before, a_after, noise_rms, list(names),
                              chosen.steps, chosen.converged, best + 1, float(chosen.departure),
-                             bool(chosen.departure > settings.relinearize_db))
+                             bool(chosen.departure > settings.relinearize_db), kept)
+
+
+def _kept_data(spec: Spec, gain_db: float, knots, f_sun, fs, names, kind, unit
+               ) -> dict[str, Any]:
+    """The spec as written, as a calibrated spec: its own values, a flat sensor response at
+    the fitted level `gain_db` (dB at every knot), the records' speed, rate and quantity, and
+    the ``[calibration]`` table saying that the calibrated values were not adopted."""
+    data = spec_to_dict(spec)
+    data.pop("source", None)
+    sensor = data["sensor"]
+    sensor["frf_hz"] = [float(v) for v in knots]
+    sensor["frf_db"] = [float(gain_db)] * len(knots)
+    sensor["sample_rate"] = float(fs)
+    if unit_quantity(unit):
+        sensor["quantity"] = unit_quantity(unit)
+    data["operating"]["f_sun"] = float(f_sun)
+    if kind:
+        data["model"]["kind"] = kind
+    data["calibration"] = {
+        "records": ", ".join(names), "created_by": f"dtwin {__version__}",
+        "kept_spec": "the calibrated values did not lower the held-out gap: the spec's own "
+                     "values, with its fitted response level"}
+    return data
 
 
 class _Attempt(NamedTuple):

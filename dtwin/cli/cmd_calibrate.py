@@ -76,9 +76,11 @@ def calibrate(
     report["spec"] = gb.source
     if not result.improves:
         log.warning("the calibrated twin is not closer to the held-out halves than the spec as "
-                    "written (gap %.1f dB against %.1f dB): the healthy records hold lines the "
-                    "calibrated parameters cannot represent; run dtwin discover on them before "
-                    "using the calibrated spec", result.gap_heldout.total, result.gap_before.total)
+                    "written (gap %.1f dB against %.1f dB): the calibrated spec keeps the spec's "
+                    "own values with its fitted response level. Either the spec already "
+                    "describes these records, or they hold lines the calibrated parameters "
+                    "cannot represent (run dtwin discover on them)",
+                    result.gap_heldout.total, result.gap_before.total)
     if result.departs:
         log.warning("the calibrated twin simulated in full departs from the fit's linearised "
                     "response by %.1f dB after %d linearisation(s): the calibrated excitation or "
