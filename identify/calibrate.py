@@ -755,6 +755,7 @@ def calibrate(
     recs, names = zip(*(_as_record(r) for r in records), strict=True)
     X, fs = _signal_rows(recs, channel)
     unit = _records_unit(recs, channel)
+    quantity, measured = _quantity(spec, unit), unit_quantity(unit)
     n_rec, n = X.shape
     n_half = n // 2
     g = spec["gears"]
@@ -787,8 +788,8 @@ def calibrate(
             "line threshold: fitting the planets' load shares")
     twin, i_path, i_exc, layout = _prepare_twin(spec, f_sun, kind, settings, n_harm, fit_shares)
     # the records' rate, not the spec's `sensor.sample_rate` (which describes other records)
-    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec, unit),
-                        frf_hz=None, frf_db=None)
+    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=quantity, frf_hz=None,
+                        frf_db=None)
     say(f"simulating the twin and its response to {layout.size} parameters "
         f"({n / fs:.1f} s at {fs:g} Hz)")
     theta0 = jnp.zeros(layout.size)
@@ -871,6 +872,17 @@ def calibrate(
     gap_held = cross_validated(lin)
     say(f"held-out gap {gap_before.total:.2f} dB before, {gap_held.total:.2f} dB calibrated")
 
+    def confirmed(data):
+        """Amplitudes (rows: record × half) and gap of the twin of spec `data` simulated in
+        full over the records, nothing refitted."""
+        cal_spec = _spec_from_data(data)
+        y = np.asarray(simulate(
+            build_twin(cal_spec, kind=kind, f_sun=f_sun), duration=n / fs, f_sun=f_sun,
+            daq=daq_from_spec(cal_spec, sample_rate=fs, snr_db=None, quantity=quantity),
+            discard=settings.discard, solver=settings.solver).signal[:n])
+        a = np.abs(segment_spectra(y, fs, 2)[1])[half_idx]
+        return a, gap(freqs, a_meas, a, bands)
+
     every = np.ones(len(half_idx), bool)
     tried: list[_Attempt] = []  # one per linearisation point
     for attempt in range(settings.relinearize + 1):
@@ -883,20 +895,10 @@ def calibrate(
         gap_lin = gap(freqs, a_meas, amp_at(theta, every, every, lin), bands)
         # the calibrated spec, then its confirmation by a full simulation
         _, G = _model_amp(jnp.asarray(theta), d_all)
-        data = _calibrated_data(spec, theta, np.asarray(G), knots, layout, twin, i_exc, f_sun,
-                                fs, names, kind)
-        if unit_quantity(unit):  # what the records measure, as the calibration simulated it
-            data["sensor"]["quantity"] = unit_quantity(unit)
+        data = _calibrated_data(spec, theta, np.asarray(G), knots, layout, twin, i_exc,
+                                _Stamp(f_sun, fs, measured, tuple(names), kind))
         say("confirming: the calibrated twin simulated in full")
-        cal_spec = _spec_from_data(data)
-        tw_cal = build_twin(cal_spec, kind=kind, f_sun=f_sun)
-        daq_cal = daq_from_spec(cal_spec, sample_rate=fs, snr_db=None,
-                                quantity=_quantity(spec, unit))
-        y_cal = np.asarray(simulate(tw_cal, duration=n / fs, f_sun=f_sun, daq=daq_cal,
-                                    discard=settings.discard, solver=settings.solver).signal[:n])
-        _, Zc = segment_spectra(y_cal, fs, 2)
-        a_after = np.abs(Zc)[half_idx]
-        gap_conf = gap(freqs, a_meas, a_after, bands)
+        a_after, gap_conf = confirmed(data)
         tried.append(_Attempt(gap_conf, theta, lin, steps, converged, data, a_after,
                               gap_conf.total - gap_lin.total, d_all, np.asarray(G)))
         say(f"confirmed gap {gap_conf.total:.2f} dB; the linearised twin's "
@@ -930,14 +932,9 @@ def calibrate(
             "the spec as written: keeping the spec's values, with its fitted response level")
         d_flat = eqx.tree_at(lambda x: x.B, data_for(rec_idx, half_idx, lin0), jnp.asarray(B1))
         _, G1 = _model_amp(theta0, d_flat)
-        data = _kept_data(spec, float(G1[0]), knots, f_sun, fs, names, kind, unit)
-        y_kept = np.asarray(simulate(
-            build_twin(_spec_from_data(data), kind=kind, f_sun=f_sun), duration=n / fs,
-            f_sun=f_sun, daq=daq_from_spec(_spec_from_data(data), sample_rate=fs, snr_db=None,
-                                           quantity=_quantity(spec, unit)),
-            discard=settings.discard, solver=settings.solver).signal[:n])
-        a_after = np.abs(segment_spectra(y_kept, fs, 2)[1])[half_idx]
-        gap_conf = gap(freqs, a_meas, a_after, bands)
+        data = _kept_data(spec, float(G1[0]), knots,
+                          _Stamp(f_sun, fs, measured, tuple(names), kind))
+        a_after, gap_conf = confirmed(data)
         say(f"confirmed gap of the spec as written {gap_conf.total:.2f} dB")
     data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
     return CalibrationResult(data, params, f_sun, gap_before, gap_held, gap_conf, freqs,
@@ -946,26 +943,44 @@ def calibrate(
                              bool(chosen.departure > settings.relinearize_db), kept)
 
 
-def _kept_data(spec: Spec, gain_db: float, knots, f_sun, fs, names, kind, unit
-               ) -> dict[str, Any]:
+class _Stamp(NamedTuple):
+    """What every calibrated spec records of its calibration: the records' speed (Hz), rate
+    (Hz), the quantity their unit names (None: the spec's stays), their names, the twin kind
+    (None: the spec's)."""
+
+    f_sun: float
+    fs: float
+    measured: str | None
+    names: tuple[str, ...]
+    kind: str | None
+
+
+def _stamped(data: dict[str, Any], stamp: _Stamp) -> dict[str, Any]:
+    """`data` (a spec mapping) with the records' speed, rate and quantity, the twin kind and
+    the ``[calibration]`` table (`_Stamp`)."""
+    sensor = data["sensor"]
+    sensor["sample_rate"] = float(stamp.fs)  # the calibrated records' (knots reach 0.45 of it)
+    if stamp.measured:  # what the records measure, as the calibration simulated it
+        sensor["quantity"] = stamp.measured
+    data["operating"]["f_sun"] = float(stamp.f_sun)
+    if stamp.kind:
+        data["model"]["kind"] = stamp.kind
+    data["calibration"] = {"records": ", ".join(stamp.names),
+                           "created_by": f"dtwin {__version__}"}
+    return data
+
+
+def _kept_data(spec: Spec, gain_db: float, knots, stamp: _Stamp) -> dict[str, Any]:
     """The spec as written, as a calibrated spec: its own values, a flat sensor response at
     the fitted level `gain_db` (dB at every knot), the records' speed, rate and quantity, and
     the ``[calibration]`` table saying that the calibrated values were not adopted."""
     data = spec_to_dict(spec)
     data.pop("source", None)
-    sensor = data["sensor"]
-    sensor["frf_hz"] = [float(v) for v in knots]
-    sensor["frf_db"] = [float(gain_db)] * len(knots)
-    sensor["sample_rate"] = float(fs)
-    if unit_quantity(unit):
-        sensor["quantity"] = unit_quantity(unit)
-    data["operating"]["f_sun"] = float(f_sun)
-    if kind:
-        data["model"]["kind"] = kind
-    data["calibration"] = {
-        "records": ", ".join(names), "created_by": f"dtwin {__version__}",
-        "kept_spec": "the calibrated values did not lower the held-out gap: the spec's own "
-                     "values, with its fitted response level"}
+    data["sensor"]["frf_hz"] = [float(v) for v in knots]
+    data["sensor"]["frf_db"] = [float(gain_db)] * len(knots)
+    data = _stamped(data, stamp)
+    data["calibration"]["kept_spec"] = ("the calibrated values did not lower the held-out gap: "
+                                        "the spec's own values, with its fitted response level")
     return data
 
 
@@ -1083,8 +1098,8 @@ def _joint(cov, info, prior, names, n_max: int = 3) -> list[tuple[tuple[str, flo
     return out
 
 
-def _calibrated_data(spec: Spec, theta, G, knots, layout: _Layout, twin, i_exc, f_sun, fs,
-                     names, kind) -> dict[str, Any]:
+def _calibrated_data(spec: Spec, theta, G, knots, layout: _Layout, twin, i_exc,
+                     stamp: _Stamp) -> dict[str, Any]:
     data = spec_to_dict(spec)
     data.pop("source", None)
     c = np.asarray(layout.c_init).copy()
@@ -1093,7 +1108,6 @@ def _calibrated_data(spec: Spec, theta, G, knots, layout: _Layout, twin, i_exc, 
     sensor["window_harmonics"] = [float(v) for v in c]
     sensor["frf_hz"] = [float(v) for v in knots]
     sensor["frf_db"] = [float(v) for v in G]
-    sensor["sample_rate"] = float(fs)  # the calibrated records' rate (the knots reach 0.45 of it)
     h = layout.n_harm
     te = np.asarray(theta[layout.n_window: layout.n_window + 2 * h]) * layout.te_scale
     exc = twin.parts[i_exc]
@@ -1111,11 +1125,7 @@ def _calibrated_data(spec: Spec, theta, G, knots, layout: _Layout, twin, i_exc, 
     damping["zeta_mesh"] = z
     damping.pop("zeta_sun_planet", None)
     damping.pop("zeta_ring_planet", None)
-    data["operating"]["f_sun"] = float(f_sun)
-    if kind:
-        data["model"]["kind"] = kind
-    data["calibration"] = {"records": ", ".join(names), "created_by": f"dtwin {__version__}"}
-    return data
+    return _stamped(data, stamp)
 
 
 def heldout_gap(

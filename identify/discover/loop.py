@@ -167,9 +167,9 @@ def discover(
         base_twin = build_twin(spec, kind=twin_kind(spec, kind, default=spec["model"]["kind"]),
                                f_sun=f_sun)
     # what the record measures: its channel's unit where it says (mm/s → velocity), else the spec's
-    unit = record.units[0] if isinstance(record, Record) and record.units else None
+    measured = unit_quantity(record.units[0]) if isinstance(record, Record) else None
     daq = daq_from_spec(spec, sample_rate=fs, snr_db=None,
-                        **({"quantity": unit_quantity(unit)} if unit_quantity(unit) else {}))
+                        quantity=measured or spec["sensor"]["quantity"])
     # candidates specialised to the machine (spec, base twin) first, then to the record (the
     # base twin's residual lines); a second model only when the record changed the set
     ctx = EffectContext(spec, base_twin, kin, threshold_db=settings.threshold_db,
