@@ -42,6 +42,17 @@ stiffness is bit-identical to the healthy one.
   foundation ≈ 15 % of the pair compliance, the rest shared by the two teeth); change them per
   fault if a detailed calculation is available. ``f = g(severity)``.
 
+**The loss's shape.** Every fault's window ``w`` is a smooth box from ``-spread`` to
+``eps + spread`` mesh cycles after the tooth enters contact, its edges sigmoids of width
+``ramp`` (defaults :data:`WINDOW_EDGE` and 0: the loss follows the tooth's contact). A larger
+``ramp`` makes the loss rise and fall gradually; a positive ``spread`` (up to
+:data:`MAX_SPREAD`) lets it be felt beyond the tooth's own contact (load sharing with the
+neighbouring pairs); a negative one (down to :data:`MIN_SPREAD`) confines it to the middle of
+the contact, about the pitch point, where pits and spalls form. For a missing tooth of severity
+``s`` the stiffness removed over a passage is ``s c' (eps + 2 spread)``: a record that sees
+only that integral (the low-frequency comb of the tooth's passes) cannot tell a short deep loss
+from a long shallow one, which is why :mod:`dtwin.identify.severity` profiles the shape.
+
 **Contact windows** follow the mesh phase of docs/conventions.md (:func:`mesh_phases`): sun
 tooth ``j`` is in contact with planet ``i`` while ``(phase_sp_i - j) mod Zs in [0, eps_sp)``,
 ring tooth ``j`` while ``(phase_rp_i - j) mod Zr in [0, eps_rp)``. Planet teeth are counted with
@@ -98,6 +109,11 @@ MAX_RAMP = 0.5
 #: Largest `spread` of a fault (mesh cycles): how far beyond its own contact interval, either
 #: side, a tooth's loss may still be felt by the mesh.
 MAX_SPREAD = 3.0
+#: Smallest `spread` of a fault (mesh cycles): a negative spread confines the loss to the middle
+#: of the tooth's contact, ``-spread … eps + spread`` (a pit or spall about the pitch point); at
+#: -0.45 a loss of any gear pair with a contact ratio above 1 still lasts ``eps - 0.9 > 0.1``
+#: cycles.
+MIN_SPREAD = -0.45
 
 _LOCATIONS = ("sun", "planet", "ring")
 _FLANKS = ("sun", "ring", "both")
@@ -308,9 +324,12 @@ class AbstractFault(eqx.Module):
         spread = self.spread
         if jnp.shape(spread) != ():
             raise SpecError([("faults.spread", f"must be a scalar, got shape {jnp.shape(spread)}")])
-        if not isinstance(spread, jax.core.Tracer) and not (0.0 <= float(spread) <= MAX_SPREAD):
-            raise SpecError([("faults.spread", f"the loss may extend 0 <= spread <= {MAX_SPREAD} "
-                              f"mesh cycles beyond the contact, got {float(spread)}")])
+        if not isinstance(spread, jax.core.Tracer) and not (MIN_SPREAD <= float(spread)
+                                                             <= MAX_SPREAD):
+            raise SpecError([("faults.spread", f"the loss may extend up to {MAX_SPREAD} mesh "
+                              f"cycles beyond the contact, or be confined to its middle by up "
+                              f"to {-MIN_SPREAD} cycles either side ({MIN_SPREAD} <= spread <= "
+                              f"{MAX_SPREAD}), got {float(spread)}")])
 
     @abc.abstractmethod
     def loss_fraction(

@@ -76,7 +76,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.errors import ParameterError, SettingsError
-from dtwin.faults import peak_stiffness_loss
+from dtwin.faults import MIN_SPREAD, peak_stiffness_loss
 from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
 from dtwin.spectrum import noise_floor
@@ -94,9 +94,10 @@ __all__ = ["RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity
 RAMP_GRID = (0.05, 0.15, 0.3)
 
 #: Shapes of the loss tried with ``ramps="shapes"``, as ``(ramp, spread)`` (mesh cycles): the
-#: sharp loss over the contact, a soft one, and one that extends a mesh cycle beyond the
-#: contact either side and fades over it.
-SHAPE_GRID = ((0.05, 0.0), (0.3, 0.0), (0.3, 1.0))
+#: sharp loss over the contact, a soft one, one that extends a mesh cycle beyond the contact
+#: either side and fades over it, and a sharp one confined to the middle of the contact (a pit
+#: or spall about the pitch point: :data:`dtwin.faults.MIN_SPREAD`).
+SHAPE_GRID = ((0.05, 0.0), (0.3, 0.0), (0.3, 1.0), (0.05, MIN_SPREAD))
 #: Start of the low band (units of the planet-pass frequency ``N f_c``): the lowest knot of a
 #: calibrated sensor response (:mod:`dtwin.identify.calibrate`).
 LOW_BAND_START = 0.8
@@ -148,6 +149,22 @@ class SeverityEstimate:
             return "widened by the band jackknife"
         return st
 
+    def shapes_table(self) -> str:
+        """The loss shapes tried (``ramps=``), a line each: edges and extent (mesh cycles), the
+        fit's loss, severity and peak loss with its 95 % interval, and whether the record
+        rejects the shape; empty when one shape was fitted."""
+        if len(self.shapes) < 2:
+            return ""
+        out = [f"{'loss shape':<24} ramp spread       loss  severity  peak loss, 95 %"]
+        for r in self.shapes:
+            pk = r.get("peak_interval_95", [np.nan, np.nan])
+            verdict = "accepted" if r["accepted"] else "rejected by the record"
+            out.append(f"{_shape_name(r['ramp'], r['spread']):<24} {r['ramp']:4.2f} "
+                       f"{r['spread']:+5.2f}  {r['loss']:9.2f}  {r['severity']:8.3f}  "
+                       f"{100 * r['peak_stiffness_loss']:5.1f} % [{100 * pk[0]:.1f}, "
+                       f"{100 * pk[1]:.1f}]  {verdict}")
+        return "\n".join(out)
+
     def to_dict(self) -> dict[str, Any]:
         return {"location": self.location, "severity": self.severity,
                 "interval_95": list(self.interval), "determined": self.determined,
@@ -166,6 +183,13 @@ class SeverityEstimate:
                 f" ({self.method}); peak stiffness loss {100 * self.peak_loss:.1f} % of the mean "
                 f"mesh stiffness, 95 % [{100 * plo:.1f}, {100 * phi:.1f}] % (any healthy "
                 f"waveform); {self.status}")
+
+
+def _shape_name(ramp: float, spread: float) -> str:
+    """A loss shape in words (:data:`SHAPE_GRID`)."""
+    where = ("mid-contact (pit)" if spread < 0.0 else
+             "beyond the contact" if spread > 0.0 else "whole contact")
+    return f"{'sharp' if ramp <= 0.1 else 'soft'}, {where}"
 
 
 def _fault_index(twin, location: str) -> int | None:

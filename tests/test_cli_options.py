@@ -394,8 +394,9 @@ def test_unwritable_out_refused_before_work(tmp_path, monkeypatch, no_work, caps
 
 
 def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
-    """`dtwin severity --low-band --jackknife` asks the library for the low band and the band
-    jackknife (dtwin.identify.severity.estimate_severity); without them, neither."""
+    """`dtwin severity --low-band --jackknife --shapes` asks the library for the low band, the
+    band jackknife and the loss shapes (dtwin.identify.severity.estimate_severity: ``ramps=
+    "shapes"``); without them, none."""
     from dtwin.identify import severity
 
     seen = []
@@ -404,11 +405,12 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
         pass
 
     def capture(*a, **k):
-        seen.append((k.get("low_band"), k.get("jackknife")))
+        seen.append((k.get("low_band"), k.get("jackknife"), k.get("ramps")))
         raise Stop
 
     monkeypatch.setattr(severity, "estimate_severity", capture)
-    for extra, want in (([], (False, False)), (["--low-band", "--jackknife"], (True, True))):
+    for extra, want in (([], (False, False, None)),
+                        (["--low-band", "--jackknife", "--shapes"], (True, True, "shapes"))):
         with pytest.raises(SystemExit):  # the stand-in stops the command once it was called
             main(["severity", files["rec"], "--preset", "paper-sim", *extra])
         assert seen[-1] == want

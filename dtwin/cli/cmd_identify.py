@@ -328,6 +328,11 @@ def severity(
         False, "--jackknife",
         help="Widen the interval by the delete-one-band jackknife when the bands disagree "
              "beyond their noise (a model-form error); the status says so."),
+    shapes: bool = typer.Option(
+        False, "--shapes",
+        help="Also fit the loss's shape (sharp, soft, felt beyond the tooth's contact, "
+             "confined to its middle like a pit): the intervals become the union over the "
+             "shapes the record cannot reject. One fit per shape."),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("severity.json, spectrum_fit.png, loss.png"),
@@ -353,7 +358,8 @@ def severity(
         _check_given_speed(rec, gb.spec, f_sun, ch, record)
     with opts.working("fitting the severity"):
         est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
-                                channel=ch, low_band=low_band, jackknife=jackknife)
+                                channel=ch, low_band=low_band, jackknife=jackknife,
+                                ramps="shapes" if shapes else None)
 
     report = {"record": str(record), "gearbox": gb.source, **_window_report(segs),
               **est.to_dict()}
@@ -361,6 +367,8 @@ def severity(
     def table() -> None:
         _echo_windows(segs)
         typer.echo(est.summary())  # severity and peak stiffness loss, 95 %, status
+        if est.shapes_table():
+            typer.echo(est.shapes_table())
         typer.echo(est.fit.table())
 
     opts.emit(report, json_out=json_out, table=table, out=out, force=force,
@@ -369,4 +377,4 @@ def severity(
               gearbox=gb,
               parameters={"location": location, "free": extra,
                           "fit_window": window.text(), "low_band": low_band,
-                          "jackknife": jackknife})
+                          "jackknife": jackknife, "shapes": shapes})
