@@ -120,6 +120,15 @@ def load_part(spec, load_torque: float | None = None) -> LoadPart:
 FIT_KIND = "torsional"
 
 
+#: The twin a tooth fault's severity is fitted with when none is asked
+#: (:func:`dtwin.identify.severity.estimate_severity`, ``dtwin severity``), whatever the spec's
+#: own kind: the translational twin. A local tooth fault loads one mesh at a time; where the
+#: sun floats on its bearing, as in most planetary gearboxes, it moves under that loss, and the
+#: torsional twin, whose sun cannot, makes the same loss 4–10× louder and so fits it 4–10× too
+#: small (docs/identification.md, "Why the earlier fits were 5–10× small").
+SEVERITY_KIND = "translational"
+
+
 def is_calibrated(spec) -> bool:
     """Whether `spec` (a `Spec`, path or mapping) was written by ``dtwin calibrate`` (it has
     ``[calibration] records``)."""

@@ -329,8 +329,7 @@ def demo_section(folder, data: Path, quick: bool = False, spec=None) -> str:
     folder.savefig("identify_sun_fault.png", plot_fit(est.fit))
     folder.write_json("identify_sun_fault.json", est.fit.to_dict())
     lo, hi = est.interval
-    fitted_with = (f"the twin it was calibrated with ({spec['model']['kind']})" if calibrated
-                   else "the torsional twin")
+    fitted_with = f"the {est.fit.problem.twin.kind} twin"
     lines += [
         "",
         f"Sun missing-tooth severity of `bench_sun_fault`: **{est.severity:.2f}** "

@@ -38,7 +38,16 @@ included: the profile likelihood over the shape) and (b) what the best shape lea
 unexplained beyond the noise, ``‖r‖² − E`` (:func:`expected_noise_rss`): a loss difference
 smaller than the model-form error the best fit still carries cannot tell two shapes apart.
 
-**The low band** (``low_band=True``, :func:`with_low_band`). The residuals of
+**The twin.** A severity is fitted with the translational twin unless a `kind` is given
+(:data:`dtwin.build.SEVERITY_KIND`), whatever kind the spec names or was calibrated with: a
+local tooth fault loads one mesh at a time, a floating sun moves under that loss, and the
+torsional twin, whose sun cannot, makes the same loss 4–10× louder and reads it 4–10× small
+(docs/identification.md, "The twin of a severity"). Where the spec was calibrated with the
+other twin, its calibrated excitation, window and response are taken as they are and the estimate's
+`note` says so.
+
+**The low band** (``low_band=None``, the default: on for a steady spectrum;
+:func:`with_low_band`). The residuals of
 :mod:`dtwin.identify.residuals` look at bands around the mesh harmonics, where a tooth fault's
 sidebands at a low sampling rate stand only a few dB above the noise and depend on the loss's
 shape. Below the first mesh band a local fault makes its strongest lines: the comb of the
@@ -68,6 +77,7 @@ status says "widened by the band jackknife".
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -75,11 +85,14 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from dtwin.build import SEVERITY_KIND, is_calibrated
 from dtwin.errors import ParameterError, SettingsError
 from dtwin.faults import MIN_SPREAD, peak_stiffness_loss
 from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
+from dtwin.spec import Spec, load_spec
 from dtwin.spectrum import noise_floor
+from dtwin.twin import Twin
 
 from .fit import FitResult, _batched_loss, _jacobian, fit, make_problem
 from .residuals import _STRONG_DB, _amplitude, point_groups
@@ -122,7 +135,8 @@ class SeverityEstimate:
     reported fit; `widened`: the factor the intervals were widened by for lack of fit (1:
     none); `shapes`: per shape tried (``ramps=``), its ramp, spread, loss, severity, peak loss,
     whether the loss accepts it and its intervals (``jackknife_95`` with the band
-    jackknife)."""
+    jackknife); `note`: where the twin's kind departs from the one the spec was calibrated with,
+    what that means (module docstring, "The twin")."""
 
     location: str
     severity: float
@@ -136,6 +150,7 @@ class SeverityEstimate:
     spread: float = 0.0
     widened: float = 1.0
     shapes: tuple[dict[str, Any], ...] = ()
+    note: str = ""
 
     @property
     def status(self) -> str:
@@ -173,6 +188,7 @@ class SeverityEstimate:
                 "ramp_mesh_cycles": self.ramp, "spread_mesh_cycles": self.spread,
                 "widened_for_lack_of_fit": self.widened,
                 "status": self.status, "shapes": [dict(x) for x in self.shapes],
+                "twin_kind": self.fit.problem.twin.kind, "note": self.note,
                 "fit": self.fit.to_dict()}
 
     def summary(self) -> str:
@@ -258,14 +274,38 @@ def _shapes(ramps) -> tuple[tuple[float, float], ...]:
                  for r in ramps)
 
 
-def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band=False):
-    """``[(shape, FitResult)]``: one fit per loss shape (``ramps``; shape ``(ramp, spread)``), or
-    one fit of the twin's own fault as it is (``ramps=None``, shape None); with `low_band` the
-    observation holds the low band too (:func:`with_low_band`)."""
+def _twin_kind(spec_or_twin, kind: str | None) -> tuple[str | None, str]:
+    """``(kind, note)``: the twin kind a severity fit builds from `spec_or_twin` (None for a
+    twin, which is its own) and, where the default departs from the kind the spec was
+    calibrated with, a note saying so (module docstring, "The twin")."""
+    if isinstance(spec_or_twin, Twin) or kind is not None:
+        return kind, ""
+    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
+    own = spec["model"]["kind"]
+    if is_calibrated(spec) and own != SEVERITY_KIND:
+        return SEVERITY_KIND, (
+            f"fitted with the {SEVERITY_KIND} twin (a tooth fault moves a floating sun; the "
+            f"{own} twin this spec was calibrated with reads tooth-fault severities 4–10× "
+            f"small), the calibrated excitation, window and response taken as they are; "
+            f"kind='{own}' (--model {own}) for the calibrated twin")
+    return SEVERITY_KIND, ""
+
+
+def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band=None):
+    """``([(shape, FitResult)], note)``: one fit per loss shape (``ramps``; shape ``(ramp,
+    spread)``), or one fit of the twin's own fault as it is (``ramps=None``, shape None), and
+    the twin's note (:func:`_twin_kind`); with `low_band` the observation holds the low band too
+    (:func:`with_low_band`; None: where the record is a steady spectrum)."""
     pk, fk = _split_kwargs(dict(fit_kwargs))
-    problem, ops = make_problem(record, spec_or_twin, names, initial=initial, **pk)
+    pk["kind"], note = _twin_kind(spec_or_twin, pk.get("kind"))
+    with warnings.catch_warnings():
+        if note:  # said in the estimate's note, in other words
+            warnings.filterwarnings("ignore", "this spec was calibrated with", UserWarning)
+        problem, ops = make_problem(record, spec_or_twin, names, initial=initial, **pk)
+    obs = problem.observations[0]
+    if low_band is None:
+        low_band = obs.kind == "spectrum" and not obs.ramp and not obs.order_domain
     if low_band:
-        obs = problem.observations[0]
         kin = Kinematics.from_gear_set(problem.twin.lp, float(obs.speed[0]))
         new = with_low_band(obs, record, channel=pk.get("channel", 0),
                             n_planets=int(problem.twin.lp.n_planets), f_carrier=kin.f_carrier)
@@ -273,7 +313,7 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
     if ramps is None:
         res = fit(record, spec_or_twin, names, problem=problem, **fk)
         res.operating_points = ops
-        return [(None, res)]
+        return [(None, res)], note
     i = _fault_index(problem.twin, names[0].removesuffix("_fault"))
     out = []
     for r, sp in _shapes(ramps):
@@ -284,7 +324,7 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
         res = fit(record, spec_or_twin, names, problem=prob, **fk)
         res.operating_points = ops
         out.append(((r, sp), res))
-    return out
+    return out, note
 
 
 def _jackknife_interval(res: FitResult, name: str) -> tuple[float, float]:
@@ -327,8 +367,10 @@ def _healthy_accepted(res: FitResult, name: str, best_loss: float, tol: float) -
     return bool(np.isfinite(loss0) and 2.0 * (loss0 - best_loss) <= tol)
 
 
-def _estimate(location: str, shapes, jackknife: bool = False) -> SeverityEstimate:
-    """The estimate from the fits of one record over the loss shapes (module docstring)."""
+def _estimate(location: str, shapes, jackknife: bool = False, note: str = ""
+              ) -> SeverityEstimate:
+    """The estimate from the fits of one record over the loss shapes (module docstring);
+    `note`: the twin's (:func:`_twin_kind`)."""
     name = _name(location)
     losses = np.array([res.loss if np.isfinite(res.loss) else np.inf for _, res in shapes])
     b = int(np.argmin(losses))
@@ -397,29 +439,31 @@ def _estimate(location: str, shapes, jackknife: bool = False) -> SeverityEstimat
                             peak_loss=_peak(twin_b, k, sev), peak_interval=(float(plo), float(phi)),
                             ramp=float(twin_b.parts[k].fault.ramp),
                             spread=float(twin_b.parts[k].fault.spread), widened=best.widened,
-                            shapes=tuple(rows))
+                            shapes=tuple(rows), note=note)
 
 
 def estimate_severity(
     record, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     initial_severity: float = 0.3, ramps: Sequence[float] | str | None = None,
-    low_band: bool = False, jackknife: bool = False, **fit_kwargs: Any,
+    low_band: bool | None = None, jackknife: bool = False, **fit_kwargs: Any,
 ) -> SeverityEstimate:
     """Severity of the fault at `location` from one record, and its peak stiffness loss
     (module docstring).
 
     **Arguments:** `record`; `spec_or_twin`; `location` (``sun``, ``planet``, ``ring``); `free`:
     further registry names fitted together; `initial_severity`; `ramps`: the loss shapes to try
-    (edge widths in mesh cycles, or ``"grid"`` for :data:`RAMP_GRID`; None: the twin's fault as
-    it is, one fit); keyword arguments of :func:`dtwin.identify.fit.fit` (``f_sun``,
-    ``features``, ``starts``, ``progress`` …).
+    (edge widths in mesh cycles, ``"grid"`` for :data:`RAMP_GRID`, ``"shapes"`` for
+    :data:`SHAPE_GRID`; None: the twin's fault as it is, one fit); `low_band`: fit the low band
+    too (None: where the record is a steady spectrum); `jackknife`; keyword arguments of
+    :func:`dtwin.identify.fit.fit` (``kind``: default :data:`dtwin.build.SEVERITY_KIND` for a
+    spec, ``f_sun``, ``features``, ``starts``, ``progress`` …).
     """
     name = _name(location)
     names = [name] + [n for n in free if n != name]
     initial = dict(fit_kwargs.pop("initial", {}) or {})
     initial.setdefault(name, initial_severity)
-    return _estimate(location, _fit_shapes(record, spec_or_twin, names, initial, ramps,
-                                           fit_kwargs, low_band), jackknife)
+    shapes, note = _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band)
+    return _estimate(location, shapes, jackknife, note)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -461,16 +505,16 @@ class SeveritySeries:
 def severity_series(
     records: Sequence, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     labels: Sequence[str] | None = None, initial_severity: float = 0.3, warm_start: bool = False,
-    ramps: Sequence[float] | str | None = None, low_band: bool = False, jackknife: bool = False,
-    **fit_kwargs: Any,
+    ramps: Sequence[float] | str | None = None, low_band: bool | None = None,
+    jackknife: bool = False, **fit_kwargs: Any,
 ) -> SeveritySeries:
     """Fit every record of a series (module docstring).
 
     **Arguments:** `records` (in time order); `spec_or_twin`; `location`; `free` (further
     parameters); `labels` (default ``record0`` …); `initial_severity`; `warm_start`: start each
-    fit from the previous record's values (a slowly evolving machine); `ramps`: the loss
-    shapes tried per record (:func:`estimate_severity`); keyword arguments of
-    :func:`dtwin.identify.fit.fit`.
+    fit from the previous record's values (a slowly evolving machine); `ramps`, `low_band`,
+    `jackknife`: as for :func:`estimate_severity`; keyword arguments of
+    :func:`dtwin.identify.fit.fit` (``kind`` as for :func:`estimate_severity`).
     """
     name = _name(location)
     names = [name] + [n for n in free if n != name]
@@ -481,8 +525,9 @@ def severity_series(
     init.setdefault(name, initial_severity)
     ests = []
     for rec in records:
-        est = _estimate(location, _fit_shapes(rec, spec_or_twin, names, init, ramps,
-                                              dict(fit_kwargs), low_band), jackknife)
+        shapes, note = _fit_shapes(rec, spec_or_twin, names, init, ramps, dict(fit_kwargs),
+                                   low_band)
+        est = _estimate(location, shapes, jackknife, note)
         ests.append(est)
         if warm_start:
             init = dict(est.fit.values)

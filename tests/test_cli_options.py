@@ -396,7 +396,8 @@ def test_unwritable_out_refused_before_work(tmp_path, monkeypatch, no_work, caps
 def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
     """`dtwin severity --low-band --jackknife --shapes` asks the library for the low band, the
     band jackknife and the loss shapes (dtwin.identify.severity.estimate_severity: ``ramps=
-    "shapes"``); without them, none."""
+    "shapes"``); without them, no jackknife, one shape and the low band where the record is
+    steady (None); `--no-low-band` turns it off."""
     from dtwin.identify import severity
 
     seen = []
@@ -409,8 +410,9 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
         raise Stop
 
     monkeypatch.setattr(severity, "estimate_severity", capture)
-    for extra, want in (([], (False, False, None)),
-                        (["--low-band", "--jackknife", "--shapes"], (True, True, "shapes"))):
+    for extra, want in (([], (None, False, None)),
+                        (["--low-band", "--jackknife", "--shapes"], (True, True, "shapes")),
+                        (["--no-low-band"], (False, False, None))):
         with pytest.raises(SystemExit):  # the stand-in stops the command once it was called
             main(["severity", files["rec"], "--preset", "paper-sim", *extra])
         assert seen[-1] == want
@@ -435,9 +437,9 @@ def test_severity_report_opens_with_the_estimate():
 
 
 def test_calibrated_spec_sets_the_twin_kind(files, tmp_path, monkeypatch, capsys):
-    """A calibrated spec was fitted with one twin kind: `dtwin severity` (and identify, fleet:
-    dtwin.build.twin_kind) build that kind unless --model says otherwise, and say so when it
-    does; the uncalibrated preset keeps the torsional default."""
+    """`dtwin severity` leaves the kind to the library (None: dtwin.build.SEVERITY_KIND, the
+    translational twin, for a calibrated spec and a preset alike) unless --model asks for one,
+    and says so when that is not the kind a calibrated spec was calibrated with."""
     from dtwin.identify import severity
     from dtwin.spec import preset, spec_to_dict
     from dtwin.spec_writer import spec_to_toml
@@ -458,8 +460,7 @@ def test_calibrated_spec_sets_the_twin_kind(files, tmp_path, monkeypatch, capsys
         raise Stop
 
     monkeypatch.setattr(severity, "estimate_severity", capture)
-    for where, want in ((["--spec", str(cal)], "translational"),
-                        (["--preset", "paper-sim"], "torsional")):
+    for where, want in ((["--spec", str(cal)], None), (["--preset", "paper-sim"], None)):
         with pytest.raises(SystemExit):
             main(["severity", files["rec"], *where])
         assert seen[-1] == want

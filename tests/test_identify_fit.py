@@ -49,7 +49,9 @@ def truth_record(spec):
 def severity_fit(truth_record, spec):
     from dtwin.identify.severity import estimate_severity
 
-    return estimate_severity(truth_record, spec, "sun", initial_severity=0.35, max_steps=25)
+    # the truth is torsional: the severity's default twin is translational (SEVERITY_KIND)
+    return estimate_severity(truth_record, spec, "sun", initial_severity=0.35, max_steps=25,
+                             kind="torsional")
 
 
 def test_speed_estimated_before_fit(severity_fit):
@@ -365,7 +367,7 @@ def test_severity_series_in_order(spec):
         tw = build_twin(spec, kind="torsional", faults=(MissingTooth(s, location="sun"),))
         recs.append(simulate(tw, duration=1.0, f_sun=30.0, daq=DAQ(sample_rate=5000.0,
                              snr_db=20.0), discard=0.05, seed=20 + i).to_record())
-    series = severity_series(recs, spec, "sun", f_sun=30.0)
+    series = severity_series(recs, spec, "sun", f_sun=30.0, kind="torsional")
     v, lo, hi = series.trajectory("sun_fault")
     assert np.all(np.diff(v) > 0)
     assert np.all(np.abs(v - truth) < 0.05), v

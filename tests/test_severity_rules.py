@@ -145,7 +145,7 @@ def test_a_pit_is_read_by_the_shape_confined_to_the_contacts_middle():
     rec = simulate(tw, duration=0.5, f_sun=29.7, daq=DAQ(sample_rate=5000.0, snr_db=20.0),
                    discard=0.05, seed=3).to_record()
     est = estimate_severity(rec, spec, "sun", initial_severity=0.35, max_steps=25,
-                            ramps=[(0.05, 0.0), (0.05, MIN_SPREAD)])
+                            ramps=[(0.05, 0.0), (0.05, MIN_SPREAD)], kind="torsional")
     print(est.summary())
     print(est.shapes_table())
     whole, middle = est.shapes
@@ -155,3 +155,24 @@ def test_a_pit_is_read_by_the_shape_confined_to_the_contacts_middle():
     assert est.peak_interval[0] <= truth <= est.peak_interval[1]
     table = est.shapes_table().splitlines()
     assert len(table) == 3 and "mid-contact" in table[2] and "rejected" in table[1]
+
+
+def test_a_severity_is_fitted_with_the_translational_twin_unless_asked():
+    """dtwin.build.SEVERITY_KIND: a spec's severity fit builds the translational twin whatever
+    kind the spec names; where the spec was calibrated with the torsional twin the estimate's
+    note says so; a kind asked for, or a twin given, is kept."""
+    from dtwin.build import SEVERITY_KIND, build_twin
+    from dtwin.identify.severity import _twin_kind
+    from dtwin.spec import load_spec, preset, spec_to_dict
+
+    assert SEVERITY_KIND == "translational"
+    data = spec_to_dict(preset("paper-sim"))
+    data.pop("source", None)
+    data["model"] = {"kind": "torsional"}
+    plain = load_spec(data)
+    assert _twin_kind(plain, None) == ("translational", "")
+    cal = load_spec({**data, "calibration": {"records": "healthy.csv"}})
+    kind, note = _twin_kind(cal, None)
+    assert kind == "translational" and "calibrated with" in note and "--model torsional" in note
+    assert _twin_kind(cal, "torsional") == ("torsional", "")
+    assert _twin_kind(build_twin(plain), None) == (None, "")

@@ -315,15 +315,16 @@ def severity(
     location: str = typer.Option("sun", "--location", help="sun, planet or ring."),
     free: str = typer.Option("", "--free", help="Further registry names fitted with it."),
     model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
-                                     "(default: the kind a calibrated spec was calibrated "
-                                     "with, otherwise torsional)."),
+                                     "(default: translational, whatever the spec says: a "
+                                     "tooth fault moves a floating sun, which the torsional "
+                                     "twin cannot, and it reads severities 4–10× small)."),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz)."),
     channel: str = opts.channel_option(),
     fit_window: str = fit_window_option(),
-    low_band: bool = typer.Option(
-        False, "--low-band",
-        help="Also fit the fault's impulse comb below the first mesh band (band 0): on records "
-             "of a gearbox the twin did not simulate it carries the fault's strongest lines."),
+    low_band: bool | None = typer.Option(
+        None, "--low-band/--no-low-band",
+        help="Also fit the fault's impulse comb below the first mesh band (band 0), where a "
+             "tooth fault makes its strongest lines (default: on for a steady record)."),
     jackknife: bool = typer.Option(
         False, "--jackknife",
         help="Widen the interval by the delete-one-band jackknife when the bands disagree "
@@ -350,7 +351,8 @@ def severity(
     _check_common(model, f_sun, out, force)
     window = _parse_window(fit_window)
     gb = opts.load_gearbox(preset, spec, why="severity estimation needs the gearbox")
-    model = twin_kind(gb.spec, model)
+    if model is not None:  # asked for: checked against a calibrated spec's (a warning)
+        model = twin_kind(gb.spec, model)
     ch = opts.channel_token(channel)
     segs = _segments([record], sample_rate, ch, gb.spec, f_sun, window)
     rec = segs[0].record
@@ -367,6 +369,8 @@ def severity(
     def table() -> None:
         _echo_windows(segs)
         typer.echo(est.summary())  # severity and peak stiffness loss, 95 %, status
+        if est.note:
+            typer.echo(f"note: {est.note}")
         if est.shapes_table():
             typer.echo(est.shapes_table())
         typer.echo(est.fit.table())
