@@ -129,6 +129,22 @@ FIT_KIND = "torsional"
 SEVERITY_KIND = "translational"
 
 
+#: Registry names of the local tooth faults' severities.
+TOOTH_FAULTS = ("sun_fault", "planet_fault", "ring_fault")
+
+
+def warn_torsional_tooth_fault(kind: str, free) -> None:
+    """A `UserWarning` when a fit of the `free` registry names with the `kind` twin fits a
+    tooth fault's severity with the torsional twin (:data:`SEVERITY_KIND`): ``dtwin identify``
+    and ``dtwin fleet`` follow the spec's kind, ``dtwin severity`` does not."""
+    faults = [n for n in free if n in TOOTH_FAULTS]
+    if kind == "torsional" and faults:
+        warnings.warn(f"{', '.join(faults)} fitted with the torsional twin: where the sun "
+                      "floats on its bearing (most planetary gearboxes) it reads tooth-fault "
+                      "severities 4–10× small; --model translational (dtwin severity's "
+                      "default) for the twin that moves it", UserWarning, stacklevel=2)
+
+
 def is_calibrated(spec) -> bool:
     """Whether `spec` (a `Spec`, path or mapping) was written by ``dtwin calibrate`` (it has
     ``[calibration] records``)."""

@@ -511,3 +511,27 @@ def test_a_warning_text_is_shown_once_per_command(capsys):
             assert err.count("the same text") == 1 and err.count("another text") == 1, err
     finally:
         warnings.showwarning = old
+
+
+def test_identify_warns_when_a_tooth_fault_is_fitted_with_the_torsional_twin(files, monkeypatch,
+                                                                             capsys):
+    """`dtwin identify --free sun_fault` follows the spec's kind (torsional for a preset that is
+    not calibrated) and warns that a torsional twin reads tooth-fault severities small
+    (dtwin.build.warn_torsional_tooth_fault); with --model translational, or no fault free,
+    it does not."""
+    from importlib import import_module
+
+    class Stop(Exception):
+        pass
+
+    def capture(*a, **k):
+        raise Stop
+
+    monkeypatch.setattr(import_module("dtwin.identify.fit"), "fit", capture)
+    for extra, warned in ((["--free", "sun_fault"], True),
+                          (["--free", "sun_fault", "--model", "translational"], False),
+                          (["--free", "zeta_mesh"], False)):
+        with pytest.raises(SystemExit):
+            main(["identify", files["rec"], "--preset", "paper-sim", *extra])
+        err = capsys.readouterr().err
+        assert ("sun_fault fitted with the torsional twin" in err) == warned, err

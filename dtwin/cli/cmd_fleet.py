@@ -91,7 +91,7 @@ def fleet_identify(
     """Identify every record of a fleet: Ray tasks, one result file per record, a table."""
     from dtwin.identify.fleet import FleetSettings, run_fleet
 
-    from ..build import twin_kind
+    from ..build import twin_kind, warn_torsional_tooth_fault
 
     names = opts.free_names("--free", free)
     opts.choice("--model", model, ("torsional", "translational"))
@@ -125,7 +125,9 @@ def fleet_identify(
     gearbox = opts.load_gearbox(preset, spec, why="fleet identification needs the gearbox").spec
     if ray_address is not None and engine == "local":
         raise opts.OptionError("--engine", "--ray-address needs the ray engine (or auto)")
-    settings = FleetSettings(free=tuple(names), kind=twin_kind(gearbox, model), f_sun=f_sun,
+    kind = twin_kind(gearbox, model)
+    warn_torsional_tooth_fault(kind, names)
+    settings = FleetSettings(free=tuple(names), kind=kind, f_sun=f_sun,
                              starts=starts, refine=refine, max_steps=max_steps, tol=tol,
                              channel=opts.channel_token(channel),
                              grid=grid, order_step=order_step, f_max=f_max,

@@ -221,7 +221,7 @@ def identify(
     """Fit twin parameters (registry names) to measured spectra, with 95 % intervals."""
     from dtwin.identify.fit import SOLVERS, fit
 
-    from ..build import twin_kind
+    from ..build import twin_kind, warn_torsional_tooth_fault
 
     names = opts.free_names("--free", free)  # before anything is read or simulated
     _check_common(model, f_sun, out, force)
@@ -243,6 +243,7 @@ def identify(
         opts.input_speed_option("--runup", runup[1])
     gb = opts.load_gearbox(preset, spec, why="identification needs the gearbox")
     model = twin_kind(gb.spec, model)
+    warn_torsional_tooth_fault(model, names)
     ch = opts.channel_token(channel)
     segs = _segments(records, sample_rate, ch, gb.spec, f_sun, window)
     recs = [sg.record for sg in segs]
