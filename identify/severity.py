@@ -46,8 +46,8 @@ torsional twin, whose sun cannot, makes the same loss 4–10× louder and reads 
 other twin, its calibrated excitation, window and response are taken as they are and the estimate's
 `note` says so.
 
-**The low band** (``low_band=None``, the default: on for a steady spectrum;
-:func:`with_low_band`). The residuals of
+**The low band** (``low_band=None``, the default: on for a sun or ring fault on a steady
+spectrum record, :data:`LOW_BAND_LOCATIONS`; :func:`with_low_band`). The residuals of
 :mod:`dtwin.identify.residuals` look at bands around the mesh harmonics, where a tooth fault's
 sidebands at a low sampling rate stand only a few dB above the noise and depend on the loss's
 shape. Below the first mesh band a local fault makes its strongest lines: the comb of the
@@ -116,6 +116,10 @@ SHAPE_GRID = ((0.05, 0.0), (0.3, 0.0), (0.3, 1.0), (0.05, MIN_SPREAD))
 LOW_BAND_START = 0.8
 
 _LOCATIONS = ("sun", "planet", "ring")
+#: Fault locations whose severity fits the low band by default (``low_band=None``): the sun's
+#: and the ring's low comb lies where the records put it; a planet fault's the twin places
+#: beside ``k f_p`` (docs/identification.md, "The low band").
+LOW_BAND_LOCATIONS = ("sun", "ring")
 
 
 def _name(location: str) -> str:
@@ -295,7 +299,8 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
     """``([(shape, FitResult)], note)``: one fit per loss shape (``ramps``; shape ``(ramp,
     spread)``), or one fit of the twin's own fault as it is (``ramps=None``, shape None), and
     the twin's note (:func:`_twin_kind`); with `low_band` the observation holds the low band too
-    (:func:`with_low_band`; None: where the record is a steady spectrum)."""
+    (:func:`with_low_band`; None: for a sun or ring fault on a steady spectrum record,
+    :data:`LOW_BAND_LOCATIONS`)."""
     pk, fk = _split_kwargs(dict(fit_kwargs))
     pk["kind"], note = _twin_kind(spec_or_twin, pk.get("kind"))
     with warnings.catch_warnings():
@@ -304,7 +309,8 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
         problem, ops = make_problem(record, spec_or_twin, names, initial=initial, **pk)
     obs = problem.observations[0]
     if low_band is None:
-        low_band = obs.kind == "spectrum" and not obs.ramp and not obs.order_domain
+        low_band = (obs.kind == "spectrum" and not obs.ramp and not obs.order_domain
+                    and names[0].removesuffix("_fault") in LOW_BAND_LOCATIONS)
     if low_band:
         kin = Kinematics.from_gear_set(problem.twin.lp, float(obs.speed[0]))
         new = with_low_band(obs, record, channel=pk.get("channel", 0),
@@ -454,7 +460,8 @@ def estimate_severity(
     further registry names fitted together; `initial_severity`; `ramps`: the loss shapes to try
     (edge widths in mesh cycles, ``"grid"`` for :data:`RAMP_GRID`, ``"shapes"`` for
     :data:`SHAPE_GRID`; None: the twin's fault as it is, one fit); `low_band`: fit the low band
-    too (None: where the record is a steady spectrum); `jackknife`; keyword arguments of
+    too (None: for a sun or ring fault on a steady record, :data:`LOW_BAND_LOCATIONS`);
+    `jackknife`; keyword arguments of
     :func:`dtwin.identify.fit.fit` (``kind``: default :data:`dtwin.build.SEVERITY_KIND` for a
     spec, ``f_sun``, ``features``, ``starts``, ``progress`` …).
     """

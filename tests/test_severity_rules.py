@@ -176,3 +176,40 @@ def test_a_severity_is_fitted_with_the_translational_twin_unless_asked():
     assert kind == "translational" and "calibrated with" in note and "--model torsional" in note
     assert _twin_kind(cal, "torsional") == ("torsional", "")
     assert _twin_kind(build_twin(plain), None) == (None, "")
+
+
+def test_the_low_band_by_default_for_sun_and_ring_faults_on_steady_records(monkeypatch):
+    """``low_band=None``: the observation of a sun or ring fault's severity starts at the low
+    band (0.8 N f_c), a planet fault's at its first mesh band (LOW_BAND_LOCATIONS); asked for,
+    a planet fault gets it too."""
+    from importlib import import_module
+
+    from dtwin.build import build_twin
+    from dtwin.identify.severity import LOW_BAND_START, estimate_severity
+    from dtwin.kinematics import Kinematics
+    from dtwin.simulate import DAQ, simulate
+    from dtwin.spec import preset
+
+    severity = import_module("dtwin.identify.severity")
+    spec = preset("paper-sim")
+    tw = build_twin(spec, kind="torsional")
+    rec = simulate(tw, duration=0.5, f_sun=30.0, daq=DAQ(sample_rate=5000.0, snr_db=20.0),
+                   discard=0.05, seed=1).to_record()
+    low = LOW_BAND_START * 3 * Kinematics.from_gear_set(tw.lp, 30.0).f_carrier
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(*a, problem, **k):
+        seen.append(float(np.min(np.asarray(problem.observations[0].freqs))))
+        raise Stop
+
+    monkeypatch.setattr(severity, "fit", capture)
+    for location, low_band, has_low in (("sun", None, True), ("ring", None, True),
+                                        ("planet", None, False), ("planet", True, True),
+                                        ("sun", False, False)):
+        with pytest.raises(Stop):
+            estimate_severity(rec, spec, location, low_band=low_band, kind="torsional",
+                              f_sun=30.0)
+        assert (seen[-1] < 2 * low) == has_low, (location, low_band, seen[-1], low)

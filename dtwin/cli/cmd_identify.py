@@ -325,7 +325,8 @@ def severity(
     low_band: bool | None = typer.Option(
         None, "--low-band/--no-low-band",
         help="Also fit the fault's impulse comb below the first mesh band (band 0), where a "
-             "tooth fault makes its strongest lines (default: on for a steady record)."),
+             "tooth fault makes its strongest lines (default: on for a sun or ring fault on a "
+             "steady record)."),
     jackknife: bool = typer.Option(
         False, "--jackknife",
         help="Widen the interval by the delete-one-band jackknife when the bands disagree "
