@@ -111,9 +111,11 @@ def _zero_carrier_eccentricity():
     return CarrierEccentricity(jnp.zeros(()))
 
 
-#: Registered cosine terms of the window and mesh harmonics of the excitation (calibration).
+#: Registered cosine terms of the window and mesh harmonics of the excitation (calibration
+#: fits no more than these: every calibrated quantity has a name). Twelve mesh harmonics are
+#: those of the spec's default stiffness waveform (``mesh.n_harmonics``).
 N_WINDOW_TERMS = 9
-N_EXCITATION_HARMONICS = 8
+N_EXCITATION_HARMONICS = 12
 
 
 def _window_fill(path, size: int):

@@ -13,7 +13,9 @@ that every command accepts; the user's spec is never modified.
   (``sensor.window_harmonics``, :class:`dtwin.parts.transfer_path.PlanetPassTransferPath`);
   ``c_0`` is held at its initial value (the overall level belongs to the response below).
 - ``excitation_ring_cos_h``, ``excitation_ring_sin_h`` (m): transmission-error harmonics of the
-  ring-planet meshes for every mesh harmonic h below 0.45 × the sampling rate
+  ring-planet meshes for every mesh harmonic h below 0.45 × the sampling rate, at most
+  :data:`dtwin.registry.N_EXCITATION_HARMONICS` (12, the spec's default stiffness waveform's;
+  above them the twin's own waveform and the sensor response carry the lines)
   (:class:`dtwin.parts.mesh_excitation.MeshExcitation`). One housing sensor sees the sun
   meshes only through the same dynamics, so their excitation is not separately identifiable
   and is left at the spec's value.
@@ -109,6 +111,7 @@ from dtwin.lumped import replace as replace_lumped
 from dtwin.parts.imperfections import MeshOffsets, load_share_offsets
 from dtwin.parts.mesh_excitation import MeshExcitation
 from dtwin.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
+from dtwin.registry import N_EXCITATION_HARMONICS, N_WINDOW_TERMS
 from dtwin.sensor_response import knot_basis
 from dtwin.simulate import SolverOptions, settling_sequence, simulate
 from dtwin.spec import Spec, load_spec, spec_to_dict
@@ -121,7 +124,7 @@ from .lines import Kinematics, estimate_speed
 from .stopping import StallStopping
 
 __all__ = ["CalibratedParameter", "CalibrationResult", "CalibrationSettings", "calibrate",
-           "heldout_gap"]
+           "heldout_gap", "mesh_harmonics"]
 
 _DB = 20.0 / math.log(10.0)
 #: Unit (m) of the transmission-error coordinates in θ.
@@ -141,7 +144,8 @@ class CalibrationSettings:
     - `window_terms`: K, cosine terms of the window (``c_0 … c_{K-1}``).
     - `n_knots`: knots of the sensor frequency response, log-spaced from 0.8 N f_c to the top
       of the pass band (`PASSBAND` × the rate).
-    - `mesh_harmonics`: mesh harmonics with a fitted excitation (None: all below 0.45 × rate).
+    - `mesh_harmonics`: mesh harmonics with a fitted excitation, at most
+      :data:`dtwin.registry.N_EXCITATION_HARMONICS` (None: all below 0.45 × rate, up to that).
     - `discard` (s): start-up simulated before the record (the path's filter settles).
     - `te_prior` (m): prior standard deviation of each transmission-error coefficient.
     - `window_prior`: prior standard deviation of each window coefficient, relative to ``c_0``.
@@ -198,6 +202,14 @@ class CalibrationSettings:
                               f"{self.load_sharing!r}")])
         if self.window_terms < 2:
             raise SpecError([("window_terms", "needs at least 2 cosine terms")])
+        if self.window_terms > N_WINDOW_TERMS:
+            raise SpecError([("window_terms", f"at most {N_WINDOW_TERMS} cosine terms (those "
+                              f"with a registry name), got {self.window_terms}")])
+        if self.mesh_harmonics is not None and not (
+                1 <= self.mesh_harmonics <= N_EXCITATION_HARMONICS):
+            raise SpecError([("mesh_harmonics", f"must be 1 … {N_EXCITATION_HARMONICS} (the "
+                              f"excitation harmonics with a registry name), got "
+                              f"{self.mesh_harmonics}")])
         if self.n_knots < 1:
             raise SpecError([("n_knots", "needs at least one knot")])
         for name in ("te_prior", "window_prior", "zeta_prior", "smooth_db", "frf_prior_db",
@@ -448,6 +460,14 @@ class _Layout:
     @property
     def i_zeta(self) -> int:
         return self.size - 1
+
+
+def mesh_harmonics(settings: CalibrationSettings, fs: float, f_mesh: float) -> int:
+    """Mesh harmonics whose transmission error calibration fits: `settings.mesh_harmonics`, or
+    every one below 0.45 × the rate `fs` (Hz), at most
+    :data:`dtwin.registry.N_EXCITATION_HARMONICS` (those with a registry name); `f_mesh` (Hz)."""
+    return settings.mesh_harmonics or max(1, min(int(0.45 * fs / f_mesh),
+                                                 N_EXCITATION_HARMONICS))
 
 
 def _prepare_twin(spec: Spec, f_sun: float, kind: str | None, settings: CalibrationSettings,
@@ -775,7 +795,7 @@ def calibrate(
     f_sun = float(np.mean(speeds))
     kin = Kinematics.from_gears(g["z_sun"], g["z_planet"], g["z_ring"], g["n_planets"], f_sun)
     say(f"speed {f_sun:.4f} Hz from {n_rec} record(s)")
-    n_harm = settings.mesh_harmonics or max(1, int(0.45 * fs / kin.f_mesh))
+    n_harm = mesh_harmonics(settings, fs, kin.f_mesh)
     # spectra of each half of each record
     freqs, Ymeas = segment_spectra(X, fs, 2)  # (rec, 2, bins)
     A = np.abs(Ymeas)

@@ -461,3 +461,24 @@ def test_a_spec_that_already_describes_its_records_is_kept():
     assert res.gap_confirmed.total <= res.gap_before.total + 0.5
     assert "the spec's values kept" in res.table()
     res.spec()  # a valid spec every command takes
+
+
+def test_calibration_fits_no_more_mesh_harmonics_than_have_a_registry_name():
+    """Every calibrated quantity has a registry name: the excitation is fitted for every mesh
+    harmonic below 0.45 × the rate up to N_EXCITATION_HARMONICS (a 5 kHz record of the paper's
+    gearbox: 4; a 25.6 kHz one: 12, not 23), and a setting beyond it is refused."""
+    from dtwin.errors import SpecError
+    from dtwin.identify.calibrate import CalibrationSettings, mesh_harmonics
+    from dtwin.registry import N_EXCITATION_HARMONICS, REGISTRY
+
+    f_mesh = 21 * 30.0 * 81 / 102  # the independent gearbox at 1800 rpm: 500.3 Hz
+    auto = CalibrationSettings()
+    assert mesh_harmonics(auto, 5000.0, f_mesh) == 4
+    assert mesh_harmonics(auto, 25600.0, f_mesh) == N_EXCITATION_HARMONICS == 12
+    assert mesh_harmonics(CalibrationSettings(mesh_harmonics=6), 25600.0, f_mesh) == 6
+    assert f"excitation_ring_sin_{N_EXCITATION_HARMONICS}" in REGISTRY
+    for bad in (0, N_EXCITATION_HARMONICS + 1):
+        with pytest.raises(SpecError, match="mesh_harmonics"):
+            CalibrationSettings(mesh_harmonics=bad)
+    with pytest.raises(SpecError, match="window_terms"):
+        CalibrationSettings(window_terms=10)

@@ -35,6 +35,10 @@ def calibrate(
                                      "(default: the spec's model.kind)."),
     knots: int = typer.Option(5, "--knots", help="Knots of the sensor frequency response."),
     window_terms: int = typer.Option(7, "--window-terms", help="Cosine terms of the window."),
+    mesh_harmonics: int | None = typer.Option(
+        None, "--mesh-harmonics",
+        help="Mesh harmonics with a fitted transmission error (default: every one below 0.45 × "
+             "the rate, at most 12)."),
     load_sharing: str = typer.Option("auto", "--load-sharing",
                                      help="Fit the planets' load shares: auto (when the records "
                                           "show carrier orders equal sharing cannot make), on, "
@@ -49,11 +53,19 @@ def calibrate(
     """Calibrate the twin on healthy records and write a calibrated spec (see docs/calibration.md)."""
     from dtwin.identify.calibrate import CalibrationSettings
     from dtwin.identify.calibrate import calibrate as run
+    from dtwin.registry import N_EXCITATION_HARMONICS, N_WINDOW_TERMS
 
     if model is not None:
         opts.choice("--model", model, ("torsional", "translational"))
     opts.at_least("--knots", knots, 1)
     opts.at_least("--window-terms", window_terms, 2)
+    if window_terms > N_WINDOW_TERMS:
+        raise opts.OptionError("--window-terms", f"at most {N_WINDOW_TERMS} (the window terms "
+                               f"with a registry name), got {window_terms}")
+    if mesh_harmonics is not None and not 1 <= mesh_harmonics <= N_EXCITATION_HARMONICS:
+        raise opts.OptionError("--mesh-harmonics", f"must be 1 … {N_EXCITATION_HARMONICS} (the "
+                               f"excitation harmonics with a registry name), got "
+                               f"{mesh_harmonics}")
     opts.choice("--load-sharing", load_sharing, ("auto", "on", "off"))
     opts.check_out(out, force)
     gb = opts.load_gearbox(preset, spec)
@@ -66,7 +78,7 @@ def calibrate(
         r.metadata["source"] = p.name
         recs.append(r)
     settings = CalibrationSettings(window_terms=window_terms, n_knots=knots,
-                                   load_sharing=load_sharing)
+                                   load_sharing=load_sharing, mesh_harmonics=mesh_harmonics)
     import logging
 
     log = logging.getLogger("dtwin")
@@ -93,7 +105,8 @@ def calibrate(
     opts.emit(report, json_out=json_out, table=lambda: typer.echo(result.table()), out=out,
               force=force, files=_files(result, report, unit), inputs=[spec, *records],
               gearbox=gb, parameters={"records": [str(p) for p in records], "knots": knots,
-                                      "window_terms": window_terms, "model": model})
+                                      "window_terms": window_terms,
+                                      "mesh_harmonics": mesh_harmonics, "model": model})
 
 
 def _files(result, report, unit: str):
