@@ -124,8 +124,9 @@ FIT_KIND = "torsional"
 #: (:func:`dtwin.identify.severity.estimate_severity`, ``dtwin severity``), whatever the spec's
 #: own kind: the translational twin. A local tooth fault loads one mesh at a time; where the
 #: sun floats on its bearing, as in most planetary gearboxes, it moves under that loss, and the
-#: torsional twin, whose sun cannot, makes the same loss 4–10× louder and so fits it 4–10× too
-#: small (docs/identification.md, "Why the earlier fits were 5–10× small").
+#: torsional twin, whose sun and planets cannot move sideways, makes a sun or planet fault
+#: 4–10× louder and so fits it 4–10× too small (docs/identification.md, "Why the earlier fits
+#: were 5–10× small", "The twin of a severity").
 SEVERITY_KIND = "translational"
 
 
@@ -140,9 +141,9 @@ def warn_torsional_tooth_fault(kind: str, free) -> None:
     faults = [n for n in free if n in TOOTH_FAULTS]
     if kind == "torsional" and faults:
         warnings.warn(f"{', '.join(faults)} fitted with the torsional twin: where the sun "
-                      "floats on its bearing (most planetary gearboxes) it reads tooth-fault "
-                      "severities 4–10× small; --model translational (dtwin severity's "
-                      "default) for the twin that moves it", UserWarning, stacklevel=2)
+                      "floats on its bearing (most planetary gearboxes) it reads sun and planet "
+                      "tooth faults 4–10× small; --model translational (dtwin severity's "
+                      "default) for the twin whose bodies move", UserWarning, stacklevel=2)
 
 
 def is_calibrated(spec) -> bool:

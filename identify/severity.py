@@ -41,8 +41,8 @@ smaller than the model-form error the best fit still carries cannot tell two sha
 **The twin.** A severity is fitted with the translational twin unless a `kind` is given
 (:data:`dtwin.build.SEVERITY_KIND`), whatever kind the spec names or was calibrated with: a
 local tooth fault loads one mesh at a time, a floating sun moves under that loss, and the
-torsional twin, whose sun cannot, makes the same loss 4–10× louder and reads it 4–10× small
-(docs/identification.md, "The twin of a severity"). Where the spec was calibrated with the
+torsional twin, whose sun and planets cannot move sideways, makes a sun or planet fault 4–10×
+louder and reads it 4–10× small (docs/identification.md, "The twin of a severity"). Where the spec was calibrated with the
 other twin, its calibrated excitation, window and response are taken as they are and the estimate's
 `note` says so.
 
@@ -288,10 +288,10 @@ def _twin_kind(spec_or_twin, kind: str | None) -> tuple[str | None, str]:
     own = spec["model"]["kind"]
     if is_calibrated(spec) and own != SEVERITY_KIND:
         return SEVERITY_KIND, (
-            f"fitted with the {SEVERITY_KIND} twin (a tooth fault moves a floating sun; the "
-            f"{own} twin this spec was calibrated with reads tooth-fault severities 4–10× "
-            f"small), the calibrated excitation, window and response taken as they are; "
-            f"kind='{own}' (--model {own}) for the calibrated twin")
+            f"fitted with the {SEVERITY_KIND} twin (the {own} twin this spec was calibrated "
+            f"with holds the sun and planets still under a tooth fault and reads sun and planet "
+            f"faults 4–10× small), the calibrated excitation, window and response taken as "
+            f"they are; kind='{own}' (--model {own}) for the calibrated twin")
     return SEVERITY_KIND, ""
 
 

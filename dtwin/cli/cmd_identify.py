@@ -316,9 +316,10 @@ def severity(
     location: str = typer.Option("sun", "--location", help="sun, planet or ring."),
     free: str = typer.Option("", "--free", help="Further registry names fitted with it."),
     model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
-                                     "(default: translational, whatever the spec says: a "
-                                     "tooth fault moves a floating sun, which the torsional "
-                                     "twin cannot, and it reads severities 4–10× small)."),
+                                     "(default: translational, whatever the spec says: the "
+                                     "torsional twin's sun and planets cannot move sideways "
+                                     "under a tooth fault, and it reads sun and planet faults "
+                                     "4–10× small)."),
     f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz)."),
     channel: str = opts.channel_option(),
     fit_window: str = fit_window_option(),
