@@ -28,14 +28,19 @@ clearances). The Jacobian is taken again and the same analysis
 half-width and near-null rules) is repeated with them free, without a prior (calibration
 fitted them at the spec's stiffness, so its intervals do not hold at another). A parameter
 determined with the calibration held and not with it free is flagged NOT DETERMINED, and the
-flag gives its interval with the calibration free. A parameter whose signature they cannot
-reproduce (a tooth fault's sidebands and comb) keeps its interval.
+flag gives its interval with the calibration free. A parameter fitted beside them keeps the
+interval and status it has with the calibration held unless the check flags it.
 
 The check runs when the spec is calibrated and a free parameter is one that calibration held
 at the spec's value: the mesh and support stiffnesses, damping ratios, masses and inertias, and
 a transmission-error amplitude on top of the calibrated one (registry sections ``mesh``,
 ``supports``, ``damping``, ``lumped``). It costs one forward-mode Jacobian with a column per
-free parameter, per calibrated harmonic and per clearance.
+free parameter, per calibrated harmonic and per clearance. It does not run for a fit of tooth
+faults alone, although the excitation moves a severity too: with the excitation free, a
+fault's sidebands stand against mesh lines whose level the excitation sets, and the interval
+widens (4.5× for a sun fault on a four-planet record; enough to flag a torsional mesh-band fit
+of an independent record). The severity's own rules — the lack-of-fit widening, the band
+jackknife, the loss shapes (:mod:`dtwin.identify.severity`) — are what its intervals carry.
 """
 
 from __future__ import annotations
