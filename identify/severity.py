@@ -140,7 +140,8 @@ class SeverityEstimate:
     none); `shapes`: per shape tried (``ramps=``), its ramp, spread, loss, severity, peak loss,
     whether the loss accepts it and its intervals (``jackknife_95`` with the band
     jackknife); `note`: where the twin's kind departs from the one the spec was calibrated with,
-    what that means (module docstring, "The twin")."""
+    what that means (module docstring, "The twin"); `low_band`: whether the fit held the low
+    band (:func:`with_low_band`)."""
 
     location: str
     severity: float
@@ -155,6 +156,7 @@ class SeverityEstimate:
     widened: float = 1.0
     shapes: tuple[dict[str, Any], ...] = ()
     note: str = ""
+    low_band: bool = False
 
     @property
     def status(self) -> str:
@@ -193,6 +195,7 @@ class SeverityEstimate:
                 "widened_for_lack_of_fit": self.widened,
                 "status": self.status, "shapes": [dict(x) for x in self.shapes],
                 "twin_kind": self.fit.problem.twin.kind, "note": self.note,
+                "low_band": self.low_band,
                 "fit": self.fit.to_dict()}
 
     def summary(self) -> str:
@@ -296,11 +299,11 @@ def _twin_kind(spec_or_twin, kind: str | None) -> tuple[str | None, str]:
 
 
 def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band=None):
-    """``([(shape, FitResult)], note)``: one fit per loss shape (``ramps``; shape ``(ramp,
+    """``([(shape, FitResult)], note, low_band)``: one fit per loss shape (``ramps``; shape ``(ramp,
     spread)``), or one fit of the twin's own fault as it is (``ramps=None``, shape None), and
     the twin's note (:func:`_twin_kind`); with `low_band` the observation holds the low band too
     (:func:`with_low_band`; None: for a sun or ring fault on a steady spectrum record,
-    :data:`LOW_BAND_LOCATIONS`)."""
+    :data:`LOW_BAND_LOCATIONS`; returned as used)."""
     pk, fk = _split_kwargs(dict(fit_kwargs))
     pk["kind"], note = _twin_kind(spec_or_twin, pk.get("kind"))
     with warnings.catch_warnings():
@@ -319,7 +322,7 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
     if ramps is None:
         res = fit(record, spec_or_twin, names, problem=problem, **fk)
         res.operating_points = ops
-        return [(None, res)], note
+        return [(None, res)], note, bool(low_band)
     i = _fault_index(problem.twin, names[0].removesuffix("_fault"))
     out = []
     for r, sp in _shapes(ramps):
@@ -330,7 +333,7 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
         res = fit(record, spec_or_twin, names, problem=prob, **fk)
         res.operating_points = ops
         out.append(((r, sp), res))
-    return out, note
+    return out, note, bool(low_band)
 
 
 def _jackknife_interval(res: FitResult, name: str) -> tuple[float, float]:
@@ -373,10 +376,10 @@ def _healthy_accepted(res: FitResult, name: str, best_loss: float, tol: float) -
     return bool(np.isfinite(loss0) and 2.0 * (loss0 - best_loss) <= tol)
 
 
-def _estimate(location: str, shapes, jackknife: bool = False, note: str = ""
-              ) -> SeverityEstimate:
+def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
+              low_band: bool = False) -> SeverityEstimate:
     """The estimate from the fits of one record over the loss shapes (module docstring);
-    `note`: the twin's (:func:`_twin_kind`)."""
+    `note`: the twin's (:func:`_twin_kind`); `low_band`: whether the fits held the low band."""
     name = _name(location)
     losses = np.array([res.loss if np.isfinite(res.loss) else np.inf for _, res in shapes])
     b = int(np.argmin(losses))
@@ -445,7 +448,7 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = ""
                             peak_loss=_peak(twin_b, k, sev), peak_interval=(float(plo), float(phi)),
                             ramp=float(twin_b.parts[k].fault.ramp),
                             spread=float(twin_b.parts[k].fault.spread), widened=best.widened,
-                            shapes=tuple(rows), note=note)
+                            shapes=tuple(rows), note=note, low_band=low_band)
 
 
 def estimate_severity(
@@ -469,8 +472,9 @@ def estimate_severity(
     names = [name] + [n for n in free if n != name]
     initial = dict(fit_kwargs.pop("initial", {}) or {})
     initial.setdefault(name, initial_severity)
-    shapes, note = _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band)
-    return _estimate(location, shapes, jackknife, note)
+    shapes, note, used = _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs,
+                                     low_band)
+    return _estimate(location, shapes, jackknife, note, used)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -532,9 +536,9 @@ def severity_series(
     init.setdefault(name, initial_severity)
     ests = []
     for rec in records:
-        shapes, note = _fit_shapes(rec, spec_or_twin, names, init, ramps, dict(fit_kwargs),
-                                   low_band)
-        est = _estimate(location, shapes, jackknife, note)
+        shapes, note, used = _fit_shapes(rec, spec_or_twin, names, init, ramps,
+                                         dict(fit_kwargs), low_band)
+        est = _estimate(location, shapes, jackknife, note, used)
         ests.append(est)
         if warm_start:
             init = dict(est.fit.values)

@@ -84,6 +84,7 @@ def _estimate(name: str, spec, ramps, jackknife=False):
                             initial_severity=0.2, jackknife=jackknife)
     assert est.fit.problem.twin.kind == "translational" and "calibrated with" in est.note
     assert est.fit.problem.observations[0].freqs[0] < 0.9 * 3 * 30 * 21 / 102  # the low band
+    assert est.low_band and est.to_dict()["low_band"] is True
     return est
 
 
