@@ -795,6 +795,7 @@ def calibrate(
     f_sun = float(np.mean(speeds))
     kin = Kinematics.from_gears(g["z_sun"], g["z_planet"], g["z_ring"], g["n_planets"], f_sun)
     say(f"speed {f_sun:.4f} Hz from {n_rec} record(s)")
+    stamp = _Stamp(f_sun, fs, measured, tuple(names), kind)  # what a calibrated spec records
     n_harm = mesh_harmonics(settings, fs, kin.f_mesh)
     # spectra of each half of each record
     freqs, Ymeas = segment_spectra(X, fs, 2)  # (rec, 2, bins)
@@ -915,8 +916,7 @@ def calibrate(
         gap_lin = gap(freqs, a_meas, amp_at(theta, every, every, lin), bands)
         # the calibrated spec, then its confirmation by a full simulation
         _, G = _model_amp(jnp.asarray(theta), d_all)
-        data = _calibrated_data(spec, theta, np.asarray(G), knots, layout, twin, i_exc,
-                                _Stamp(f_sun, fs, measured, tuple(names), kind))
+        data = _calibrated_data(spec, theta, np.asarray(G), knots, layout, twin, i_exc, stamp)
         say("confirming: the calibrated twin simulated in full")
         a_after, gap_conf = confirmed(data)
         tried.append(_Attempt(gap_conf, theta, lin, steps, converged, data, a_after,
@@ -952,8 +952,7 @@ def calibrate(
             "the spec as written: keeping the spec's values, with its fitted response level")
         d_flat = eqx.tree_at(lambda x: x.B, data_for(rec_idx, half_idx, lin0), jnp.asarray(B1))
         _, G1 = _model_amp(theta0, d_flat)
-        data = _kept_data(spec, float(G1[0]), knots,
-                          _Stamp(f_sun, fs, measured, tuple(names), kind))
+        data = _kept_data(spec, float(G1[0]), knots, stamp)
         a_after, gap_conf = confirmed(data)
         say(f"confirmed gap of the spec as written {gap_conf.total:.2f} dB")
     data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)

@@ -451,6 +451,14 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
                             shapes=tuple(rows), note=note, low_band=low_band)
 
 
+def _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_kwargs,
+                     low_band, jackknife) -> SeverityEstimate:
+    """:func:`_fit_shapes` of one record, then :func:`_estimate` from its fits."""
+    shapes, note, used = _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs,
+                                     low_band)
+    return _estimate(location, shapes, jackknife, note, used)
+
+
 def estimate_severity(
     record, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     initial_severity: float = 0.3, ramps: Sequence[float] | str | None = None,
@@ -472,9 +480,8 @@ def estimate_severity(
     names = [name] + [n for n in free if n != name]
     initial = dict(fit_kwargs.pop("initial", {}) or {})
     initial.setdefault(name, initial_severity)
-    shapes, note, used = _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs,
-                                     low_band)
-    return _estimate(location, shapes, jackknife, note, used)
+    return _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_kwargs,
+                            low_band, jackknife)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -536,9 +543,8 @@ def severity_series(
     init.setdefault(name, initial_severity)
     ests = []
     for rec in records:
-        shapes, note, used = _fit_shapes(rec, spec_or_twin, names, init, ramps,
-                                         dict(fit_kwargs), low_band)
-        est = _estimate(location, shapes, jackknife, note, used)
+        est = _fitted_estimate(rec, spec_or_twin, location, names, init, ramps,
+                               dict(fit_kwargs), low_band, jackknife)
         ests.append(est)
         if warm_start:
             init = dict(est.fit.values)
