@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 
 import numpy as np
 
@@ -47,7 +48,7 @@ __all__ = [
     "Comb", "Description", "Kinematics", "LineBounds", "Modulation", "ResidualLine",
     "band_bounds", "chance_match_probability", "comb_label", "comb_lines", "describe",
     "estimate_speed", "find_combs", "find_modulation", "interpolated_peak", "label_combs",
-    "modulation_lines", "residual_lines",
+    "modulation_lines", "refined_modulation_frequency", "residual_lines",
 ]
 
 
@@ -500,31 +501,33 @@ class Modulation:
     `f_x` and sidebands ``L ± j f_x`` (j = 1, 2) of the lines an ideal gearbox has (L =
     ``m fm + n fc`` allowed by the sideband rule, |n| ≤ 8). `members`: (frequency, label) of
     the residual lines on the family; `chance` as for :class:`Comb` (Bonferroni over the
-    frequencies tried)."""
+    frequencies tried); `off`: the gearbox combinations that described the f_x line and that
+    the family's frequency rules out (:func:`find_modulation`), empty when none did."""
 
     f_x: float
     teeth: int
     tried: int
     members: tuple[tuple[float, str], ...]
     chance: float
+    off: tuple[str, ...] = ()
 
     @property
     def text(self) -> str:
+        off = f"; off {', '.join(self.off)} by its family's frequency" if self.off else ""
         return (f"modulation at {self.f_x:.2f} Hz: {len(self.members)} of {self.tried} residual "
-                f"lines on its {self.teeth} lines, chance {self.chance:.1e}")
+                f"lines on its {self.teeth} lines, chance {self.chance:.1e}{off}")
 
     def to_dict(self) -> dict:
         return dict(f_x_hz=self.f_x, teeth=self.teeth, tried=self.tried,
-                    chance_match_probability=self.chance,
+                    chance_match_probability=self.chance, off_combinations=list(self.off),
                     members=[dict(frequency=f, label=lab) for f, lab in self.members])
 
 
-def modulation_lines(kin: Kinematics, f_x: float, f_max: float, orders: int = 2,
-                     carrier: int = 8) -> list[tuple[float, str]]:
-    """Lines of a modulation at `f_x`: ``j f_x`` and ``m fm + n fc ± j f_x`` (lines allowed by
-    the sideband rule, every mesh harmonic of the band, |n| ≤ `carrier`, 1 ≤ j ≤ `orders`):
-    (Hz, label)."""
-    out = [(j * f_x, combination_text((("fx", j),))) for j in range(1, orders + 1)
+def _modulation_family(kin: Kinematics, f_x: float, f_max: float, orders: int = 2,
+                       carrier: int = 8) -> list[tuple[float, float, int, str]]:
+    """The lines of :func:`modulation_lines` as (Hz, the line L they stand beside (0 for the
+    harmonics of f_x), j, label)."""
+    out = [(j * f_x, 0.0, j, combination_text((("fx", j),))) for j in range(1, orders + 1)
            if j * f_x < f_max]
     for m in range(int(f_max // kin.f_mesh) + 1):
         for n in range(-carrier, carrier + 1):
@@ -534,13 +537,65 @@ def modulation_lines(kin: Kinematics, f_x: float, f_max: float, orders: int = 2,
             for j in range(-orders, orders + 1):
                 f = base + j * f_x
                 if j and 0 < f < f_max:
-                    out.append((f, combination_text((("fm", m), ("fc", n), ("fx", j)))))
+                    out.append((f, base, j, combination_text((("fm", m), ("fc", n), ("fx", j)))))
+    return out
+
+
+def modulation_lines(kin: Kinematics, f_x: float, f_max: float, orders: int = 2,
+                     carrier: int = 8) -> list[tuple[float, str]]:
+    """Lines of a modulation at `f_x`: ``j f_x`` and ``m fm + n fc ± j f_x`` (lines allowed by
+    the sideband rule, every mesh harmonic of the band, |n| ≤ `carrier`, 1 ≤ j ≤ `orders`):
+    (Hz, label)."""
+    return [(f, lab) for f, _, _, lab in _modulation_family(kin, f_x, f_max, orders, carrier)]
+
+
+#: A located frequency departs from a gearbox combination that describes its line when the
+#: family's refined frequency lies off it by more than this many standard errors
+#: (:func:`refined_modulation_frequency`) ...
+OFF_COMBINATION_SE = 5.0
+#: ... and by more than this share of a frequency bin: the interpolated peaks of a family's
+#: members agree to a few hundredths of a bin (median over the members).
+OFF_COMBINATION_BINS = 0.05
+
+
+def refined_modulation_frequency(kin: Kinematics, f_x: float, lines: list[ResidualLine],
+                                 tolerance: float, f_max: float) -> tuple[float, float, int]:
+    """The modulation frequency read from the whole family of a trial line at `f_x` (Hz):
+    each measured line within `tolerance` of a line ``L + j f_x`` of the family
+    (:func:`modulation_lines`; L = 0 for the harmonics ``j f_x``) reads ``(f − L) / j``; the
+    median of the readings and its standard error (1.4826 × their median absolute deviation
+    / √n).
+
+    **Returns:** ``(f_x, standard error, readings)`` in Hz, Hz and a count."""
+    fam = _modulation_family(kin, f_x, f_max)
+    ff = np.array([f for f, *_ in fam])
+    est = []
+    for r in lines:
+        i = int(np.argmin(np.abs(ff - r.frequency)))
+        if r.side == "measured" and abs(ff[i] - r.frequency) <= tolerance:
+            est.append((r.frequency - fam[i][1]) / fam[i][2])
+    if not est:
+        return float(f_x), float("inf"), 0
+    e = np.asarray(est)
+    med = float(np.median(e))
+    se = 1.4826 * float(np.median(np.abs(e - med))) / math.sqrt(e.size)
+    return med, se, int(e.size)
+
+
+def _combination_frequencies(r: ResidualLine, kin: Kinematics, combs) -> list[float]:
+    """The frequencies (Hz) of the gearbox combinations that describe line `r`: its bounded
+    descriptions and the tooth of the comb that holds it."""
+    out = [d.frequency for d in r.descriptions]
+    for cb in combs or ():
+        for f, k, n, _ in cb.members:
+            if f == r.frequency:
+                out.append(k * cb.spacing + n * kin.f_carrier)
     return out
 
 
 def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float, f_max: float,
-                    max_chance: float = COMB_CHANCE, min_members: int = COMB_MIN_MEMBERS
-                    ) -> Modulation | None:
+                    max_chance: float = COMB_CHANCE, min_members: int = COMB_MIN_MEMBERS,
+                    combs: list[Comb] | None = None) -> Modulation | None:
     """Locate a modulation frequency from the record: each measured residual line below
     ``fm / 2`` that no bounded combination describes and no comb holds is a trial `f_x`; its
     family (:func:`modulation_lines`) is scored against the residual lines as a comb is
@@ -549,13 +604,36 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
     most members wins, the lowest frequency on a tie (a sideband ``3fc − f_x`` of the family
     of f_x has f_x in its own family as ``3fc − (3fc − f_x)``: the modulation is the slower).
 
+    A line that a combination describes, or that a comb of `combs` holds, is a trial too when
+    its family says it lies off that combination: the family's refined frequency
+    (:func:`refined_modulation_frequency`) departs from every describing combination by more
+    than :data:`OFF_COMBINATION_SE` standard errors and :data:`OFF_COMBINATION_BINS` of a bin
+    (`tolerance` is a quarter bin). A bounded combination of several gearbox frequencies falls
+    within a quarter bin of many a frequency (a load fluctuation at 3.30 Hz on a box whose
+    ``fp − 2fc`` is 3.33 Hz, read from 4 s), while twenty sidebands read its frequency to a
+    few thousandths of a bin. Such a modulation says so (:attr:`Modulation.off`).
+
     **Returns:** the :class:`Modulation`, or ``None``."""
     meas = [r for r in lines if r.side == "measured"]
-    trials = [r for r in meas if not r.descriptions and not r.comb
-              and 2 * tolerance < r.frequency < 0.5 * kin.f_mesh]
-    trials.sort(key=lambda r: r.frequency)
+    window = [r for r in meas if 2 * tolerance < r.frequency < 0.5 * kin.f_mesh]
+    bin_hz = 4.0 * tolerance
+    trials = []
+    for r in window:
+        if not r.descriptions and not r.comb:
+            trials.append((r, ()))
+            continue
+        named = _combination_frequencies(r, kin, combs)
+        if not named or (r.comb and combs is None):
+            continue
+        f_ref, se, n_est = refined_modulation_frequency(kin, r.frequency, meas, tolerance, f_max)
+        off = min(abs(f_ref - f) for f in named)
+        if n_est > min_members and off > max(OFF_COMBINATION_SE * se,
+                                             OFF_COMBINATION_BINS * bin_hz):
+            trials.append((r, tuple(sorted({d.text for d in r.descriptions} | (
+                {r.comb} if r.comb else set())))))
+    trials.sort(key=lambda x: x[0].frequency)
     best = None
-    for t in trials:
+    for t, off in trials:
         fam = modulation_lines(kin, t.frequency, f_max)
         ff = np.array([f for f, _ in fam])
         pool = [r for r in meas if r is not t]
@@ -570,5 +648,5 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
         ch = min(1.0, len(trials) * _binomial_tail(len(mem), len(pool), p))
         if ch <= max_chance and (best is None or len(mem) + 1 > len(best.members)):
             best = Modulation(t.frequency, len(fam), len(pool),
-                              ((t.frequency, "fx"),) + tuple(mem), ch)
+                              ((t.frequency, "fx"),) + tuple(mem), ch, off)
     return best

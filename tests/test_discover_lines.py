@@ -185,3 +185,71 @@ def test_mesh_harmonics_labelled_up_to_nyquist(kin):
     assert b.mesh == 9
     assert [d.text for d in describe(7 * kin.f_mesh + kin.f_carrier, kin, 0.05, b)] == ["7fm + fc"]
     assert describe(7 * kin.f_mesh, kin, 0.05) == []  # the old bound stopped at 4fm
+
+
+def _modulated_records(f_x, seed=3, fs=10_000.0, seconds=4.0):
+    """A four-planet 24/36/96 box at 25 Hz (fm 480 Hz, fc 5 Hz, fp − 2fc = 3.33 Hz), written as
+    sums of tones (no twin): a healthy record (mesh harmonics with the carrier sidebands the
+    sideband rule allows) and the same with an amplitude modulation at `f_x` — the line f_x,
+    the planet-pass sidebands 4fc ± f_x and m fm ± f_x at every mesh harmonic."""
+    rng = np.random.default_rng(seed)
+    kin = Kinematics.from_gears(24, 36, 96, 4, 25.0)
+    t = np.arange(int(fs * seconds)) / fs
+    healthy = np.zeros_like(t)
+    for m in range(1, 10):
+        for n in (-4, 0, 4):
+            a = (1.0 if n == 0 else 0.2) / m
+            healthy += a * np.sin(2 * np.pi * (m * kin.f_mesh + n * kin.f_carrier) * t
+                                  + rng.uniform(0, 2 * np.pi))
+    mod = 0.05 * np.sin(2 * np.pi * f_x * t) + 0.01 * np.sin(2 * np.pi * (20 - f_x) * t) \
+        + 0.01 * np.sin(2 * np.pi * (20 + f_x) * t)
+    for m in range(1, 10):
+        for j in (-1, 1):
+            mod += 0.02 / m * np.sin(2 * np.pi * (m * kin.f_mesh + j * f_x) * t
+                                     + rng.uniform(0, 2 * np.pi))
+    out = []
+    for x in (healthy + mod, healthy):
+        f, a = amplitude_spectrum(x + 1e-4 * rng.normal(size=t.size), fs, "hann")
+        out.append(np.asarray(a))
+    f = np.asarray(f)
+    return kin, f, out[0], out[1]
+
+
+def test_a_modulation_is_located_off_a_combination_its_line_falls_near():
+    """A load fluctuation at 3.30 Hz on a box whose fp − 2fc is 3.33 Hz: at 4 s resolution
+    (0.25 Hz) the bounded combination describes the line (a quarter bin), and the planet comb
+    k fp ± 2fc holds the family's sidebands; the family of ~20 lines reads its frequency to a
+    few thousandths of a bin, so the modulation is located, at 3.30 Hz, and says which
+    combination it lies off. The same family at fp − 2fc itself is a gearbox frequency: not
+    located. Once the fluctuation is added, the lines left on its family are labelled as its
+    own, and no second modulation is located from them."""
+    from dtwin.identify.discover.loop import _labelled
+    from dtwin.identify.lines import find_combs, find_modulation, label_combs
+
+    kin, f, meas, healthy = _modulated_records(3.30)
+    tol = 0.25 * (f[1] - f[0])
+    lines = residual_lines(f, meas, healthy, kin, f_max=5000.0)
+    fx_line = min((r for r in lines if r.side == "measured"),
+                  key=lambda r: abs(r.frequency - 3.30))
+    assert [d.text for d in fx_line.descriptions] == ["fp − 2fc"]  # within a quarter bin
+    combs = find_combs(lines, kin, tol, 5000.0)
+    assert find_modulation(label_combs(lines, combs), kin, tol, 5000.0) is None  # the old rule
+    mod = find_modulation(label_combs(lines, combs), kin, tol, 5000.0, combs=combs)
+    assert mod is not None and abs(mod.f_x - 3.30) < 0.01 and mod.chance < 1e-10, mod
+    assert "fp − 2fc" in mod.off and "off fp − 2fc" in mod.text
+    labelled, _, found = _labelled(lines, kin, tol, 5000.0)
+    assert found is not None and abs(found.f_x - 3.30) < 0.01
+    assert all("(fx = 3.30 Hz)" in r.text for r in labelled
+               if r.side == "measured" and abs(r.frequency - 3.30) < 0.05)
+
+    kin, f, meas, healthy = _modulated_records(kin.f_planet_fault - 2 * kin.f_carrier)
+    lines = residual_lines(f, meas, healthy, kin, f_max=5000.0)
+    combs = find_combs(lines, kin, tol, 5000.0)
+    assert find_modulation(label_combs(lines, combs), kin, tol, 5000.0, combs=combs) is None
+
+    kin, f, meas, healthy = _modulated_records(3.30)
+    lines = residual_lines(f, meas, healthy, kin, f_max=5000.0)
+    labelled, _, found = _labelled(lines, kin, tol, 5000.0, added_fx=((3.30, 1),))
+    assert found is None
+    side = [r for r in labelled if r.side == "measured" and abs(r.frequency - 16.70) < 0.05]
+    assert side and "added in step 1" in side[0].text, [r.text for r in side]

@@ -83,32 +83,50 @@ def _set_score(cr: CandidateResult, scores: dict, i: int, covering: list) -> Non
     cr.score_rank = 1 + [j for _, j, _ in covering].index(i)
 
 
+def _on_added(r, families, tol):
+    """The label of line `r` on the family of a located modulation already added (`families`:
+    ``(f_x, step, frequencies, labels)``), or "" when it lies on none or a describing
+    combination lies closer to it than the family's line."""
+    for f_x, step, ff, labels in families:
+        i = int(np.argmin(np.abs(ff - r.frequency)))
+        d = abs(ff[i] - r.frequency)
+        if d <= tol and all(abs(x.frequency - r.frequency) > d for x in r.descriptions):
+            return f"{labels[i]} (fx = {f_x:.2f} Hz, the fluctuation added in step {step})"
+    return ""
+
+
 def _labelled(lines, kin, tol, f_max, added_fx=()):
     """Residual lines with their comb and located-modulation labels
     (:func:`dtwin.identify.lines.find_combs`, :func:`~dtwin.identify.lines.find_modulation`):
     ``(lines, combs, modulation)``. `added_fx`: ``(f_x, step)`` of the located modulations
     already added; a measured line left on their family (the twin's level there falls short) is
-    labelled as theirs rather than "no kinematic match"."""
+    labelled as theirs rather than "no kinematic match" or a combination farther from it, and
+    is no trial for a new modulation. A modulation located off the combinations that described
+    its line (:attr:`dtwin.identify.lines.Modulation.off`) takes its family's lines from the
+    combs and their descriptions."""
+    families = []
+    for f_x, step in added_fx:
+        fam = modulation_lines(kin, f_x, f_max)
+        families.append((f_x, step, np.array([f for f, _ in fam]), [t for _, t in fam]))
+    added = {r.frequency: lab for r in lines if r.side == "measured"
+             for lab in [_on_added(r, families, tol)] if lab}
     combs = find_combs(lines, kin, tol, f_max)
+    mod = find_modulation([r for r in label_combs(lines, combs) if r.frequency not in added],
+                          kin, tol, f_max, combs=combs)
+    if mod is not None and mod.off:
+        held = {f for f, _ in mod.members}
+        combs = find_combs([r for r in lines if r.frequency not in held], kin, tol, f_max)
+        lines = [dataclasses.replace(r, descriptions=())
+                 if r.side == "measured" and r.frequency in held else r for r in lines]
     lines = label_combs(lines, combs)
-    mod = find_modulation(lines, kin, tol, f_max)
     if mod is not None:
         lab = {f: f"{text} (fx = {mod.f_x:.2f} Hz)" for f, text in mod.members}
         lines = [dataclasses.replace(r, comb=lab[r.frequency])
                  if r.side == "measured" and not r.comb and r.frequency in lab else r
                  for r in lines]
-    lines = list(lines)
-    for f_x, step in added_fx:
-        fam = modulation_lines(kin, f_x, f_max)
-        ff = np.array([f for f, _ in fam])
-        for j, r in enumerate(lines):
-            if r.side != "measured" or r.descriptions or r.comb:
-                continue
-            i = int(np.argmin(np.abs(ff - r.frequency)))
-            if abs(ff[i] - r.frequency) <= tol:
-                lines[j] = dataclasses.replace(
-                    r, comb=f"{fam[i][1]} (fx = {f_x:.2f} Hz, the fluctuation added in step "
-                            f"{step})")
+    lines = [dataclasses.replace(r, comb=added[r.frequency], descriptions=())
+             if r.side == "measured" and r.frequency in added
+             and (not r.comb or r.descriptions) else r for r in lines]
     return lines, combs, mod
 
 
