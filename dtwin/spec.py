@@ -223,9 +223,10 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
                                     doc="held-out gap of the calibrated twin on its records"),
         "created_by": FieldSpec("str", "", None, doc="dtwin version that calibrated the spec"),
         "kept_spec": FieldSpec("str", "", None,
-                               doc="present when the calibrated values did not lower the "
-                                   "held-out gap: the spec's own values were kept, with only "
-                                   "the sensor's response level fitted (says why)"),
+                               doc="present when the calibrated values were not adopted "
+                                   "(dtwin.identify.calibrate.adoption): the spec's own values "
+                                   "were kept, with only the sensor's response level fitted "
+                                   "(says why)"),
     },
     "imperfections": {
         "planet_position_errors": FieldSpec(

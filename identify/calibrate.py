@@ -56,12 +56,20 @@ reported without any refit.
 **Linearisation.** The response is first order in the excitation and the load shares, and
 the window multiplies the mesh forces, so a fit that moves both departs from it. The
 confirmation measures that: where the calibrated twin's confirmed gap exceeds the linearised
-response's gap at the same values by more than `CalibrationSettings.relinearize_db`, the
-response is linearised again at the fitted values and the final fit rerun from there (an
-outer Gauss–Newton iteration, at most `CalibrationSettings.relinearize` times); the
-linearisation whose calibrated twin confirms with the smallest gap is kept, and the
-cross-validation is repeated about its point (whose start the whole records chose, so that
-held-out gap leans optimistic; the confirmed gap is the one written into the spec). The
+response's gap at the same values by more than `CalibrationSettings.relinearize_db`, or the
+calibrated twin is no closer to the records than the spec as written (its confirmed gap not
+below the "before" gap), the response is linearised again at the fitted values and the final
+fit rerun from there (an outer Gauss–Newton iteration, at most
+`CalibrationSettings.relinearize` times); the linearisation whose calibrated twin confirms
+with the smallest gap is kept, and the cross-validation is repeated about its point (whose
+start the whole records chose, so that held-out gap leans optimistic; the confirmed gap is the
+one written into the spec). Where the twin still departs from the linearised response, it is
+cross-validated itself, each half's values simulated in full.
+
+**Adoption** (:func:`adoption`). The calibrated values replace the spec's only when the held-out
+gap, the confirmed gap and (where measured) the twin's own held-out gap all lie below the
+spec as written's held-out gap with one fitted level; otherwise the calibrated spec keeps the
+spec's values with that level, and says why. The
 response over one hunting period is tiled only where the start-up transient has died out
 within the settling time (the periodicity defect of the linearised simulation, as
 :func:`dtwin.simulate.simulate` checks it): otherwise a longer settling time, then the whole
@@ -123,8 +131,8 @@ from .gap import FLOOR_BINS, PASSBAND, THRESHOLD_DB, GapResult, gap, named_bands
 from .lines import Kinematics, estimate_speed
 from .stopping import StallStopping
 
-__all__ = ["CalibratedParameter", "CalibrationResult", "CalibrationSettings", "calibrate",
-           "heldout_gap", "mesh_harmonics"]
+__all__ = ["CalibratedParameter", "CalibrationResult", "CalibrationSettings", "adoption",
+           "calibrate", "heldout_gap", "mesh_harmonics"]
 
 _DB = 20.0 / math.log(10.0)
 #: Unit (m) of the transmission-error coordinates in θ.
@@ -171,8 +179,9 @@ class CalibrationSettings:
       (``SolverOptions(periodic="auto")``, which integrates the whole record when the twin is
       not periodic at constant speed), and the confirmation integrates the whole record.
     - `relinearize`, `relinearize_db`: when the confirmation's gap exceeds the linearised
-      response's gap at the fitted values by more than `relinearize_db` (dB), the response is
-      linearised again there and the final fit rerun from there, at most `relinearize` times;
+      response's gap at the fitted values by more than `relinearize_db` (dB), or is not below
+      the spec as written's held-out gap, the response is linearised again there and the
+      final fit rerun from there, at most `relinearize` times;
       the linearisation whose calibrated twin confirms with the smallest gap is kept (module
       docstring, "Linearisation").
     """
@@ -288,11 +297,14 @@ class CalibrationResult:
       `CalibrationSettings.relinearize_db` (the calibrated values lie where the response is
       not first order, and the held-out gap, which scores the linearised response, is
       optimistic: read the confirmed one).
-    - `kept_spec`: the calibrated values did not bring the twin closer to the held-out halves
-      than the spec as written (not `improves`), so `spec_data` keeps the spec's own values
-      with only the response level fitted (one flat gain), as the "before" model; `parameters`
-      and `gap_heldout` still describe the calibration that was not adopted, `gap_confirmed`
-      and `a_after` the spec that was kept, simulated in full.
+    - `calibrated_confirmed_db`: the confirmed gap of the calibrated values (dB, all data),
+      whether adopted or not; `heldout_full_db`: where the calibrated twin departs from the
+      linearised response, its held-out gap simulated in full (dB; None when not measured).
+    - `kept_spec`: the calibrated values did not bring the twin closer to the records than the
+      spec as written (not `improves`), so `spec_data` keeps the spec's own values with only
+      the response level fitted (one flat gain), as the "before" model; `parameters` and
+      `gap_heldout` still describe the calibration that was not adopted, `gap_confirmed` and
+      `a_after` the spec that was kept, simulated in full.
     """
 
     spec_data: dict[str, Any]
@@ -313,14 +325,24 @@ class CalibrationResult:
     departure_db: float = 0.0
     departs: bool = False
     kept_spec: bool = False
+    calibrated_confirmed_db: float | None = None
+    heldout_full_db: float | None = None
 
     @property
     def improves(self) -> bool:
-        """Whether the calibrated twin is closer to the held-out halves than the spec as written
-        (``gap_heldout`` below ``gap_before``). When it is not, the healthy records hold
-        something the calibrated parameters cannot represent (an effect for discovery), and the
-        calibrated spec should not replace the user's."""
-        return bool(self.gap_heldout.total < self.gap_before.total)
+        """Whether the calibrated values are adopted: the calibrated twin is closer to the
+        records than the spec as written (:func:`adoption`, which says why not). When it is
+        not, the healthy records hold something the calibrated parameters cannot represent (an
+        effect for discovery), or the calibrated values lie where the twin is not first order
+        in them, and the calibrated spec should not replace the user's."""
+        return not self.rejection
+
+    @property
+    def rejection(self) -> str:
+        """Why the calibrated values were not adopted ("" when they were: :func:`adoption`)."""
+        conf = self.calibrated_confirmed_db
+        return adoption(self.gap_before.total, self.gap_heldout.total,
+                        self.gap_heldout.total if conf is None else conf, self.heldout_full_db)
 
     @property
     def not_determined(self) -> list[str]:
@@ -346,8 +368,8 @@ class CalibrationResult:
                 f"{self.noise_rms:.3g}",
                 f"gap (dB): before {self.gap_before.total:.2f}, held-out "
                 f"{self.gap_heldout.total:.2f}, confirmed {self.gap_confirmed.total:.2f}"
-                + ("" if self.improves else " (NOT closer than the spec as written"
-                   + (": the spec's values kept, with its fitted level)" if self.kept_spec
+                + ("" if self.improves else f" (NOT adopted: {self.rejection}"
+                   + ("; the spec's values kept, with its fitted level)" if self.kept_spec
                       else ")")),
                 f"final fit: {self.fit_status}",
                 f"{'parameter':<24} {'value':>12} {'sd':>10} {'unit':<6} status"]
@@ -379,6 +401,8 @@ class CalibrationResult:
             parameters=[p.to_dict() for p in self.parameters],
             not_determined=self.not_determined, jointly_determined=self.jointly_determined,
             improves=self.improves, kept_spec=self.kept_spec,
+            calibrated_confirmed_db=self.calibrated_confirmed_db,
+            heldout_full_db=self.heldout_full_db, rejection=self.rejection,
         )
 
 
@@ -875,14 +899,23 @@ def calibrate(
         sc = half_idx == score_half
         return float(10.0 ** (float(G[0]) / 20.0)) * np.abs(Z0[half_idx[sc]])
 
-    def cross_validated(lin):
+    def cross_validated(lin, full=False):
+        """The held-out gap about linearisation `lin`: fitted on each half, scored on the
+        other, with the linearised response or (`full`) the twin of the half's values
+        simulated in full."""
         a_held = np.empty_like(a_meas)
         for h in (0, 1):
             tr = half_idx == h
-            theta_h, _, _ = _fit(data_for(rec_idx[tr], half_idx[tr], lin), lin[2],
-                                 settings.max_steps, settings.loss_rtol, settings.run_steps,
-                                 settings.restart_rtol)
-            a_held[half_idx != h] = amp_at(theta_h, tr, half_idx != h, lin)
+            d = data_for(rec_idx[tr], half_idx[tr], lin)
+            theta_h, _, _ = _fit(d, lin[2], settings.max_steps, settings.loss_rtol,
+                                 settings.run_steps, settings.restart_rtol)
+            if full:
+                _, G = _model_amp(jnp.asarray(theta_h), d)
+                a_held[half_idx != h] = confirmed(_calibrated_data(
+                    spec, theta_h, np.asarray(G), knots, layout, twin, i_exc, stamp))[0][
+                        half_idx != h]
+            else:
+                a_held[half_idx != h] = amp_at(theta_h, tr, half_idx != h, lin)
         return gap(freqs, a_meas, a_held, bands)
 
     a_before = np.empty_like(a_meas)
@@ -927,12 +960,15 @@ def calibrate(
         # the response is first order in the excitation and the load shares (and bilinear in
         # them and the window): where the full simulation departs from it, linearise again at
         # the fitted values and refit from there (an outer Gauss–Newton iteration)
-        if gap_conf.total <= gap_lin.total + settings.relinearize_db:
+        departs = gap_conf.total > gap_lin.total + settings.relinearize_db
+        if not departs and gap_conf.total < gap_before.total:
             break
         if attempt < settings.relinearize:
-            say(f"the full simulation departs from the linearised response by "
-                f"{gap_conf.total - gap_lin.total:.1f} dB: linearising again at the fitted "
-                "values")
+            say((f"the full simulation departs from the linearised response by "
+                 f"{gap_conf.total - gap_lin.total:.1f} dB" if departs else
+                 f"the full simulation is no closer to the records than the spec as written "
+                 f"({gap_conf.total:.2f} dB against {gap_before.total:.2f} dB)")
+                + ": linearising again at the fitted values")
             lin = linearised(theta)
     best = min(range(len(tried)), key=lambda i: tried[i].gap.total)
     chosen = tried[best]
@@ -943,23 +979,66 @@ def calibrate(
     params = _intervals(chosen.theta, chosen.gains, chosen.fit_data, layout, knots, Wl, B, twin,
                         i_exc, settings)
     data, gap_conf, a_after = chosen.spec_data, chosen.gap, chosen.amplitudes
-    kept = not gap_held.total < gap_before.total
+    calibrated_conf = float(gap_conf.total)
+    departs = bool(chosen.departure > settings.relinearize_db)
+    held_full = None
+    if departs and gap_held.total < gap_before.total and calibrated_conf < gap_before.total:
+        # the held-out gap scores a response the twin does not follow: cross-validate the
+        # twin itself, each half's values simulated in full and scored on the other half
+        say("cross-validation of the twin simulated in full (it departs from the fitted "
+            "response)")
+        held_full = float(cross_validated(chosen.lin, full=True).total)
+        say(f"held-out gap simulated in full {held_full:.2f} dB")
+    why = adoption(gap_before.total, gap_held.total, calibrated_conf, held_full)
+    kept = bool(why)
     if kept:
         # cross-validation rejects the calibrated values (they fit the training half in
         # directions the records do not determine and generalise worse than the spec as
-        # written): keep the spec, with the level the "before" model fitted, on all the data
-        say("the calibrated values do not bring the twin closer to the held-out halves than "
-            "the spec as written: keeping the spec's values, with its fitted response level")
+        # written), or the twin simulated in full with them is no closer even to the data they
+        # were fitted on than the spec as written to its held-out halves: keep the spec, with
+        # the level the "before" model fitted, on all the data
+        say(f"the calibrated values are not adopted ({why}): keeping the spec's values, with "
+            "its fitted response level")
         d_flat = eqx.tree_at(lambda x: x.B, data_for(rec_idx, half_idx, lin0), jnp.asarray(B1))
         _, G1 = _model_amp(theta0, d_flat)
-        data = _kept_data(spec, float(G1[0]), knots, stamp)
+        data = _kept_data(spec, float(G1[0]), knots, stamp, why)
         a_after, gap_conf = confirmed(data)
         say(f"confirmed gap of the spec as written {gap_conf.total:.2f} dB")
     data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
     return CalibrationResult(data, params, f_sun, gap_before, gap_held, gap_conf, freqs,
                              a_meas, a_before, a_after, noise_rms, list(names),
                              chosen.steps, chosen.converged, best + 1, float(chosen.departure),
-                             bool(chosen.departure > settings.relinearize_db), kept)
+                             departs, kept, calibrated_conf, held_full)
+
+
+def adoption(before: float, heldout: float, confirmed: float,
+             heldout_full: float | None = None) -> str:
+    """Whether calibrated values are adopted, from the gaps (dB) of the spec as written
+    (`before`: one fitted level, held out), of the calibration held out (`heldout`: the
+    linearised response fitted on one half and scored on the other), of the calibrated twin
+    simulated in full (`confirmed`, all data) and, where that twin departs from the linearised
+    response, of the twin held out (`heldout_full`: each half's values simulated in full and
+    scored on the other half; None when not measured). Adopted when:
+
+    1. the held-out gap is below the spec's (cross-validation);
+    2. the confirmed gap is below it too: the twin simulated in full bears the linearised
+       response out;
+    3. where measured, the held-out gap of the twin simulated in full is below it: where the
+       twin departs from the linearised response, the held-out gap of 1. scores a response the
+       twin does not follow, and only the twin's own cross-validation says whether the values
+       generalise.
+
+    **Returns:** "" when adopted, otherwise the reason, in words."""
+    if not heldout < before:
+        return (f"no closer to the held-out halves than the spec as written, {heldout:.2f} "
+                f"against {before:.2f} dB")
+    if not confirmed < before:
+        return (f"no closer to the records than the spec as written once simulated in full, "
+                f"{confirmed:.2f} against {before:.2f} dB")
+    if heldout_full is not None and not heldout_full < before:
+        return (f"simulated in full, no closer to the held-out halves than the spec as "
+                f"written, {heldout_full:.2f} against {before:.2f} dB")
+    return ""
 
 
 class _Stamp(NamedTuple):
@@ -989,17 +1068,18 @@ def _stamped(data: dict[str, Any], stamp: _Stamp) -> dict[str, Any]:
     return data
 
 
-def _kept_data(spec: Spec, gain_db: float, knots, stamp: _Stamp) -> dict[str, Any]:
+def _kept_data(spec: Spec, gain_db: float, knots, stamp: _Stamp, why: str) -> dict[str, Any]:
     """The spec as written, as a calibrated spec: its own values, a flat sensor response at
     the fitted level `gain_db` (dB at every knot), the records' speed, rate and quantity, and
-    the ``[calibration]`` table saying that the calibrated values were not adopted."""
+    the ``[calibration]`` table saying that the calibrated values were not adopted, and `why`
+    (:func:`adoption`)."""
     data = spec_to_dict(spec)
     data.pop("source", None)
     data["sensor"]["frf_hz"] = [float(v) for v in knots]
     data["sensor"]["frf_db"] = [float(gain_db)] * len(knots)
     data = _stamped(data, stamp)
-    data["calibration"]["kept_spec"] = ("the calibrated values did not lower the held-out gap: "
-                                        "the spec's own values, with its fitted response level")
+    data["calibration"]["kept_spec"] = (f"the calibrated values were not adopted ({why}): the "
+                                        "spec's own values, with its fitted response level")
     return data
 
 

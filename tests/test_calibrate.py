@@ -463,6 +463,61 @@ def test_a_spec_that_already_describes_its_records_is_kept():
     res.spec()  # a valid spec every command takes
 
 
+def test_a_calibration_the_full_twin_does_not_bear_out_is_not_adopted(monkeypatch):
+    """Cross-validation scores the linearised response; the twin simulated in full must bear it
+    out (dtwin.identify.calibrate.adoption). Records of the paper's gearbox with a 1 µm
+    transmission error the spec as written lacks (torsional, 2 s at 5 kHz, 30 dB): the
+    calibration closes the gap (measured: held-out 5.19 → 0.81 dB, confirmed 0.82 dB). Here the
+    confirmation is made 9.5 dB louder than the twin it simulates, a twin that does not do
+    what its linearised fit says, at a departure the relinearisation rule alone lets pass:
+    the fit is linearised again because the full twin is no closer than the spec as written,
+    and when it never is, the spec's values are kept and the result says why. (Found on a
+    four-planet record where the first confirmation, 1.23 dB, stood above the spec's 1.07 dB
+    at a departure of 0.83 dB: adopted, it read a 4.8 N·m load fluctuation as 1.14 N·m;
+    linearised again, it confirmed at 0.40 dB; docs/calibration.md.)"""
+    import dtwin.identify.calibrate as cal
+    from dtwin.build import build_twin, daq_from_spec
+    from dtwin.simulate import simulate
+
+    data = spec_to_dict(preset("paper-sim"))
+    data.pop("source")
+    data["sensor"]["quantity"] = "acceleration"
+    spec = load_spec(data)
+    truth = dict(data, mesh=dict(data["mesh"], te_amplitude=1e-6))
+    rec = simulate(build_twin(load_spec(truth), kind="torsional"), duration=2.0, f_sun=30.0,
+                   discard=0.1, daq=daq_from_spec(spec, snr_db=30.0), seed=3).to_record()
+    real = cal.simulate
+
+    def louder(*args, check=True, **kw):  # the confirmations (the linearisation: check=False)
+        res = real(*args, check=check, **kw)
+        return dataclasses.replace(res, signal=res.signal * 3.0) if check else res
+
+    monkeypatch.setattr(cal, "simulate", louder)
+    said = []
+    res = cal.calibrate([rec], spec, kind="torsional", progress=said.append,
+                        settings=cal.CalibrationSettings(relinearize=1, relinearize_db=50.0))
+    assert res.gap_heldout.total < 0.5 * res.gap_before.total  # cross-validation alone adopts
+    assert any("no closer to the records than the spec as written" in m for m in said), said
+    assert not res.departs and res.heldout_full_db is None
+    assert res.calibrated_confirmed_db >= res.gap_before.total
+    assert not res.improves and res.kept_spec
+    assert "once simulated in full" in res.rejection and "NOT adopted" in res.table()
+    assert "once simulated in full" in res.spec_data["calibration"]["kept_spec"]
+    assert res.spec_data["mesh"] == data["mesh"]  # the spec's own values
+    assert res.to_dict()["rejection"] == res.rejection
+
+
+def test_adoption_rules():
+    """dtwin.identify.calibrate.adoption, rule by rule: held out, simulated in full, and the
+    twin's own cross-validation where it departs from the linearised response."""
+    from dtwin.identify.calibrate import adoption
+
+    assert adoption(4.3, 0.7, 2.7) == "" and adoption(4.3, 0.7, 2.7, 2.96) == ""
+    assert "held-out halves" in adoption(1.0, 1.2, 0.5)
+    assert "once simulated in full, 4.50 against 4.30 dB" in adoption(4.3, 0.7, 4.5)
+    assert "simulated in full, no closer to the held-out halves" in adoption(4.3, 0.7, 2.7, 4.4)
+
+
 def test_calibration_fits_no_more_mesh_harmonics_than_have_a_registry_name():
     """Every calibrated quantity has a registry name: the excitation is fitted for every mesh
     harmonic below 0.45 × the rate up to N_EXCITATION_HARMONICS (a 5 kHz record of the paper's

@@ -87,12 +87,10 @@ def calibrate(
     report = result.to_dict()
     report["spec"] = gb.source
     if not result.improves:
-        log.warning("the calibrated twin is not closer to the held-out halves than the spec as "
-                    "written (gap %.1f dB against %.1f dB): the calibrated spec keeps the spec's "
-                    "own values with its fitted response level. Either the spec already "
+        log.warning("the calibrated values are not adopted (%s): the calibrated spec keeps the "
+                    "spec's own values with its fitted response level. Either the spec already "
                     "describes these records, or they hold lines the calibrated parameters "
-                    "cannot represent (run dtwin discover on them)",
-                    result.gap_heldout.total, result.gap_before.total)
+                    "cannot represent (run dtwin discover on them)", result.rejection)
     if result.departs:
         log.warning("the calibrated twin simulated in full departs from the fit's linearised "
                     "response by %.1f dB after %d linearisation(s): the calibrated excitation or "
