@@ -64,16 +64,15 @@ fit rerun from there (an outer Gauss–Newton iteration, at most
 with the smallest gap is kept, and the cross-validation is repeated about its point (whose
 start the whole records chose, so that held-out gap leans optimistic; the confirmed gap is the
 one written into the spec). Where the twin still departs from the linearised response, it is
-cross-validated itself, each half's values simulated in full.
+cross-validated itself, each half's values simulated in full. The response over one hunting
+period is tiled only where the start-up transient has died out within the settling time (the
+periodicity defect of the linearised simulation, as :func:`dtwin.simulate.simulate` checks
+it): otherwise a longer settling time, then the whole record.
 
 **Adoption** (:func:`adoption`). The calibrated values replace the spec's only when the held-out
 gap, the confirmed gap and (where measured) the twin's own held-out gap all lie below the
 spec as written's held-out gap with one fitted level; otherwise the calibrated spec keeps the
-spec's values with that level, and says why. The
-response over one hunting period is tiled only where the start-up transient has died out
-within the settling time (the periodicity defect of the linearised simulation, as
-:func:`dtwin.simulate.simulate` checks it): otherwise a longer settling time, then the whole
-record.
+spec's values with that level, and says why.
 
 **Intervals.** Gauss–Newton at the optimum, with the residual variance estimated from the
 residuals themselves (so lack of fit widens every interval). A parameter is *determined* when
@@ -995,11 +994,10 @@ def calibrate(
     why = adoption(gap_before.total, gap_held.total, calibrated_conf, held_full)
     kept = bool(why)
     if kept:
-        # cross-validation rejects the calibrated values (they fit the training half in
-        # directions the records do not determine and generalise worse than the spec as
-        # written), or the twin simulated in full with them is no closer even to the data they
-        # were fitted on than the spec as written to its held-out halves: keep the spec, with
-        # the level the "before" model fitted, on all the data
+        # the calibrated values fit the training half in directions the records do not
+        # determine and generalise worse than the spec as written, or the twin simulated in
+        # full does not bear them out (adoption): keep the spec, with the level the "before"
+        # model fitted, on all the data
         say(f"the calibrated values are not adopted ({why}): keeping the spec's values, with "
             "its fitted response level")
         d_flat = eqx.tree_at(lambda x: x.B, data_for(rec_idx, half_idx, lin0), jnp.asarray(B1))

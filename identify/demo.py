@@ -228,8 +228,8 @@ def step_calibration(folder: OutputFolder, quick: bool = False):
         "![gap per band](calibration_gap.png)",
     ])
     if not res.improves:
-        text += ("\n\nThe calibrated twin is not closer to the held-out half than the spec as "
-                 "written, so section 7 uses the preset.")
+        text += (f"\n\nThe calibrated values were not adopted ({res.rejection}), so section 7 "
+                 "uses the preset.")
         return text, None
     return text, res.spec()
 
