@@ -553,9 +553,10 @@ def modulation_lines(kin: Kinematics, f_x: float, f_max: float, orders: int = 2,
 #: family's refined frequency lies off it by more than this many standard errors
 #: (:func:`refined_modulation_frequency`) ...
 OFF_COMBINATION_SE = 5.0
-#: ... and by more than this share of a frequency bin: the interpolated peaks of a family's
-#: members agree to a few hundredths of a bin (median over the members).
-OFF_COMBINATION_BINS = 0.05
+#: ... and by more than this share of the line-matching tolerance (0.05 bin at the default
+#: quarter-bin tolerance): the interpolated peaks of a family's members agree to a few
+#: hundredths of a bin (median over the members).
+OFF_COMBINATION_TOL = 0.2
 
 
 def refined_modulation_frequency(kin: Kinematics, f_x: float, lines: list[ResidualLine],
@@ -607,16 +608,16 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
     A line that a combination describes, or that a comb of `combs` holds, is a trial too when
     its family says it lies off that combination: the family's refined frequency
     (:func:`refined_modulation_frequency`) departs from every describing combination by more
-    than :data:`OFF_COMBINATION_SE` standard errors and :data:`OFF_COMBINATION_BINS` of a bin
-    (`tolerance` is a quarter bin). A bounded combination of several gearbox frequencies falls
-    within a quarter bin of many a frequency (a load fluctuation at 3.30 Hz on a box whose
-    ``fp − 2fc`` is 3.33 Hz, read from 4 s), while twenty sidebands read its frequency to a
-    few thousandths of a bin. Such a modulation says so (:attr:`Modulation.off`).
+    than :data:`OFF_COMBINATION_SE` standard errors and :data:`OFF_COMBINATION_TOL` of
+    `tolerance` (0.05 bin at the default quarter-bin tolerance). A bounded combination of
+    several gearbox frequencies falls within a quarter bin of many a frequency (a load
+    fluctuation at 3.30 Hz on a box whose ``fp − 2fc`` is 3.33 Hz, read from 4 s), while twenty
+    sidebands read its frequency to a few thousandths of a bin. Such a modulation says so
+    (:attr:`Modulation.off`).
 
     **Returns:** the :class:`Modulation`, or ``None``."""
     meas = [r for r in lines if r.side == "measured"]
     window = [r for r in meas if 2 * tolerance < r.frequency < 0.5 * kin.f_mesh]
-    bin_hz = 4.0 * tolerance
     trials = []
     for r in window:
         if not r.descriptions and not r.comb:
@@ -628,7 +629,7 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
         f_ref, se, n_est = refined_modulation_frequency(kin, r.frequency, meas, tolerance, f_max)
         off = min(abs(f_ref - f) for f in named)
         if n_est > min_members and off > max(OFF_COMBINATION_SE * se,
-                                             OFF_COMBINATION_BINS * bin_hz):
+                                             OFF_COMBINATION_TOL * tolerance):
             trials.append((r, tuple(sorted({d.text for d in r.descriptions} | (
                 {r.comb} if r.comb else set())))))
     trials.sort(key=lambda x: x[0].frequency)
