@@ -473,8 +473,8 @@ def test_a_calibration_the_full_twin_does_not_bear_out_is_not_adopted(monkeypatc
     the fit is linearised again because the full twin is no closer than the spec as written,
     and when it never is, the spec's values are kept and the result says why. (Found on a
     four-planet record where the first confirmation, 1.23 dB, stood above the spec's 1.07 dB
-    at a departure of 0.83 dB: adopted, it read a 4.8 N·m load fluctuation as 1.14 N·m;
-    linearised again, it confirmed at 0.40 dB; docs/calibration.md.)"""
+    at a departure of 0.83 dB and was adopted; linearised again, it confirms at 0.40 dB;
+    docs/calibration.md.)"""
     import dtwin.identify.calibrate as cal
     from dtwin.build import build_twin, daq_from_spec
     from dtwin.simulate import simulate
