@@ -559,6 +559,29 @@ OFF_COMBINATION_SE = 5.0
 OFF_COMBINATION_TOL = 0.2
 
 
+def _on_family(fam, lines: list[ResidualLine], tolerance: float):
+    """The measured lines of `lines` within `tolerance` of a line of the family `fam`
+    (:func:`_modulation_family`), each with the family line nearest it: ``[(line, entry)]``."""
+    ff = np.array([f for f, *_ in fam])
+    out = []
+    for r in lines:
+        i = int(np.argmin(np.abs(ff - r.frequency)))
+        if r.side == "measured" and abs(ff[i] - r.frequency) <= tolerance:
+            out.append((r, fam[i]))
+    return out
+
+
+def _readings(f_x: float, on_family) -> tuple[float, float, int]:
+    """Median, its standard error and count of the readings ``(f − L) / j`` of the lines on a
+    family (:func:`_on_family`); `f_x` with an infinite error when there is none."""
+    if not on_family:
+        return float(f_x), float("inf"), 0
+    e = np.asarray([(r.frequency - base) / j for r, (_, base, j, _) in on_family])
+    med = float(np.median(e))
+    se = 1.4826 * float(np.median(np.abs(e - med))) / math.sqrt(e.size)
+    return med, se, int(e.size)
+
+
 def refined_modulation_frequency(kin: Kinematics, f_x: float, lines: list[ResidualLine],
                                  tolerance: float, f_max: float) -> tuple[float, float, int]:
     """The modulation frequency read from the whole family of a trial line at `f_x` (Hz):
@@ -568,19 +591,7 @@ def refined_modulation_frequency(kin: Kinematics, f_x: float, lines: list[Residu
     / √n).
 
     **Returns:** ``(f_x, standard error, readings)`` in Hz, Hz and a count."""
-    fam = _modulation_family(kin, f_x, f_max)
-    ff = np.array([f for f, *_ in fam])
-    est = []
-    for r in lines:
-        i = int(np.argmin(np.abs(ff - r.frequency)))
-        if r.side == "measured" and abs(ff[i] - r.frequency) <= tolerance:
-            est.append((r.frequency - fam[i][1]) / fam[i][2])
-    if not est:
-        return float(f_x), float("inf"), 0
-    e = np.asarray(est)
-    med = float(np.median(e))
-    se = 1.4826 * float(np.median(np.abs(e - med))) / math.sqrt(e.size)
-    return med, se, int(e.size)
+    return _readings(f_x, _on_family(_modulation_family(kin, f_x, f_max), lines, tolerance))
 
 
 def _combination_frequencies(r: ResidualLine, kin: Kinematics, combs) -> list[float]:
@@ -617,35 +628,31 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
 
     **Returns:** the :class:`Modulation`, or ``None``."""
     meas = [r for r in lines if r.side == "measured"]
-    window = [r for r in meas if 2 * tolerance < r.frequency < 0.5 * kin.f_mesh]
-    trials = []
-    for r in window:
+    trials = []  # (line, its family, the combinations it lies off)
+    for r in meas:
+        if not 2 * tolerance < r.frequency < 0.5 * kin.f_mesh:
+            continue
         if not r.descriptions and not r.comb:
-            trials.append((r, ()))
+            trials.append((r, _modulation_family(kin, r.frequency, f_max), ()))
             continue
         named = _combination_frequencies(r, kin, combs)
         if not named or (r.comb and combs is None):
             continue
-        f_ref, se, n_est = refined_modulation_frequency(kin, r.frequency, meas, tolerance, f_max)
+        fam = _modulation_family(kin, r.frequency, f_max)
+        f_ref, se, n_est = _readings(r.frequency, _on_family(fam, meas, tolerance))
         off = min(abs(f_ref - f) for f in named)
         if n_est > min_members and off > max(OFF_COMBINATION_SE * se,
                                              OFF_COMBINATION_TOL * tolerance):
-            trials.append((r, tuple(sorted({d.text for d in r.descriptions} | (
+            trials.append((r, fam, tuple(sorted({d.text for d in r.descriptions} | (
                 {r.comb} if r.comb else set())))))
     trials.sort(key=lambda x: x[0].frequency)
     best = None
-    for t, off in trials:
-        fam = modulation_lines(kin, t.frequency, f_max)
-        ff = np.array([f for f, _ in fam])
+    for t, fam, off in trials:
         pool = [r for r in meas if r is not t]
-        mem = []
-        for r in pool:
-            i = int(np.argmin(np.abs(ff - r.frequency)))
-            if abs(ff[i] - r.frequency) <= tolerance:
-                mem.append((r.frequency, fam[i][1]))
+        mem = [(r.frequency, entry[3]) for r, entry in _on_family(fam, pool, tolerance)]
         if len(mem) < min_members:
             continue
-        p = _union_measure(ff, tolerance, f_max) / f_max
+        p = _union_measure(np.array([f for f, *_ in fam]), tolerance, f_max) / f_max
         ch = min(1.0, len(trials) * _binomial_tail(len(mem), len(pool), p))
         if ch <= max_chance and (best is None or len(mem) + 1 > len(best.members)):
             best = Modulation(t.frequency, len(fam), len(pool),
