@@ -336,7 +336,9 @@ def demo_section(folder, data: Path, quick: bool = False, spec=None) -> str:
         f"(95 % interval {lo:.2f} – {hi:.2f}, {est.method}), with the "
         f"{'calibrated spec of section 6' if calibrated else 'bench preset (section 6)'}"
         "; truth 0.6 in a translational twin with 20 stiffness harmonics and a transmission "
-        f"error, fitted with {fitted_with} (model-form error included).",
+        f"error, fitted with {fitted_with} (model-form error included)"
+        + (f"; of the calibration's two excitation/response splits the record preferred the "
+           f"{est.excitation} one." if est.excitation else "."),
         "",
         "![fit](identify_sun_fault.png)",
     ]

@@ -46,6 +46,23 @@ louder and reads it 4–10× small (docs/identification.md, "The twin of a sever
 other twin, its calibrated excitation, window and response are taken as they are and the estimate's
 `note` says so.
 
+**The calibration's split** (``splits=None``: on for a calibrated spec with a calibrated mesh
+excitation or response shape). A healthy record at one load measures each mesh harmonic as the
+product of its excitation and the sensor response there (:mod:`dtwin.identify.calibrate`); the
+calibration's transmission-error harmonics and response knots split that product one way, and
+a twin that moves the response up by some dB at the mesh band while its transmission error
+cancels as much of the stiffness waveform's excitation fits the healthy record as well, or
+better where the twin's own sun and ring excitations do not match the machine's. A tooth fault
+is not cancelled: its sidebands, the loss (N/m) times the static mesh deflection, pass the
+response as it is, so a response too high at the mesh band reads the fault too small by the
+same factor (2.4–4.6× on a four-planet record whose calibration raised its response 16 dB). The
+faulty record can tell the splits apart, since the fault's own lines fix the response against
+the stiffness the fault removes. So the fit is repeated with the other end of the split, the
+stiffness waveform's excitation alone and a flat response (:func:`stiffness_split`), and the
+two are scored as the loss shapes are: the split of least loss is reported
+(`SeverityEstimate.excitation`), and the intervals are the union over the splits the record
+cannot reject. Window, damping and load shares stay as calibrated. One more fit per shape.
+
 **The low band** (``low_band=None``, the default: on for a sun or ring fault on a steady
 spectrum record, :data:`LOW_BAND_LOCATIONS`; :func:`with_low_band`). The residuals of
 :mod:`dtwin.identify.residuals` look at bands around the mesh harmonics, where a tooth fault's
@@ -90,7 +107,7 @@ from dtwin.errors import ParameterError, SettingsError
 from dtwin.faults import MIN_SPREAD, peak_stiffness_loss
 from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
-from dtwin.spec import Spec, load_spec
+from dtwin.spec import Spec, load_spec, spec_to_dict
 from dtwin.spectrum import noise_floor
 from dtwin.twin import Twin
 
@@ -137,11 +154,13 @@ class SeverityEstimate:
     `peak_interval`, its 95 % interval over any healthy waveform (module docstring); `ramp`,
     `spread`: the loss's edge width and its extent beyond the contact (mesh cycles) of the
     reported fit; `widened`: the factor the intervals were widened by for lack of fit (1:
-    none); `shapes`: per shape tried (``ramps=``), its ramp, spread, loss, severity, peak loss,
-    whether the loss accepts it and its intervals (``jackknife_95`` with the band
-    jackknife); `note`: where the twin's kind departs from the one the spec was calibrated with,
+    none); `shapes`: per fit, shape (``ramps=``) and split, its ramp, spread, ``excitation``
+    (the split, where two were fitted), loss, severity, peak loss, whether the loss accepts it
+    and its intervals (``jackknife_95`` with the band jackknife); `note`: where the twin's kind departs from the one the spec was calibrated with,
     what that means (module docstring, "The twin"); `low_band`: whether the fit held the low
-    band (:func:`with_low_band`)."""
+    band (:func:`with_low_band`); `excitation`: of a calibrated spec's two excitation/response
+    splits, the one the reported fit used (:data:`SPLIT_CALIBRATED`, :data:`SPLIT_STIFFNESS`;
+    module docstring, "The calibration's split"), empty when one was fitted."""
 
     location: str
     severity: float
@@ -157,6 +176,7 @@ class SeverityEstimate:
     shapes: tuple[dict[str, Any], ...] = ()
     note: str = ""
     low_band: bool = False
+    excitation: str = ""
 
     @property
     def status(self) -> str:
@@ -171,16 +191,20 @@ class SeverityEstimate:
         return st
 
     def shapes_table(self) -> str:
-        """The loss shapes tried (``ramps=``), a line each: edges and extent (mesh cycles), the
-        fit's loss, severity and peak loss with its 95 % interval, and whether the record
-        rejects the shape; empty when one shape was fitted."""
+        """The fits of the loss shapes (``ramps=``) and excitation/response splits tried, a line
+        each: the split (where two were fitted), edges and extent (mesh cycles), the fit's loss,
+        severity and peak loss with its 95 % interval, and whether the record rejects it; empty
+        when one fit was made."""
         if len(self.shapes) < 2:
             return ""
-        out = [f"{'loss shape':<24} ramp spread       loss  severity  peak loss, 95 %"]
+        splits = any("excitation" in r for r in self.shapes)
+        head = f"{'excitation and response':<34} " if splits else ""
+        out = [f"{head}{'loss shape':<24} ramp spread       loss  severity  peak loss, 95 %"]
         for r in self.shapes:
             pk = r.get("peak_interval_95", [np.nan, np.nan])
             verdict = "accepted" if r["accepted"] else "rejected by the record"
-            out.append(f"{_shape_name(r['ramp'], r['spread']):<24} {r['ramp']:4.2f} "
+            col = f"{r.get('excitation', ''):<34} " if splits else ""
+            out.append(f"{col}{_shape_name(r['ramp'], r['spread']):<24} {r['ramp']:4.2f} "
                        f"{r['spread']:+5.2f}  {r['loss']:9.2f}  {r['severity']:8.3f}  "
                        f"{100 * r['peak_stiffness_loss']:5.1f} % [{100 * pk[0]:.1f}, "
                        f"{100 * pk[1]:.1f}]  {verdict}")
@@ -195,7 +219,7 @@ class SeverityEstimate:
                 "widened_for_lack_of_fit": self.widened,
                 "status": self.status, "shapes": [dict(x) for x in self.shapes],
                 "twin_kind": self.fit.problem.twin.kind, "note": self.note,
-                "low_band": self.low_band,
+                "low_band": self.low_band, "excitation": self.excitation,
                 "fit": self.fit.to_dict()}
 
     def summary(self) -> str:
@@ -298,41 +322,94 @@ def _twin_kind(spec_or_twin, kind: str | None) -> tuple[str | None, str]:
     return SEVERITY_KIND, ""
 
 
-def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band=None):
-    """``([(shape, FitResult)], note, low_band)``: one fit per loss shape (``ramps``; shape ``(ramp,
-    spread)``), or one fit of the twin's own fault as it is (``ramps=None``, shape None), and
-    the twin's note (:func:`_twin_kind`); with `low_band` the observation holds the low band too
-    (:func:`with_low_band`; None: for a sun or ring fault on a steady spectrum record,
-    :data:`LOW_BAND_LOCATIONS`; returned as used)."""
+#: What each excitation/response split of a calibrated spec is called in a severity's rows
+#: (module docstring, "The calibration's split").
+SPLIT_CALIBRATED = "calibrated"
+SPLIT_STIFFNESS = "stiffness waveform, flat response"
+
+
+def stiffness_split(spec_or_twin) -> Spec | None:
+    """The other end of a calibrated spec's excitation/response split (module docstring, "The
+    calibration's split"): the same spec with its mesh excitation back at the stiffness
+    waveform's own (every ``[mesh] excitation_*`` transmission-error harmonic 0 m) and a flat
+    sensor response at the calibrated knots' mean level (dB); window, damping and load shares
+    as calibrated. None for a twin, an uncalibrated spec, or a calibrated spec that has neither
+    (a calibration that kept the spec's values)."""
+    if isinstance(spec_or_twin, Twin):
+        return None
+    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
+    if not is_calibrated(spec):
+        return None
+    data = spec_to_dict(spec)
+    data.pop("source", None)
+    mesh, sensor = data["mesh"], data["sensor"]
+    keys = [k for k in ("excitation_sun_cos", "excitation_sun_sin", "excitation_ring_cos",
+                        "excitation_ring_sin") if mesh.get(k) is not None]
+    te = any(float(v) != 0.0 for k in keys for v in mesh[k])
+    frf = sensor.get("frf_db")
+    shaped = frf is not None and len(frf) > 1 and float(np.ptp(np.asarray(frf, float))) > 0.0
+    if not (te or shaped):
+        return None
+    for k in keys:
+        mesh[k] = [0.0] * len(mesh[k])
+    if shaped:
+        sensor["frf_db"] = [float(np.mean(frf))] * len(frf)
+    return load_spec(data)
+
+
+def _with_shape(problem, i: int, ramp: float, spread: float):
+    """`problem` with the loss shape of its twin's fault ``parts[i]`` set to `ramp` and
+    `spread` (mesh cycles)."""
+    fault = lambda p: p.twin.parts[i].fault  # noqa: E731
+    problem = eqx.tree_at(lambda p: fault(p).ramp, problem, jnp.asarray(ramp, jnp.float64))
+    return eqx.tree_at(lambda p: fault(p).spread, problem, jnp.asarray(spread, jnp.float64))
+
+
+def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band=None,
+                splits=None):
+    """``([(split, FitResult)], note, low_band)``: one fit per loss shape (``ramps``; shape
+    ``(ramp, spread)``, read back from each fit's twin), or one fit of the twin's own fault as it
+    is (``ramps=None``), and the twin's note (:func:`_twin_kind`); with `low_band` the
+    observation holds the low band too (:func:`with_low_band`; None: for a sun or ring fault on
+    a steady spectrum record, :data:`LOW_BAND_LOCATIONS`; returned as used). With `splits`
+    (None: where :func:`stiffness_split` gives one) every shape is fitted again with the spec's
+    other excitation/response split; `split` names it (:data:`SPLIT_CALIBRATED`,
+    :data:`SPLIT_STIFFNESS`), or is empty when one split was fitted."""
     pk, fk = _split_kwargs(dict(fit_kwargs))
     pk["kind"], note = _twin_kind(spec_or_twin, pk.get("kind"))
-    with warnings.catch_warnings():
-        if note:  # said in the estimate's note, in other words
-            warnings.filterwarnings("ignore", "this spec was calibrated with", UserWarning)
-        problem, ops = make_problem(record, spec_or_twin, names, initial=initial, **pk)
-    obs = problem.observations[0]
-    if low_band is None:
-        low_band = (obs.kind == "spectrum" and not obs.ramp and not obs.order_domain
-                    and names[0].removesuffix("_fault") in LOW_BAND_LOCATIONS)
-    if low_band:
-        kin = Kinematics.from_gear_set(problem.twin.lp, float(obs.speed[0]))
-        new = with_low_band(obs, record, channel=pk.get("channel", 0),
-                            n_planets=int(problem.twin.lp.n_planets), f_carrier=kin.f_carrier)
-        problem = dataclasses.replace(problem, observations=(new,) + problem.observations[1:])
-    if ramps is None:
-        res = fit(record, spec_or_twin, names, problem=problem, **fk)
-        res.operating_points = ops
-        return [(None, res)], note, bool(low_band)
-    i = _fault_index(problem.twin, names[0].removesuffix("_fault"))
+    other = stiffness_split(spec_or_twin) if splits is not False else None
+    if splits and other is None:
+        raise SettingsError("splits=True needs a calibrated spec with a calibrated mesh "
+                            "excitation or sensor response (dtwin calibrate); this one has none")
+    specs = [(SPLIT_CALIBRATED, spec_or_twin), (SPLIT_STIFFNESS, other)] if other is not None \
+        else [("", spec_or_twin)]
     out = []
-    for r, sp in _shapes(ramps):
-        prob = eqx.tree_at(lambda p: p.twin.parts[i].fault.ramp, problem,
-                           jnp.asarray(r, jnp.float64))
-        prob = eqx.tree_at(lambda p: p.twin.parts[i].fault.spread, prob,
-                           jnp.asarray(sp, jnp.float64))
-        res = fit(record, spec_or_twin, names, problem=prob, **fk)
-        res.operating_points = ops
-        out.append(((r, sp), res))
+    for split, sp_or_tw in specs:
+        with warnings.catch_warnings():
+            if note:  # said in the estimate's note, in other words
+                warnings.filterwarnings("ignore", "this spec was calibrated with", UserWarning)
+            problem, ops = make_problem(record, sp_or_tw, names, initial=initial, **pk)
+        obs = problem.observations[0]
+        if low_band is None:
+            low_band = (obs.kind == "spectrum" and not obs.ramp and not obs.order_domain
+                        and names[0].removesuffix("_fault") in LOW_BAND_LOCATIONS)
+        if low_band:
+            kin = Kinematics.from_gear_set(problem.twin.lp, float(obs.speed[0]))
+            new = with_low_band(obs, record, channel=pk.get("channel", 0),
+                                n_planets=int(problem.twin.lp.n_planets),
+                                f_carrier=kin.f_carrier)
+            problem = dataclasses.replace(problem, observations=(new,) + problem.observations[1:])
+        if ramps is None:
+            res = fit(record, sp_or_tw, names, problem=problem, **fk)
+            res.operating_points = ops
+            out.append((split, res))
+            continue
+        i = _fault_index(problem.twin, names[0].removesuffix("_fault"))
+        for r, sp in _shapes(ramps):
+            prob = _with_shape(problem, i, r, sp)
+            res = fit(record, sp_or_tw, names, problem=prob, **fk)
+            res.operating_points = ops
+            out.append((split, res))
     return out, note, bool(low_band)
 
 
@@ -383,7 +460,7 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
     name = _name(location)
     losses = np.array([res.loss if np.isfinite(res.loss) else np.inf for _, res in shapes])
     b = int(np.argmin(losses))
-    _, best = shapes[b]
+    key_b, best = shapes[b]
     i = best.names.index(name)
     unc = best.uncertainty
     twin_b = best.problem.twin
@@ -401,7 +478,7 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
         tol = max(CHI2_95 * unc.s2 * unc.kappa * unc.widened ** 2, excess)
     rows, lo, hi, plo, phi = [], iv[0], iv[1], np.inf, -np.inf
     jk_wider = False
-    for (_, res), loss in zip(shapes, losses, strict=True):
+    for (key, res), loss in zip(shapes, losses, strict=True):
         accepted = bool(2.0 * (loss - losses[b]) <= tol)
         tw = res.problem.twin
         j = _fault_index(tw, location)
@@ -409,6 +486,8 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
         row = {"ramp": float(tw.parts[j].fault.ramp), "spread": float(tw.parts[j].fault.spread),
                "loss": float(loss),
                "severity": s_j, "peak_stiffness_loss": _peak(tw, j, s_j), "accepted": accepted}
+        if isinstance(key, str) and key:
+            row["excitation"] = key
         if res.uncertainty is not None:
             a, c = map(float, res.uncertainty.interval[res.names.index(name)])
             row["interval_95"] = [a, c]
@@ -436,8 +515,11 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
         lo = float(best.problem.pset.lower[i])
         plo = _peak(twin_b, k, lo, "max")
     method = "profile" if unc is not None and name in unc.profiled else "gaussian"
-    if sum(r["accepted"] for r in rows) > 1:
+    accepted = [r for r in rows if r["accepted"]]
+    if len({(r["ramp"], r["spread"]) for r in accepted}) > 1:
         method += " + loss shapes"
+    if len({r.get("excitation") for r in accepted}) > 1:
+        method += " + excitation splits"
     if jk_wider:
         method += " + band jackknife"
     if healthy_ok:
@@ -448,21 +530,23 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
                             peak_loss=_peak(twin_b, k, sev), peak_interval=(float(plo), float(phi)),
                             ramp=float(twin_b.parts[k].fault.ramp),
                             spread=float(twin_b.parts[k].fault.spread), widened=best.widened,
-                            shapes=tuple(rows), note=note, low_band=low_band)
+                            shapes=tuple(rows), note=note, low_band=low_band,
+                            excitation=key_b if isinstance(key_b, str) else "")
 
 
 def _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_kwargs,
-                     low_band, jackknife) -> SeverityEstimate:
+                     low_band, jackknife, splits=None) -> SeverityEstimate:
     """:func:`_fit_shapes` of one record, then :func:`_estimate` from its fits."""
     shapes, note, used = _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs,
-                                     low_band)
+                                     low_band, splits)
     return _estimate(location, shapes, jackknife, note, used)
 
 
 def estimate_severity(
     record, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     initial_severity: float = 0.3, ramps: Sequence[float] | str | None = None,
-    low_band: bool | None = None, jackknife: bool = False, **fit_kwargs: Any,
+    low_band: bool | None = None, jackknife: bool = False, splits: bool | None = None,
+    **fit_kwargs: Any,
 ) -> SeverityEstimate:
     """Severity of the fault at `location` from one record, and its peak stiffness loss
     (module docstring).
@@ -472,7 +556,9 @@ def estimate_severity(
     (edge widths in mesh cycles, ``"grid"`` for :data:`RAMP_GRID`, ``"shapes"`` for
     :data:`SHAPE_GRID`; None: the twin's fault as it is, one fit); `low_band`: fit the low band
     too (None: for a sun or ring fault on a steady record, :data:`LOW_BAND_LOCATIONS`);
-    `jackknife`; keyword arguments of
+    `jackknife`; `splits`: fit a calibrated spec's other excitation/response split too (None:
+    where it has one, :func:`stiffness_split`; module docstring, "The calibration's split");
+    keyword arguments of
     :func:`dtwin.identify.fit.fit` (``kind``: default :data:`dtwin.build.SEVERITY_KIND` for a
     spec, ``f_sun``, ``features``, ``starts``, ``progress`` …).
     """
@@ -481,7 +567,7 @@ def estimate_severity(
     initial = dict(fit_kwargs.pop("initial", {}) or {})
     initial.setdefault(name, initial_severity)
     return _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_kwargs,
-                            low_band, jackknife)
+                            low_band, jackknife, splits)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -524,14 +610,14 @@ def severity_series(
     records: Sequence, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     labels: Sequence[str] | None = None, initial_severity: float = 0.3, warm_start: bool = False,
     ramps: Sequence[float] | str | None = None, low_band: bool | None = None,
-    jackknife: bool = False, **fit_kwargs: Any,
+    jackknife: bool = False, splits: bool | None = None, **fit_kwargs: Any,
 ) -> SeveritySeries:
     """Fit every record of a series (module docstring).
 
     **Arguments:** `records` (in time order); `spec_or_twin`; `location`; `free` (further
     parameters); `labels` (default ``record0`` …); `initial_severity`; `warm_start`: start each
     fit from the previous record's values (a slowly evolving machine); `ramps`, `low_band`,
-    `jackknife`: as for :func:`estimate_severity`; keyword arguments of
+    `jackknife`, `splits`: as for :func:`estimate_severity`; keyword arguments of
     :func:`dtwin.identify.fit.fit` (``kind`` as for :func:`estimate_severity`).
     """
     name = _name(location)
@@ -544,7 +630,7 @@ def severity_series(
     ests = []
     for rec in records:
         est = _fitted_estimate(rec, spec_or_twin, location, names, init, ramps,
-                               dict(fit_kwargs), low_band, jackknife)
+                               dict(fit_kwargs), low_band, jackknife, splits)
         ests.append(est)
         if warm_start:
             init = dict(est.fit.values)

@@ -395,10 +395,11 @@ def test_unwritable_out_refused_before_work(tmp_path, monkeypatch, no_work, caps
 
 
 def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
-    """`dtwin severity --low-band --jackknife --shapes` asks the library for the low band, the
-    band jackknife and the loss shapes (dtwin.identify.severity.estimate_severity: ``ramps=
-    "shapes"``); without them, no jackknife, one shape and the low band where the record is
-    steady (None); `--no-low-band` turns it off."""
+    """`dtwin severity --low-band --jackknife --shapes --splits` asks the library for the low
+    band, the band jackknife, the loss shapes (dtwin.identify.severity.estimate_severity:
+    ``ramps="shapes"``) and both excitation/response splits; without them, no jackknife, one
+    shape, the low band where the record is steady and the splits where the spec has them
+    (None); `--no-low-band` and `--no-splits` turn those off."""
     from dtwin.identify import severity
 
     seen = []
@@ -407,13 +408,14 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
         pass
 
     def capture(*a, **k):
-        seen.append((k.get("low_band"), k.get("jackknife"), k.get("ramps")))
+        seen.append((k.get("low_band"), k.get("jackknife"), k.get("ramps"), k.get("splits")))
         raise Stop
 
     monkeypatch.setattr(severity, "estimate_severity", capture)
-    for extra, want in (([], (None, False, None)),
-                        (["--low-band", "--jackknife", "--shapes"], (True, True, "shapes")),
-                        (["--no-low-band"], (False, False, None))):
+    for extra, want in (([], (None, False, None, None)),
+                        (["--low-band", "--jackknife", "--shapes", "--splits"],
+                         (True, True, "shapes", True)),
+                        (["--no-low-band", "--no-splits"], (False, False, None, False))):
         with pytest.raises(SystemExit):  # the stand-in stops the command once it was called
             main(["severity", files["rec"], "--preset", "paper-sim", *extra])
         assert seen[-1] == want

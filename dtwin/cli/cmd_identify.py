@@ -337,6 +337,13 @@ def severity(
         help="Also fit the loss's shape (sharp, soft, felt beyond the tooth's contact, "
              "confined to its middle like a pit): the intervals become the union over the "
              "shapes the record cannot reject. One fit per shape."),
+    splits: bool | None = typer.Option(
+        None, "--splits/--no-splits",
+        help="With a calibrated spec, also fit the other end of its excitation/response split "
+             "(the stiffness waveform's excitation, a flat response), which a healthy record "
+             "cannot tell apart and a faulty one can; the split the record prefers is "
+             "reported (default: on where the calibration fitted an excitation or a response "
+             "shape). One more fit per shape."),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("severity.json, spectrum_fit.png, loss.png"),
@@ -364,7 +371,7 @@ def severity(
     with opts.working("fitting the severity"):
         est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
                                 channel=ch, low_band=low_band, jackknife=jackknife,
-                                ramps="shapes" if shapes else None)
+                                ramps="shapes" if shapes else None, splits=splits)
 
     report = {"record": str(record), "gearbox": gb.source, **_window_report(segs),
               **est.to_dict()}
@@ -384,4 +391,4 @@ def severity(
               gearbox=gb,
               parameters={"location": location, "free": extra,
                           "fit_window": window.text(), "low_band": low_band,
-                          "jackknife": jackknife, "shapes": shapes})
+                          "jackknife": jackknife, "shapes": shapes, "splits": splits})
