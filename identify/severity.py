@@ -49,19 +49,20 @@ other twin, its calibrated excitation, window and response are taken as they are
 **The calibration's split** (``splits=None``: on for a calibrated spec with a calibrated mesh
 excitation or response shape). A healthy record at one load measures each mesh harmonic as the
 product of its excitation and the sensor response there (:mod:`dtwin.identify.calibrate`); the
-calibration's transmission-error harmonics and response knots split that product one way, and
-a twin that moves the response up by some dB at the mesh band while its transmission error
+calibration's transmission-error harmonics and response knots split that product one way, and a
+twin that moves the response up by some dB at the mesh band while its transmission error
 cancels as much of the stiffness waveform's excitation fits the healthy record as well, or
 better where the twin's own sun and ring excitations do not match the machine's. A tooth fault
 is not cancelled: its sidebands, the loss (N/m) times the static mesh deflection, pass the
 response as it is, so a response too high at the mesh band reads the fault too small by the
-same factor (2.4–4.6× on a four-planet record whose calibration raised its response 16 dB). The
-faulty record can tell the splits apart, since the fault's own lines fix the response against
-the stiffness the fault removes. So the fit is repeated with the other end of the split, the
-stiffness waveform's excitation alone and a flat response (:func:`stiffness_split`), and the
-two are scored as the loss shapes are: the split of least loss is reported
-(`SeverityEstimate.excitation`), and the intervals are the union over the splits the record
-cannot reject. Window, damping and load shares stay as calibrated. One more fit per shape.
+same factor (2.4–4.6× on a four-planet record whose calibration raised its response 19 dB over
+the band). The faulty record can tell the splits apart, since the fault's own lines fix the
+response against the stiffness the fault removes. So the fit is repeated with the other end of
+the split, the stiffness waveform's excitation alone and a flat response
+(:func:`stiffness_split`), and the two are scored as the loss shapes are: the split of least
+loss is reported (`SeverityEstimate.excitation`), and the intervals are the union over the
+splits the record cannot reject. Window, damping and load shares stay as calibrated. One more
+fit per shape.
 
 **The low band** (``low_band=None``, the default: on for a sun or ring fault on a steady
 spectrum record, :data:`LOW_BAND_LOCATIONS`; :func:`with_low_band`). The residuals of
@@ -156,8 +157,9 @@ class SeverityEstimate:
     reported fit; `widened`: the factor the intervals were widened by for lack of fit (1:
     none); `shapes`: per fit, shape (``ramps=``) and split, its ramp, spread, ``excitation``
     (the split, where two were fitted), loss, severity, peak loss, whether the loss accepts it
-    and its intervals (``jackknife_95`` with the band jackknife); `note`: where the twin's kind departs from the one the spec was calibrated with,
-    what that means (module docstring, "The twin"); `low_band`: whether the fit held the low
+    and its intervals (``jackknife_95`` with the band jackknife); `note`: where the twin's
+    kind departs from the one the spec was calibrated with, what that means (module
+    docstring, "The twin"); `low_band`: whether the fit held the low
     band (:func:`with_low_band`); `excitation`: of a calibrated spec's two excitation/response
     splits, the one the reported fit used (:data:`SPLIT_CALIBRATED`, :data:`SPLIT_STIFFNESS`;
     module docstring, "The calibration's split"), empty when one was fitted."""
