@@ -112,6 +112,7 @@ from dtwin.spec import Spec, load_spec, spec_to_dict
 from dtwin.spectrum import noise_floor
 from dtwin.twin import Twin
 
+from .confounding import calibrated_excitation
 from .fit import FitResult, _batched_loss, _jacobian, fit, make_problem
 from .residuals import _STRONG_DB, _amplitude, point_groups
 from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, band_jackknife
@@ -345,15 +346,14 @@ def stiffness_split(spec_or_twin) -> Spec | None:
     data = spec_to_dict(spec)
     data.pop("source", None)
     mesh, sensor = data["mesh"], data["sensor"]
-    keys = [k for k in ("excitation_sun_cos", "excitation_sun_sin", "excitation_ring_cos",
-                        "excitation_ring_sin") if mesh.get(k) is not None]
-    te = any(float(v) != 0.0 for k in keys for v in mesh[k])
+    te = bool(calibrated_excitation(spec))
     frf = sensor.get("frf_db")
     shaped = frf is not None and len(frf) > 1 and float(np.ptp(np.asarray(frf, float))) > 0.0
     if not (te or shaped):
         return None
-    for k in keys:
-        mesh[k] = [0.0] * len(mesh[k])
+    for k, v in mesh.items():
+        if k.startswith("excitation_") and v is not None:
+            mesh[k] = [0.0] * len(v)
     if shaped:
         sensor["frf_db"] = [float(np.mean(frf))] * len(frf)
     return load_spec(data)
