@@ -64,6 +64,18 @@ loss is reported (`SeverityEstimate.excitation`), and the intervals are the unio
 splits the record cannot reject. Window, damping and load shares stay as calibrated. One more
 fit per shape.
 
+**A planet fault's flank** (``flanks=None``: on for a planet fault whose flank the spec does
+not name). A planet tooth meets the sun on one flank and the ring on the other, and a fault may
+weaken either or both (pitting of one flank, a crack or a missing tooth through both). The
+flank decides which mesh loses stiffness, and so the phase and level of every sideband: on a
+four-planet record with one planet flank pitted, a fit on the wrong flank reads the fault
+2.5–130× small, with a loss 2–5 times the right one's. The flank is a static field of the fault (a
+new compiled fit each), so the fit is repeated on each flank of :data:`PLANET_FLANKS` and the
+flanks are scored as the loss shapes are: the flank of least loss is reported
+(`SeverityEstimate.flank`) and the intervals are the union over the flanks the record cannot
+reject. Three fits where there was one; a spec whose ``[[faults]]`` entry at the planet names
+its ``flank`` is taken at its word.
+
 **The low band** (``low_band=None``, the default: on for a sun or ring fault on a steady
 spectrum record, :data:`LOW_BAND_LOCATIONS`; :func:`with_low_band`). The residuals of
 :mod:`dtwin.identify.residuals` look at bands around the mesh harmonics, where a tooth fault's
@@ -163,7 +175,9 @@ class SeverityEstimate:
     docstring, "The twin"); `low_band`: whether the fit held the low
     band (:func:`with_low_band`); `excitation`: of a calibrated spec's two excitation/response
     splits, the one the reported fit used (:data:`SPLIT_CALIBRATED`, :data:`SPLIT_STIFFNESS`;
-    module docstring, "The calibration's split"), empty when one was fitted."""
+    module docstring, "The calibration's split"), empty when one was fitted; `flank`: for a
+    planet fault, the flank of the planet tooth the reported fit put it on (``both``, ``sun``,
+    ``ring``; module docstring, "A planet fault's flank"), empty for a sun or ring fault."""
 
     location: str
     severity: float
@@ -180,6 +194,7 @@ class SeverityEstimate:
     note: str = ""
     low_band: bool = False
     excitation: str = ""
+    flank: str = ""
 
     @property
     def status(self) -> str:
@@ -194,19 +209,23 @@ class SeverityEstimate:
         return st
 
     def shapes_table(self) -> str:
-        """The fits of the loss shapes (``ramps=``) and excitation/response splits tried, a line
-        each: the split (where two were fitted), edges and extent (mesh cycles), the fit's loss,
+        """The fits of the loss shapes (``ramps=``), excitation/response splits and planet-tooth
+        flanks tried, a line each: the split and the flank (where several were fitted), edges
+        and extent (mesh cycles), the fit's loss,
         severity and peak loss with its 95 % interval, and whether the record rejects it; empty
         when one fit was made."""
         if len(self.shapes) < 2:
             return ""
         splits = any("excitation" in r for r in self.shapes)
-        head = f"{'excitation and response':<34} " if splits else ""
+        flanks = any("flank" in r for r in self.shapes)
+        head = (f"{'excitation and response':<34} " if splits else "") + \
+            (f"{'flank':<6} " if flanks else "")
         out = [f"{head}{'loss shape':<24} ramp spread       loss  severity  peak loss, 95 %"]
         for r in self.shapes:
             pk = r.get("peak_interval_95", [np.nan, np.nan])
             verdict = "accepted" if r["accepted"] else "rejected by the record"
-            col = f"{r.get('excitation', ''):<34} " if splits else ""
+            col = (f"{r.get('excitation', ''):<34} " if splits else "") + \
+                (f"{r.get('flank', ''):<6} " if flanks else "")
             out.append(f"{col}{_shape_name(r['ramp'], r['spread']):<24} {r['ramp']:4.2f} "
                        f"{r['spread']:+5.2f}  {r['loss']:9.2f}  {r['severity']:8.3f}  "
                        f"{100 * r['peak_stiffness_loss']:5.1f} % [{100 * pk[0]:.1f}, "
@@ -223,13 +242,15 @@ class SeverityEstimate:
                 "status": self.status, "shapes": [dict(x) for x in self.shapes],
                 "twin_kind": self.fit.problem.twin.kind, "note": self.note,
                 "low_band": self.low_band, "excitation": self.excitation,
-                "fit": self.fit.to_dict()}
+                "flank": self.flank, "fit": self.fit.to_dict()}
 
     def summary(self) -> str:
         """One line: severity and peak stiffness loss with their 95 % intervals and status."""
         lo, hi = self.interval
         plo, phi = self.peak_interval
-        return (f"{self.location} fault severity {self.severity:.3f} 95 % [{lo:.3f}, {hi:.3f}]"
+        where = {"": "", "both": " (both flanks)"}.get(self.flank, f" ({self.flank} flank)")
+        return (f"{self.location} fault{where} severity {self.severity:.3f} 95 % "
+                f"[{lo:.3f}, {hi:.3f}]"
                 f" ({self.method}); peak stiffness loss {100 * self.peak_loss:.1f} % of the mean "
                 f"mesh stiffness, 95 % [{100 * plo:.1f}, {100 * phi:.1f}] % (any healthy "
                 f"waveform); {self.status}")
@@ -359,6 +380,51 @@ def stiffness_split(spec_or_twin) -> Spec | None:
     return load_spec(data)
 
 
+#: The flanks of a planet tooth a planet fault's severity is fitted on (``flanks=None`` where the
+#: spec names none; module docstring, "A planet fault's flank"): both, the one meeting the sun,
+#: the one meeting the ring (:class:`dtwin.faults.AbstractFault`'s ``flank``).
+PLANET_FLANKS = ("both", "sun", "ring")
+
+
+def _named_flank(spec_or_twin) -> bool:
+    """Whether `spec_or_twin` says which flank its planet fault is on: a twin always does (its
+    own fault part, or the registry's both-flank default that :func:`estimate_severity` was
+    handed), a spec where a ``[[faults]]`` entry at the planet names ``flank``."""
+    if isinstance(spec_or_twin, Twin):
+        return True
+    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
+    return any(f.get("location") == "planet" and f.get("flank") for f in spec["faults"])
+
+
+def _flanks(spec_or_twin, location: str, flanks) -> tuple[str | None, ...]:
+    """The planet-tooth flanks to fit (``(None,)``: the twin's fault as it is): `flanks` None
+    gives :data:`PLANET_FLANKS` for a planet fault whose flank `spec_or_twin` does not name
+    (:func:`_named_flank`), True gives them for any planet fault, a sequence gives those
+    flanks, False none."""
+    if flanks is None:
+        flanks = location == "planet" and not _named_flank(spec_or_twin)
+    if flanks is False:
+        return (None,)
+    if location != "planet":
+        raise SettingsError(f"flanks are a planet tooth's; a {location} fault has none: drop "
+                            "flanks (--flanks) or fit location='planet'")
+    chosen = PLANET_FLANKS if flanks is True else tuple(flanks)
+    bad = [f for f in chosen if f not in PLANET_FLANKS]
+    if bad or not chosen:
+        raise SettingsError(f"flanks must be some of {PLANET_FLANKS}, got {list(chosen)}")
+    return tuple(dict.fromkeys(chosen))
+
+
+def _with_flank(problem, i: int, flank: str | None):
+    """`problem` with its twin's fault ``parts[i]`` on `flank` (a static field: a new compiled
+    fit per flank); None leaves it as it is."""
+    if flank is None:
+        return problem
+    fault = problem.twin.parts[i].fault
+    return eqx.tree_at(lambda p: p.twin.parts[i].fault, problem,
+                       dataclasses.replace(fault, flank=flank))
+
+
 def _with_shape(problem, i: int, ramp: float, spread: float):
     """`problem` with the loss shape of its twin's fault ``parts[i]`` set to `ramp` and
     `spread` (mesh cycles)."""
@@ -368,15 +434,19 @@ def _with_shape(problem, i: int, ramp: float, spread: float):
 
 
 def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band=None,
-                splits=None):
-    """``([(split, FitResult)], note, low_band)``: one fit per loss shape (``ramps``; shape
+                splits=None, flanks=False):
+    """``([(tags, FitResult)], note, low_band)``: one fit per loss shape (``ramps``; shape
     ``(ramp, spread)``, read back from each fit's twin), or one fit of the twin's own fault as it
     is (``ramps=None``), and the twin's note (:func:`_twin_kind`); with `low_band` the
     observation holds the low band too (:func:`with_low_band`; None: for a sun or ring fault on
     a steady spectrum record, :data:`LOW_BAND_LOCATIONS`; returned as used). With `splits`
     (None: where :func:`stiffness_split` gives one) every shape is fitted again with the spec's
-    other excitation/response split; `split` names it (:data:`SPLIT_CALIBRATED`,
-    :data:`SPLIT_STIFFNESS`), or is empty when one split was fitted."""
+    other excitation/response split, and with `flanks` (:func:`_flanks`) on each planet-tooth
+    flank. `tags` names what varies beyond the shape: ``"excitation"`` (:data:`SPLIT_CALIBRATED`,
+    :data:`SPLIT_STIFFNESS`) where two splits were fitted, ``"flank"`` where several flanks
+    were."""
+    location = names[0].removesuffix("_fault")
+    flank_list = _flanks(spec_or_twin, location, flanks)
     pk, fk = _split_kwargs(dict(fit_kwargs))
     pk["kind"], note = _twin_kind(spec_or_twin, pk.get("kind"))
     other = stiffness_split(spec_or_twin) if splits is not False else None
@@ -394,24 +464,24 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
         obs = problem.observations[0]
         if low_band is None:
             low_band = (obs.kind == "spectrum" and not obs.ramp and not obs.order_domain
-                        and names[0].removesuffix("_fault") in LOW_BAND_LOCATIONS)
+                        and location in LOW_BAND_LOCATIONS)
         if low_band:
             kin = Kinematics.from_gear_set(problem.twin.lp, float(obs.speed[0]))
             new = with_low_band(obs, record, channel=pk.get("channel", 0),
                                 n_planets=int(problem.twin.lp.n_planets),
                                 f_carrier=kin.f_carrier)
             problem = dataclasses.replace(problem, observations=(new,) + problem.observations[1:])
-        if ramps is None:
-            res = fit(record, sp_or_tw, names, problem=problem, **fk)
-            res.operating_points = ops
-            out.append((split, res))
-            continue
-        i = _fault_index(problem.twin, names[0].removesuffix("_fault"))
-        for r, sp in _shapes(ramps):
-            prob = _with_shape(problem, i, r, sp)
-            res = fit(record, sp_or_tw, names, problem=prob, **fk)
-            res.operating_points = ops
-            out.append((split, res))
+        i = _fault_index(problem.twin, location)
+        for flank in flank_list:
+            tags = {"excitation": split} if split else {}
+            if len(flank_list) > 1:
+                tags["flank"] = flank
+            on_flank = _with_flank(problem, i, flank)
+            for shape in (None,) if ramps is None else _shapes(ramps):
+                prob = on_flank if shape is None else _with_shape(on_flank, i, *shape)
+                res = fit(record, sp_or_tw, names, problem=prob, **fk)
+                res.operating_points = ops
+                out.append((dict(tags), res))
     return out, note, bool(low_band)
 
 
@@ -463,6 +533,7 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
     losses = np.array([res.loss if np.isfinite(res.loss) else np.inf for _, res in shapes])
     b = int(np.argmin(losses))
     key_b, best = shapes[b]
+    tags_b = key_b if isinstance(key_b, dict) else {}
     i = best.names.index(name)
     unc = best.uncertainty
     twin_b = best.problem.twin
@@ -488,8 +559,8 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
         row = {"ramp": float(tw.parts[j].fault.ramp), "spread": float(tw.parts[j].fault.spread),
                "loss": float(loss),
                "severity": s_j, "peak_stiffness_loss": _peak(tw, j, s_j), "accepted": accepted}
-        if isinstance(key, str) and key:
-            row["excitation"] = key
+        if isinstance(key, dict):
+            row.update(key)
         if res.uncertainty is not None:
             a, c = map(float, res.uncertainty.interval[res.names.index(name)])
             row["interval_95"] = [a, c]
@@ -522,6 +593,8 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
         method += " + loss shapes"
     if len({r.get("excitation") for r in accepted}) > 1:
         method += " + excitation splits"
+    if len({r.get("flank") for r in accepted}) > 1:
+        method += " + flanks"
     if jk_wider:
         method += " + band jackknife"
     if healthy_ok:
@@ -533,14 +606,16 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
                             ramp=float(twin_b.parts[k].fault.ramp),
                             spread=float(twin_b.parts[k].fault.spread), widened=best.widened,
                             shapes=tuple(rows), note=note, low_band=low_band,
-                            excitation=key_b if isinstance(key_b, str) else "")
+                            excitation=tags_b.get("excitation", ""),
+                            flank=str(getattr(twin_b.parts[k].fault, "flank", ""))
+                            if location == "planet" else "")
 
 
 def _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_kwargs,
-                     low_band, jackknife, splits=None) -> SeverityEstimate:
+                     low_band, jackknife, splits=None, flanks=None) -> SeverityEstimate:
     """:func:`_fit_shapes` of one record, then :func:`_estimate` from its fits."""
     shapes, note, used = _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs,
-                                     low_band, splits)
+                                     low_band, splits, flanks)
     return _estimate(location, shapes, jackknife, note, used)
 
 
@@ -548,7 +623,7 @@ def estimate_severity(
     record, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     initial_severity: float = 0.3, ramps: Sequence[float] | str | None = None,
     low_band: bool | None = None, jackknife: bool = False, splits: bool | None = None,
-    **fit_kwargs: Any,
+    flanks: bool | Sequence[str] | None = None, **fit_kwargs: Any,
 ) -> SeverityEstimate:
     """Severity of the fault at `location` from one record, and its peak stiffness loss
     (module docstring).
@@ -560,7 +635,9 @@ def estimate_severity(
     too (None: for a sun or ring fault on a steady record, :data:`LOW_BAND_LOCATIONS`);
     `jackknife`; `splits`: fit a calibrated spec's other excitation/response split too (None:
     where it has one, :func:`stiffness_split`; module docstring, "The calibration's split");
-    keyword arguments of
+    `flanks`: for a planet fault, the planet-tooth flanks to fit (True: :data:`PLANET_FLANKS`;
+    a sequence of them; False: the fault's own; None: all three unless the spec names the
+    planet fault's flank; module docstring, "A planet fault's flank"); keyword arguments of
     :func:`dtwin.identify.fit.fit` (``kind``: default :data:`dtwin.build.SEVERITY_KIND` for a
     spec, ``f_sun``, ``features``, ``starts``, ``progress`` …).
     """
@@ -569,7 +646,7 @@ def estimate_severity(
     initial = dict(fit_kwargs.pop("initial", {}) or {})
     initial.setdefault(name, initial_severity)
     return _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_kwargs,
-                            low_band, jackknife, splits)
+                            low_band, jackknife, splits, flanks)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -612,14 +689,15 @@ def severity_series(
     records: Sequence, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     labels: Sequence[str] | None = None, initial_severity: float = 0.3, warm_start: bool = False,
     ramps: Sequence[float] | str | None = None, low_band: bool | None = None,
-    jackknife: bool = False, splits: bool | None = None, **fit_kwargs: Any,
+    jackknife: bool = False, splits: bool | None = None,
+    flanks: bool | Sequence[str] | None = None, **fit_kwargs: Any,
 ) -> SeveritySeries:
     """Fit every record of a series (module docstring).
 
     **Arguments:** `records` (in time order); `spec_or_twin`; `location`; `free` (further
     parameters); `labels` (default ``record0`` …); `initial_severity`; `warm_start`: start each
     fit from the previous record's values (a slowly evolving machine); `ramps`, `low_band`,
-    `jackknife`, `splits`: as for :func:`estimate_severity`; keyword arguments of
+    `jackknife`, `splits`, `flanks`: as for :func:`estimate_severity`; keyword arguments of
     :func:`dtwin.identify.fit.fit` (``kind`` as for :func:`estimate_severity`).
     """
     name = _name(location)
@@ -632,7 +710,7 @@ def severity_series(
     ests = []
     for rec in records:
         est = _fitted_estimate(rec, spec_or_twin, location, names, init, ramps,
-                               dict(fit_kwargs), low_band, jackknife, splits)
+                               dict(fit_kwargs), low_band, jackknife, splits, flanks)
         ests.append(est)
         if warm_start:
             init = dict(est.fit.values)

@@ -395,11 +395,11 @@ def test_unwritable_out_refused_before_work(tmp_path, monkeypatch, no_work, caps
 
 
 def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
-    """`dtwin severity --low-band --jackknife --shapes --splits` asks the library for the low
-    band, the band jackknife, the loss shapes (dtwin.identify.severity.estimate_severity:
-    ``ramps="shapes"``) and both excitation/response splits; without them, no jackknife, one
-    shape, the low band where the record is steady and the splits where the spec has them
-    (None); `--no-low-band` and `--no-splits` turn those off."""
+    """`dtwin severity --low-band --jackknife --shapes --splits --flanks` asks the library for
+    the low band, the band jackknife, the loss shapes (dtwin.identify.severity.estimate_severity:
+    ``ramps="shapes"``), both excitation/response splits and every planet-tooth flank; without
+    them, no jackknife, one shape, and the low band, splits and flanks where they apply (None);
+    `--no-low-band`, `--no-splits` and `--no-flanks` turn those off."""
     from dtwin.identify import severity
 
     seen = []
@@ -408,14 +408,16 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
         pass
 
     def capture(*a, **k):
-        seen.append((k.get("low_band"), k.get("jackknife"), k.get("ramps"), k.get("splits")))
+        seen.append((k.get("low_band"), k.get("jackknife"), k.get("ramps"), k.get("splits"),
+                     k.get("flanks")))
         raise Stop
 
     monkeypatch.setattr(severity, "estimate_severity", capture)
-    for extra, want in (([], (None, False, None, None)),
-                        (["--low-band", "--jackknife", "--shapes", "--splits"],
-                         (True, True, "shapes", True)),
-                        (["--no-low-band", "--no-splits"], (False, False, None, False))):
+    for extra, want in (([], (None, False, None, None, None)),
+                        (["--low-band", "--jackknife", "--shapes", "--splits", "--flanks"],
+                         (True, True, "shapes", True, True)),
+                        (["--no-low-band", "--no-splits", "--no-flanks"],
+                         (False, False, None, False, False))):
         with pytest.raises(SystemExit):  # the stand-in stops the command once it was called
             main(["severity", files["rec"], "--preset", "paper-sim", *extra])
         assert seen[-1] == want
@@ -424,19 +426,25 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
 
 def test_severity_report_opens_with_the_estimate():
     """`dtwin severity --out`'s report.html starts its summary with the severity, the peak
-    stiffness loss (%) and their 95 % intervals, and the status (stand-in estimate)."""
+    stiffness loss (%) and their 95 % intervals, for a planet fault the flank the record chose,
+    and the status (stand-in estimates)."""
     import types
 
     from dtwin.cli.cmd_identify import _severity_headline
 
     est = types.SimpleNamespace(location="sun", severity=0.4502, interval=(0.4098, 0.4914),
                                 method="gaussian", peak_loss=0.3087,
-                                peak_interval=(0.234, 0.491), status="ok")
+                                peak_interval=(0.234, 0.491), status="ok", flank="")
     rows = _severity_headline(est)
     assert rows == {
         "sun fault severity (dimensionless)": "0.45, 95 % [0.41, 0.491] (gaussian)",
         "peak stiffness loss (% of the mean mesh stiffness)": "30.9, 95 % [23.4, 49.1]",
         "status": "ok"}
+    planet = types.SimpleNamespace(**{**vars(est), "location": "planet", "flank": "ring",
+                                      "method": "gaussian + flanks"})
+    rows = _severity_headline(planet)
+    assert list(rows)[-2:] == ["planet tooth flank", "status"]
+    assert rows["planet tooth flank"] == "ring"
 
 
 def test_calibrated_spec_sets_the_twin_kind(files, tmp_path, monkeypatch, capsys):

@@ -9,6 +9,8 @@
 
     dtwin severity RECORD (--spec FILE | --preset NAME) [--location sun|planet|ring]
                    [--free extra,names] [--f-sun HZ] [--fit-window auto|full|START:LENGTH]
+                   [--low-band/--no-low-band] [--jackknife] [--shapes]
+                   [--splits/--no-splits] [--flanks/--no-flanks]
                    [--json] [--out DIR] [--force]
 
 Free names come from the parameter registry (``dtwin.registry``); an unknown name, an
@@ -143,6 +145,7 @@ def _severity_headline(est) -> dict:
             f"{est.severity:.3g}, 95 % [{lo:.3g}, {hi:.3g}] ({est.method})",
             "peak stiffness loss (% of the mean mesh stiffness)":
             f"{100 * est.peak_loss:.1f}, 95 % [{100 * plo:.1f}, {100 * phi:.1f}]",
+            **({"planet tooth flank": est.flank} if est.flank else {}),
             "status": est.status}
 
 
@@ -344,6 +347,13 @@ def severity(
              "cannot tell apart and a faulty one can; the split the record prefers is "
              "reported (default: on where the calibration fitted an excitation or a response "
              "shape). One more fit per shape."),
+    flanks: bool | None = typer.Option(
+        None, "--flanks/--no-flanks",
+        help="For a planet fault, fit it on each flank of the planet tooth (both, the one "
+             "meeting the sun, the one meeting the ring) and report the flank the record "
+             "prefers; a planet fault on the wrong flank reads many times small (default: on "
+             "unless the spec's [[faults]] entry names the planet fault's flank). Three fits "
+             "where there was one."),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("severity.json, spectrum_fit.png, loss.png"),
@@ -371,7 +381,8 @@ def severity(
     with opts.working("fitting the severity"):
         est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
                                 channel=ch, low_band=low_band, jackknife=jackknife,
-                                ramps="shapes" if shapes else None, splits=splits)
+                                ramps="shapes" if shapes else None, splits=splits,
+                                flanks=flanks)
 
     report = {"record": str(record), "gearbox": gb.source, **_window_report(segs),
               **est.to_dict()}
@@ -391,4 +402,5 @@ def severity(
               gearbox=gb,
               parameters={"location": location, "free": extra,
                           "fit_window": window.text(), "low_band": low_band,
-                          "jackknife": jackknife, "shapes": shapes, "splits": splits})
+                          "jackknife": jackknife, "shapes": shapes, "splits": splits,
+                          "flanks": flanks})
