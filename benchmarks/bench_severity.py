@@ -6,7 +6,8 @@ excitation/response split where the library fits them), each record in this proc
 the other (the first pays the compilations). The spec is the user's ``gearbox.toml`` of
 ``../shared/independent/`` calibrated on ``baseline-1.csv`` unless ``--spec`` names a
 calibrated spec. Reports per record: wall and CPU time, load average, the peak stiffness loss
-with its 95 % interval, the split reported (empty where one was fitted) and the status.
+with its 95 % interval, the split and (for a planet fault) the planet-tooth flank reported
+(empty where one was fitted), the number of fits and the status.
 
 Usage: ``python benchmarks/bench_severity.py [--spec CAL.toml] [--records R.csv ...]
 [--location sun] [--json]``
@@ -63,13 +64,15 @@ def main(argv=None) -> int:
                    load_after=load_average()[0], peak_loss_pc=100 * est.peak_loss,
                    peak_lower_pc=100 * est.peak_interval[0],
                    peak_upper_pc=100 * est.peak_interval[1],
-                   split=getattr(est, "excitation", ""), fits=len(est.shapes) or 1,
+                   split=getattr(est, "excitation", ""), flank=getattr(est, "flank", ""),
+                   fits=len(est.shapes) or 1,
                    status=est.status)
         rows.append(row)
         if not args.json:
             print(f"{path.name:20s} {wall:7.1f} s wall {cpu:7.1f} s CPU load {load0:4.1f} "
                   f"peak {row['peak_loss_pc']:.1f} % [{row['peak_lower_pc']:.1f}, "
-                  f"{row['peak_upper_pc']:.1f}] {row['split'] or '-'} ({row['fits']} fits, "
+                  f"{row['peak_upper_pc']:.1f}] {row['split'] or '-'} {row['flank'] or '-'} "
+                  f"({row['fits']} fits, "
                   f"{row['status']})", flush=True)
     if args.json:
         print(json.dumps(rows))
