@@ -256,3 +256,41 @@ def test_planet_position_effect_is_the_spec_planets():
     assert np.all(level["spec"] < -8.0)  # the lines are there (the ideal twin's sit ≤ −70 dB)
     np.testing.assert_allclose(level["effect"], level["spec"], atol=0.3)
     assert np.max(np.abs(level["pins"] - level["spec"])) > 10.0
+
+
+def test_planet_fault_candidate_has_a_severity_per_flank():
+    """The planet fault candidate holds one pitting per flank of the planet tooth (the sun's and
+    the ring's, each its own severity): with the ring flank's alone the sun meshes lose nothing
+    and the ring mesh of planet 0 what a ring-flank Pitting of that severity removes; both
+    together are the sum; the main value is the worse flank's; a fixed flank keeps one."""
+    from dtwin.faults import Pitting
+    from dtwin.identify.effects.local_fault import LocalFaultEffect
+
+    tw = build_twin(preset("paper-sim"), kind="torsional")
+    kin = Kinematics.from_gear_set(tw.lp, 30.0)
+    eff = LocalFaultEffect(location="planet")
+    assert eff.name == "planet_local_fault" and eff.group == "planet_fault"
+    assert [q.name for q in eff.parameters(tw)] == ["planet_fault_sun", "planet_fault_ring"]
+    theta_p = jnp.array([0.21, 1.3, 2.5])
+
+    def loss(parts):
+        sp = sum(p.fault.stiffness_loss(tw.lp, 0.4, 0.1, 0.0, theta_p)[0] for p in parts)
+        rp = sum(p.fault.stiffness_loss(tw.lp, 0.4, 0.1, 0.0, theta_p)[1] for p in parts)
+        return np.asarray(sp), np.asarray(rp)
+
+    ring = Pitting(0.3, location="planet", flank="ring").stiffness_loss(tw.lp, 0.4, 0.1, 0.0,
+                                                                         theta_p)
+    sun = Pitting(0.2, location="planet", flank="sun").stiffness_loss(tw.lp, 0.4, 0.1, 0.0,
+                                                                       theta_p)
+    assert np.asarray(ring[1]).any() and np.asarray(sun[0]).any()  # the tooth in contact
+    sp, rp = loss(eff.parts(jnp.array([0.0, 0.3]), tw, kin))
+    assert not sp.any()
+    np.testing.assert_allclose(rp, ring[1], rtol=1e-12)
+    sp, rp = loss(eff.parts(jnp.array([0.2, 0.3]), tw, kin))
+    np.testing.assert_allclose(sp, sun[0], rtol=1e-12)
+    np.testing.assert_allclose(rp, ring[1], rtol=1e-12)
+    assert float(eff.main(jnp.array([0.2, 0.3]))) == pytest.approx(0.3)
+    fixed = LocalFaultEffect(location="planet", flank="ring")
+    assert fixed.name == "planet_local_fault_ring"
+    assert [q.name for q in fixed.parameters(tw)] == ["planet_fault_ring"]
+    assert len(fixed.parts(jnp.array([0.3]), tw, kin)) == 1

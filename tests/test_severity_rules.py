@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _gearboxes import FOUR_PLANET
 
 
 def _coverage(tau: float, sigma: float, trials: int, seed: int):
@@ -215,16 +216,6 @@ def test_the_low_band_by_default_for_sun_and_ring_faults_on_steady_records(monke
         assert (seen[-1] < 2 * low) == has_low, (location, low_band, seen[-1], low)
 
 
-FOUR_PLANET = {
-    "name": "four-planet",
-    "gears": {"z_sun": 24, "z_planet": 36, "z_ring": 96, "n_planets": 4, "module": 0.0025,
-              "pressure_angle": 0.3490658503988659, "face_width": 0.025},
-    "material": {"youngs_modulus": 2.06e11, "poisson": 0.3, "density": 7850.0},
-    "operating": {"f_sun": 25.0, "load_torque": 60.0},
-    "sensor": {"angle": 1.5707963267948966, "direction": "vertical",
-               "quantity": "acceleration", "sample_rate": 10000.0},
-    "model": {"kind": "translational"},
-}
 
 
 def test_stiffness_split_of_a_calibrated_spec():

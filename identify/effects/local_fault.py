@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 import equinox as eqx
+import jax.numpy as jnp
 
 from dtwin.faults import Pitting
 from dtwin.parts.local_fault import LocalFault
@@ -12,6 +13,8 @@ from dtwin.parts.local_fault import LocalFault
 from .base import AbstractEffect, EffectParameter, comb_grid
 
 _GROUPS = {"sun": "sun_rotation", "planet": "planet_fault", "ring": "carrier_sidebands"}
+_FLANK_TEXT = {"sun": "the flank meeting the sun", "ring": "the flank meeting the ring",
+               "both": "both flanks"}
 
 
 class LocalFaultEffect(AbstractEffect):
@@ -25,12 +28,20 @@ class LocalFaultEffect(AbstractEffect):
     the mesh sidebands all lie on the carrier grid: the ring fault belongs to the
     ``carrier_sidebands`` group); k up to what the band holds. Severity bounded to [0, 1] (a
     fit outside is set aside by the search, with the reason in its report).
+
+    A planet tooth meets the sun on one flank and the ring on the other, and which flank a
+    fault weakens decides which mesh loses stiffness: a pitted ring flank fitted as a sun-flank
+    fault leaves most of its sidebands unexplained. So a planet fault (``flank="fitted"``, the
+    default) has one severity per flank, ``planet_fault_sun`` and ``planet_fault_ring``, two
+    parts on the same tooth: one flank, the other or both (their sum) is what the fit finds, in
+    one candidate. Its main value is the larger of the two. ``flank="sun"``, ``"ring"`` or
+    ``"both"`` fixes the flank (one severity, ``planet_fault_<flank>``).
     """
 
     location: str = eqx.field(static=True, default="sun")
-    #: a planet tooth's flank: ``"sun"`` (the one meeting the sun, :class:`Pitting`'s default),
-    #: ``"ring"`` or ``"both"``; ignored for sun and ring faults
-    flank: str = eqx.field(static=True, default="sun")
+    #: a planet tooth's flank: ``"fitted"`` (one severity per flank, class docstring), ``"sun"``
+    #: (the one meeting the sun), ``"ring"`` or ``"both"``; ignored for sun and ring faults
+    flank: str = eqx.field(static=True, default="fitted")
     description: ClassVar[str] = "a local tooth fault (pitting)"
     main_name: ClassVar[str] = "pitting severity"
     main_unit: ClassVar[str] = "1"
@@ -40,7 +51,7 @@ class LocalFaultEffect(AbstractEffect):
 
     @property
     def name(self) -> str:
-        if self.location == "planet" and self.flank != "sun":
+        if self.location == "planet" and self.flank != "fitted":
             return f"planet_local_fault_{self.flank}"
         return f"{self.location}_local_fault"
 
@@ -48,15 +59,25 @@ class LocalFaultEffect(AbstractEffect):
     def group(self) -> str:
         return _GROUPS[self.location]
 
+    def _flanks(self) -> tuple[str, ...]:
+        """The planet-tooth flanks with a severity each (empty for a sun or ring fault)."""
+        if self.location != "planet":
+            return ()
+        return ("sun", "ring") if self.flank == "fitted" else (self.flank,)
+
     def parameters(self, twin):
-        suffix = f"_{self.flank}" if self.location == "planet" and self.flank != "sun" else ""
-        return (EffectParameter(f"{self.location}_fault{suffix}", "1", 0.1,
-                                f"severity of the {self.location} local fault", (0.0, 1.0),
-                                nonnegative=True),)
+        if self.location != "planet":
+            return (EffectParameter(f"{self.location}_fault", "1", 0.1,
+                                    f"severity of the {self.location} local fault", (0.0, 1.0),
+                                    nonnegative=True),)
+        return tuple(EffectParameter(f"planet_fault_{f}", "1", 0.1,
+                                     f"severity of the planet local fault on {_FLANK_TEXT[f]}",
+                                     (0.0, 1.0), nonnegative=True) for f in self._flanks())
 
     def parts(self, theta, twin, kin):
         if self.location == "planet":
-            return (LocalFault(Pitting(theta[0], location="planet", flank=self.flank)),)
+            return tuple(LocalFault(Pitting(theta[i], location="planet", flank=f))
+                         for i, f in enumerate(self._flanks()))
         return (LocalFault(Pitting(theta[0], location=self.location)),)
 
     def signature(self, kin, f_max):
@@ -67,4 +88,6 @@ class LocalFaultEffect(AbstractEffect):
         return comb_grid(kin, f_max, "fc", kin.f_carrier, carrier=0, off_carrier_grid=False)
 
     def main(self, theta):
-        return theta[0]
+        """The severity; for a planet fault fitted per flank, that of the worse flank."""
+        return jnp.max(theta) if self.location == "planet" and self.flank == "fitted" \
+            else theta[0]
