@@ -69,7 +69,7 @@ not name). A planet tooth meets the sun on one flank and the ring on the other, 
 weaken either or both (pitting of one flank, a crack or a missing tooth through both). The
 flank decides which mesh loses stiffness, and so the phase and level of every sideband: on a
 four-planet record with one planet flank pitted, a fit on the wrong flank reads the fault
-2.5–130× small, with a loss 2–5 times the right one's. The flank is a static field of the fault (a
+2.5–130× small, with a loss 2–6 times the right one's. The flank is a static field of the fault (a
 new compiled fit each), so the fit is repeated on each flank of :data:`PLANET_FLANKS` and the
 flanks are scored as the loss shapes are: the flank of least loss is reported
 (`SeverityEstimate.flank`) and the intervals are the union over the flanks the record cannot
@@ -388,8 +388,8 @@ PLANET_FLANKS = ("both", "sun", "ring")
 
 def _named_flank(spec_or_twin) -> bool:
     """Whether `spec_or_twin` says which flank its planet fault is on: a twin always does (its
-    own fault part, or the registry's both-flank default that :func:`estimate_severity` was
-    handed), a spec where a ``[[faults]]`` entry at the planet names ``flank``."""
+    planet fault part's flank; the registry's default part, on both flanks, where it has none),
+    a spec where a ``[[faults]]`` entry at the planet names ``flank``."""
     if isinstance(spec_or_twin, Twin):
         return True
     spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
