@@ -216,8 +216,6 @@ def test_the_low_band_by_default_for_sun_and_ring_faults_on_steady_records(monke
         assert (seen[-1] < 2 * low) == has_low, (location, low_band, seen[-1], low)
 
 
-
-
 def test_stiffness_split_of_a_calibrated_spec():
     """dtwin.identify.severity.stiffness_split: the calibrated spec with every transmission-error
     harmonic at 0 m and a flat response at its knots' mean level, window and damping as
@@ -287,7 +285,7 @@ def test_a_planet_fault_is_fitted_on_the_flank_the_record_prefers():
     1; the record's twin has 16 stiffness harmonics where the fitted one has 12, pitting where
     the fit has a missing tooth's loss, 30 dB noise). The user's spec names no flank, so the
     severity is fitted on both flanks, on the sun's and on the ring's (PLANET_FLANKS): the
-    record rejects the two wrong ones, whose fits read the fault 2.5–200× small, and the ring
+    record rejects the two wrong ones, whose fits read the fault 2.5–6× small, and the ring
     flank is reported with the truth inside its interval. Measured (2 s record): ring 17.4 %
     [15.4, 32.2], loss 111.4; both flanks 9.2 % (loss 241.5); sun flank 4.2 % (674.6); truth
     23.5 %. Before the flanks were fitted, the both-flank fit was the answer."""
