@@ -406,8 +406,9 @@ def _flanks(spec_or_twin, location: str, flanks) -> tuple[str | None, ...]:
     if flanks is False:
         return (None,)
     if location != "planet":
-        raise SettingsError(f"flanks are a planet tooth's; a {location} fault has none: drop "
-                            "flanks (--flanks) or fit location='planet'")
+        raise SettingsError(f"flanks are a planet tooth's; a {location} fault has none: leave "
+                            "out flanks (--flanks) or fit a planet fault (location='planet', "
+                            "--location planet)")
     chosen = PLANET_FLANKS if flanks is True else tuple(flanks)
     bad = [f for f in chosen if f not in PLANET_FLANKS]
     if bad or not chosen:
