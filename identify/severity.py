@@ -435,7 +435,7 @@ def _with_shape(problem, i: int, ramp: float, spread: float):
 
 
 def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band=None,
-                splits=None, flanks=False):
+                splits=None, flanks=None):
     """``([(tags, FitResult)], note, low_band)``: one fit per loss shape (``ramps``; shape
     ``(ramp, spread)``, read back from each fit's twin), or one fit of the twin's own fault as it
     is (``ramps=None``), and the twin's note (:func:`_twin_kind`); with `low_band` the
@@ -592,10 +592,9 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
     accepted = [r for r in rows if r["accepted"]]
     if len({(r["ramp"], r["spread"]) for r in accepted}) > 1:
         method += " + loss shapes"
-    if len({r.get("excitation") for r in accepted}) > 1:
-        method += " + excitation splits"
-    if len({r.get("flank") for r in accepted}) > 1:
-        method += " + flanks"
+    for tag, words in (("excitation", "excitation splits"), ("flank", "flanks")):
+        if len({r.get(tag) for r in accepted}) > 1:  # what the fits' tags vary (_fit_shapes)
+            method += f" + {words}"
     if jk_wider:
         method += " + band jackknife"
     if healthy_ok:
