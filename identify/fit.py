@@ -67,6 +67,7 @@ from .residuals import (
     point_groups,
     residual_count,
 )
+from .split import SPLIT_CALIBRATED, SPLIT_STIFFNESS, choose_split, other_split
 from .uncertainty import Uncertainty, analyse, expected_noise_rss
 
 __all__ = ["FitResult", "Problem", "SOLVERS", "fit", "fit_batch", "make_problem", "stack_problems"]
@@ -565,7 +566,12 @@ class FitResult:
     - `relocations`: each time the fit went on from a point of lower loss that a severity's
       profile or a stiffness's scan passed (the first optimum was a local one): the
       parameter's name (``profile_of``), ``by`` (``"profile"`` or ``"scan"``) and the loss
-      before and after.
+      before and after;
+    - `excitation`: for a fault severity fitted with both ends of a calibrated spec's
+      excitation/response split (:mod:`dtwin.identify.split`), the one reported
+      (:data:`~dtwin.identify.split.SPLIT_CALIBRATED` or
+      :data:`~dtwin.identify.split.SPLIT_STIFFNESS`), and `splits`: a row per split (loss,
+      values, intervals, accepted); empty otherwise.
     """
 
     names: tuple[str, ...]
@@ -588,6 +594,8 @@ class FitResult:
     residuals: np.ndarray | None = dataclasses.field(default=None, repr=False)
     jacobian: np.ndarray | None = dataclasses.field(default=None, repr=False)
     relocations: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    excitation: str = ""
+    splits: list[dict[str, Any]] = dataclasses.field(default_factory=list)
 
     @property
     def not_determined(self) -> dict[str, str]:
@@ -639,6 +647,12 @@ class FitResult:
             rows.append(f"local optimum left: the {m['by']} of {m['profile_of']} passed a point "
                         f"of lower loss; refined from it, loss {m['loss_before']:.5g} → "
                         f"{m['loss_after']:.5g}")
+        for row in self.splits:
+            mark = "reported" if row["excitation"] == self.excitation else \
+                "not rejected: intervals over both" if row["accepted"] else "rejected"
+            vals = ", ".join(f"{n} {row['values'][n]:.5g}" for n in self.names)
+            rows.append(f"excitation/response split {row['excitation']!r}: loss "
+                        f"{row['loss']:.5g}, {vals} ({mark})")
         u = self.uncertainty
         if u is not None and np.isfinite(u.lack_of_fit):
             rows.append(f"lack of fit: loss {u.lack_of_fit:.3g}× what the noise alone leaves"
@@ -657,6 +671,7 @@ class FitResult:
             "converged": self.converged, "at_bound": self.at_bound, "message": self.message,
             "iterations": self.iterations, "wall_time_s": self.wall_time,
             "operating_points": self.operating_points, "relocations": self.relocations,
+            "excitation": self.excitation, "splits": self.splits,
         }
         if self.uncertainty is not None:
             out["uncertainty"] = self.uncertainty.to_dict()
@@ -862,6 +877,7 @@ def fit(
     confounding: bool = True,
     progress: bool = False,
     throw: bool = False,
+    splits: bool | None = None,
     problem: Problem | None = None,
     **problem_kwargs: Any,
 ) -> FitResult:
@@ -899,6 +915,13 @@ def fit(
       confound (:mod:`dtwin.identify.confounding`; one more Jacobian with their columns).
     - `progress`: print the stages and losses (stderr).
     - `throw`: raise `FitError` when not converged or at a bound.
+    - `splits`: with a calibrated spec whose mesh excitation or sensor response was calibrated,
+      fit the free parameters again with the other end of its excitation/response split (the
+      stiffness waveform's excitation, a flat response) and report the split of least loss,
+      with intervals over both where the record cannot reject either
+      (:mod:`dtwin.identify.split`); None: where a fault severity is free (a healthy record
+      cannot tell the splits apart, a fault's sidebands can), True: for any parameters, False:
+      never. Not with `problem`.
     - keyword arguments of :func:`make_problem`: ``f_sun``, ``runup``, ``features``,
       ``weights``, ``initial``, ``fixed``, ``bounds``, ``priors``, ``channel``, ``discard``,
       ``oversample``, ``kind``, ``rtol``, ``atol``, ``periodic``.
@@ -907,6 +930,18 @@ def fit(
     """
     if solver not in SOLVERS:
         raise SettingsError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    other = None if problem is not None or isinstance(free, ParameterSet) else \
+        other_split(spec_or_twin, check_free(free), splits)
+    if other is not None:  # both ends of the calibration's split (dtwin.identify.split)
+        kw = dict(solver=solver, starts=starts, refine=refine, spread=spread, seed=seed, jac=jac,
+                  max_steps=max_steps, tol=tol, sigma_tol=sigma_tol, batch=batch,
+                  uncertainty=uncertainty, scan=scan, confounding=confounding,
+                  progress=progress, splits=False, **problem_kwargs)
+        res = choose_split([(SPLIT_CALIBRATED, fit(records, spec_or_twin, free, **kw)),
+                            (SPLIT_STIFFNESS, fit(records, other, free, **kw))])
+        if throw and (not res.converged or res.at_bound):
+            raise FitError(res.message)
+        return res
     mode = batch_mode(batch)
     t0 = time.perf_counter()
     if problem is None:
@@ -1091,6 +1126,7 @@ def fit_batch(
     batch: str = "auto",
     uncertainty: bool = True,
     confounding: bool = True,
+    splits: bool | None = None,
     **problem_kwargs: Any,
 ) -> list[FitResult]:
     """Fit many records of one gearbox type in one compiled call (one start each, θ = 0):
@@ -1098,8 +1134,17 @@ def fit_batch(
     per-record keyword lists (``f_sun``…) are not taken here: pass scalars. Uncertainties come
     from the residuals and Jacobian of each record's last accepted LM step, checked against a
     spec's calibration as in :func:`fit` (`confounding`); no severity is profiled and no
-    stiffness scanned (:func:`fit` does both). **Returns:** one :class:`FitResult` per record,
-    as :func:`fit` would."""
+    stiffness scanned (:func:`fit` does both). `splits`: as for :func:`fit` (both ends of a
+    calibrated spec's excitation/response split, a batch each, chosen per record).
+    **Returns:** one :class:`FitResult` per record, as :func:`fit` would."""
+    other = other_split(spec_or_twin, check_free(free), splits)
+    if other is not None:  # both ends of the calibration's split (dtwin.identify.split)
+        kw = dict(solver=solver, jac=jac, max_steps=max_steps, tol=tol, sigma_tol=sigma_tol,
+                  batch=batch, uncertainty=uncertainty, confounding=confounding, splits=False,
+                  **problem_kwargs)
+        return [choose_split([(SPLIT_CALIBRATED, a), (SPLIT_STIFFNESS, b)]) for a, b in zip(
+            fit_batch(records, spec_or_twin, free, **kw), fit_batch(records, other, free, **kw),
+            strict=True)]
     t0 = time.perf_counter()
     made = [make_problem(r, spec_or_twin, free, jac=jac, **problem_kwargs) for r in records]
     problems = [m[0] for m in made]

@@ -47,22 +47,13 @@ other twin, its calibrated excitation, window and response are taken as they are
 `note` says so.
 
 **The calibration's split** (``splits=None``: on for a calibrated spec with a calibrated mesh
-excitation or response shape). A healthy record at one load measures each mesh harmonic as the
-product of its excitation and the sensor response there (:mod:`dtwin.identify.calibrate`); the
-calibration's transmission-error harmonics and response knots split that product one way, and a
-twin that moves the response up by some dB at the mesh band while its transmission error
-cancels as much of the stiffness waveform's excitation fits the healthy record as well, or
-better where the twin's own sun and ring excitations do not match the machine's. A tooth fault
-is not cancelled: its sidebands, the loss (N/m) times the static mesh deflection, pass the
-response as it is, so a response too high at the mesh band reads the fault too small by the
-same factor (2.4–4.6× on a four-planet record whose calibration raised its response 19 dB over
-the band). The faulty record can tell the splits apart, since the fault's own lines fix the
-response against the stiffness the fault removes. So the fit is repeated with the other end of
-the split, the stiffness waveform's excitation alone and a flat response
-(:func:`stiffness_split`), and the two are scored as the loss shapes are: the split of least
-loss is reported (`SeverityEstimate.excitation`), and the intervals are the union over the
-splits the record cannot reject. Window, damping and load shares stay as calibrated. One more
-fit per shape.
+excitation or response shape; :mod:`dtwin.identify.split`). A healthy record cannot tell the
+calibration's transmission error and raised response from the stiffness waveform's excitation
+and a flat response; a tooth fault's sidebands pass the response uncancelled, so the faulty
+record can. Every loss shape is fitted with both ends of the split
+(:func:`~dtwin.identify.split.stiffness_split`), and the splits are scored as the loss shapes
+are: the split of least loss is reported (`SeverityEstimate.excitation`), and the intervals are
+the union over the splits the record cannot reject. One more fit per shape.
 
 **A planet fault's flank** (``flanks=None``: on for a planet fault whose flank the spec does
 not name). A planet tooth meets the sun on one flank and the ring on the other, and a fault may
@@ -120,13 +111,18 @@ from dtwin.errors import ParameterError, SettingsError
 from dtwin.faults import MIN_SPREAD, peak_stiffness_loss
 from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
-from dtwin.spec import Spec, load_spec, spec_to_dict
+from dtwin.spec import Spec, load_spec
 from dtwin.spectrum import noise_floor
 from dtwin.twin import Twin
 
-from .confounding import calibrated_excitation
 from .fit import FitResult, _batched_loss, _jacobian, fit, make_problem
 from .residuals import _STRONG_DB, _amplitude, point_groups
+from .split import (
+    SPLIT_CALIBRATED,
+    SPLIT_STIFFNESS,
+    model_form_tolerance,
+    other_split,
+)
 from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, band_jackknife
 
 __all__ = ["RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity",
@@ -174,7 +170,7 @@ class SeverityEstimate:
     kind departs from the one the spec was calibrated with, what that means (module
     docstring, "The twin"); `low_band`: whether the fit held the low
     band (:func:`with_low_band`); `excitation`: of a calibrated spec's two excitation/response
-    splits, the one the reported fit used (:data:`SPLIT_CALIBRATED`, :data:`SPLIT_STIFFNESS`;
+    splits, the one the reported fit used (:data:`~dtwin.identify.split.SPLIT_CALIBRATED`, :data:`~dtwin.identify.split.SPLIT_STIFFNESS`;
     module docstring, "The calibration's split"), empty when one was fitted; `flank`: for a
     planet fault, the flank of the planet tooth the reported fit put it on (``both``, ``sun``,
     ``ring``; module docstring, "A planet fault's flank"), empty for a sun or ring fault."""
@@ -346,40 +342,6 @@ def _twin_kind(spec_or_twin, kind: str | None) -> tuple[str | None, str]:
     return SEVERITY_KIND, ""
 
 
-#: What each excitation/response split of a calibrated spec is called in a severity's rows
-#: (module docstring, "The calibration's split").
-SPLIT_CALIBRATED = "calibrated"
-SPLIT_STIFFNESS = "stiffness waveform, flat response"
-
-
-def stiffness_split(spec_or_twin) -> Spec | None:
-    """The other end of a calibrated spec's excitation/response split (module docstring, "The
-    calibration's split"): the same spec with its mesh excitation back at the stiffness
-    waveform's own (every ``[mesh] excitation_*`` transmission-error harmonic 0 m) and a flat
-    sensor response at the calibrated knots' mean level (dB); window, damping and load shares
-    as calibrated. None for a twin, an uncalibrated spec, or a calibrated spec that has neither
-    (a calibration that kept the spec's values)."""
-    if isinstance(spec_or_twin, Twin):
-        return None
-    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
-    if not is_calibrated(spec):
-        return None
-    data = spec_to_dict(spec)
-    data.pop("source", None)
-    mesh, sensor = data["mesh"], data["sensor"]
-    te = bool(calibrated_excitation(spec))
-    frf = sensor.get("frf_db")
-    shaped = frf is not None and len(frf) > 1 and float(np.ptp(np.asarray(frf, float))) > 0.0
-    if not (te or shaped):
-        return None
-    for k, v in mesh.items():
-        if k.startswith("excitation_") and v is not None:
-            mesh[k] = [0.0] * len(v)
-    if shaped:
-        sensor["frf_db"] = [float(np.mean(frf))] * len(frf)
-    return load_spec(data)
-
-
 #: The flanks of a planet tooth a planet fault's severity is fitted on (``flanks=None`` where the
 #: spec names none; module docstring, "A planet fault's flank"): both, the one meeting the sun,
 #: the one meeting the ring (:class:`dtwin.faults.AbstractFault`'s ``flank``).
@@ -441,19 +403,16 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
     is (``ramps=None``), and the twin's note (:func:`_twin_kind`); with `low_band` the
     observation holds the low band too (:func:`with_low_band`; None: for a sun or ring fault on
     a steady spectrum record, :data:`LOW_BAND_LOCATIONS`; returned as used). With `splits`
-    (None: where :func:`stiffness_split` gives one) every shape is fitted again with the spec's
+    (None: where :func:`~dtwin.identify.split.stiffness_split` gives one) every shape is fitted again with the spec's
     other excitation/response split, and with `flanks` (:func:`_flanks`) on each planet-tooth
-    flank. `tags` names what varies beyond the shape: ``"excitation"`` (:data:`SPLIT_CALIBRATED`,
-    :data:`SPLIT_STIFFNESS`) where two splits were fitted, ``"flank"`` where several flanks
+    flank. `tags` names what varies beyond the shape: ``"excitation"`` (:data:`~dtwin.identify.split.SPLIT_CALIBRATED`,
+    :data:`~dtwin.identify.split.SPLIT_STIFFNESS`) where two splits were fitted, ``"flank"`` where several flanks
     were."""
     location = names[0].removesuffix("_fault")
     flank_list = _flanks(spec_or_twin, location, flanks)
     pk, fk = _split_kwargs(dict(fit_kwargs))
     pk["kind"], note = _twin_kind(spec_or_twin, pk.get("kind"))
-    other = stiffness_split(spec_or_twin) if splits is not False else None
-    if splits and other is None:
-        raise SettingsError("splits=True needs a calibrated spec with a calibrated mesh "
-                            "excitation or sensor response (dtwin calibrate); this one has none")
+    other = other_split(spec_or_twin, names, splits)
     specs = [(SPLIT_CALIBRATED, spec_or_twin), (SPLIT_STIFFNESS, other)] if other is not None \
         else [("", spec_or_twin)]
     out = []
@@ -540,16 +499,10 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
     twin_b = best.problem.twin
     k = _fault_index(twin_b, location)
     sev = float(best.values[name])
-    if unc is None:
-        iv = (np.nan, np.nan)
-        tol = np.inf
-    else:
-        iv = tuple(map(float, unc.interval[i]))
-        # noise: χ²₁ in units of the residual variance (neighbours, lack-of-fit widening);
-        # model form: what the best shape leaves unexplained beyond the noise (module docstring)
-        rss = 2.0 * float(losses[b])
-        excess = rss - rss / unc.lack_of_fit if np.isfinite(unc.lack_of_fit) else 0.0
-        tol = max(CHI2_95 * unc.s2 * unc.kappa * unc.widened ** 2, excess)
+    iv = (np.nan, np.nan) if unc is None else tuple(map(float, unc.interval[i]))
+    # noise: χ²₁ in units of the residual variance (neighbours, lack-of-fit widening); model
+    # form: what the best shape leaves unexplained beyond the noise (module docstring)
+    tol = model_form_tolerance(unc, losses[b])
     rows, lo, hi, plo, phi = [], iv[0], iv[1], np.inf, -np.inf
     jk_wider = False
     for (key, res), loss in zip(shapes, losses, strict=True):
@@ -634,7 +587,7 @@ def estimate_severity(
     :data:`SHAPE_GRID`; None: the twin's fault as it is, one fit); `low_band`: fit the low band
     too (None: for a sun or ring fault on a steady record, :data:`LOW_BAND_LOCATIONS`);
     `jackknife`; `splits`: fit a calibrated spec's other excitation/response split too (None:
-    where it has one, :func:`stiffness_split`; module docstring, "The calibration's split");
+    where it has one, :func:`~dtwin.identify.split.stiffness_split`; module docstring, "The calibration's split");
     `flanks`: for a planet fault, the planet-tooth flanks to fit (True: :data:`PLANET_FLANKS`;
     a sequence of them; False: the fault's own; None: all three unless the spec names the
     planet fault's flank; module docstring, "A planet fault's flank"); keyword arguments of

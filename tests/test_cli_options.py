@@ -424,6 +424,41 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
     capsys.readouterr()
 
 
+def test_identify_and_fleet_splits_reach_the_library(files, tmp_path, monkeypatch, capsys):
+    """`dtwin identify --splits/--no-splits` hands ``splits`` to dtwin.identify.fit.fit and
+    `dtwin fleet identify --splits/--no-splits` to FleetSettings (both ends of a calibrated
+    spec's excitation/response split, dtwin.identify.split); without them None (where a fault
+    severity is free)."""
+    from importlib import import_module
+
+    fit_module = import_module("dtwin.identify.fit")
+    fleet = import_module("dtwin.identify.fleet")
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def capture_fit(*a, **k):
+        seen.append(("identify", k.get("splits")))
+        raise Stop
+
+    def capture_fleet(records, spec, out, settings, **kw):
+        seen.append(("fleet", settings.splits))
+        raise Stop
+
+    monkeypatch.setattr(fit_module, "fit", capture_fit)
+    monkeypatch.setattr(fleet, "run_fleet", capture_fleet)
+    for extra, want in (([], None), (["--splits"], True), (["--no-splits"], False)):
+        with pytest.raises(SystemExit):  # the stand-ins stop the commands once called
+            main(["identify", files["rec"], "--preset", "paper-sim", "--free", "sun_fault",
+                  *extra])
+        with pytest.raises(SystemExit):
+            main(["fleet", "identify", files["rec"], "--preset", "paper-sim", "--out",
+                  str(tmp_path / "fleet"), *extra])
+        assert seen[-2:] == [("identify", want), ("fleet", want)]
+    capsys.readouterr()
+
+
 def test_severity_report_opens_with_the_estimate():
     """`dtwin severity --out`'s report.html starts its summary with the severity, the peak
     stiffness loss (%) and their 95 % intervals, for a planet fault the flank the record chose,

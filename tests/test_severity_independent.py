@@ -102,12 +102,12 @@ def test_sun_fault_peak_loss_on_independent_record(calibrated_spec):
     """CI form: sun-fault-0.60 (truth: peak stiffness loss 36 %) within 25 % with the
     translational twin, the fault's default (sharp) loss and the low band; the peak relative
     to the mean mesh stiffness. Both ends of the calibration's excitation/response split are
-    fitted (dtwin.identify.severity.stiffness_split); the calibrated one fits this record best
+    fitted (dtwin.identify.split.stiffness_split); the calibrated one fits this record best
     and is reported, and the interval, the union over the splits the record cannot reject,
     holds the truth. Measured: 28.8 % with the calibrated split (loss 156.5), 53.3 % with the
     stiffness waveform's excitation and a flat response (175.1, within what the best fit
     leaves unexplained at a lack of fit of 1.27): 95 % [21.6, 80.0] %, NOT DETERMINED."""
-    from dtwin.identify.severity import SPLIT_CALIBRATED, SPLIT_STIFFNESS
+    from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS
 
     truth = _truth("sun-fault-0.60")
     est = _estimate("sun-fault-0.60", calibrated_spec, None)

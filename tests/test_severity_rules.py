@@ -217,13 +217,13 @@ def test_the_low_band_by_default_for_sun_and_ring_faults_on_steady_records(monke
 
 
 def test_stiffness_split_of_a_calibrated_spec():
-    """dtwin.identify.severity.stiffness_split: the calibrated spec with every transmission-error
+    """dtwin.identify.split.stiffness_split: the calibrated spec with every transmission-error
     harmonic at 0 m and a flat response at its knots' mean level, window and damping as
     calibrated; none for an uncalibrated spec or a twin; the spec handed in is not modified."""
     from pathlib import Path
 
     from dtwin.build import build_twin
-    from dtwin.identify.severity import stiffness_split
+    from dtwin.identify.split import stiffness_split
     from dtwin.spec import load_spec
 
     spec = load_spec(Path(__file__).parent / "data" / "four_planet_calibrated.toml")
@@ -256,7 +256,8 @@ def test_a_calibrations_split_the_faulty_record_rejects_is_not_reported():
 
     from dtwin.build import build_twin
     from dtwin.faults import RootCrack, peak_stiffness_loss
-    from dtwin.identify.severity import SPLIT_CALIBRATED, SPLIT_STIFFNESS, estimate_severity
+    from dtwin.identify.severity import estimate_severity
+    from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS
     from dtwin.simulate import DAQ, simulate
     from dtwin.spec import load_spec
 

@@ -5,7 +5,7 @@
                    [--ray-address ADDRESS] [--engine auto|ray|local] [--num-cpus N]
                    [--batch-size N] [--max-retries N] [--discover] [--manifest fleet.csv]
                    [--max-steps N] [--tol T] [--starts N] [--refine K] [--grid orders|hz]
-                   [--order-step S] [--f-max HZ]
+                   [--order-step S] [--f-max HZ] [--splits/--no-splits]
                    [--no-progress] [--json] [--force]
     dtwin fleet table RESULTS [--csv] [--json] [--force]
     dtwin fleet trends RESULTS [--threshold 'sun_fault>0.4' ...] [--horizon DAYS]
@@ -83,6 +83,7 @@ def fleet_identify(
     f_max: float | None = typer.Option(None, "--f-max", help="Highest input speed of the "
                                        "fleet (Hz; default 1.05 x --f-sun or the spec's)."),
     channel: str = typer.Option("0", "--channel", help="Channel name or index."),
+    splits: bool | None = opts.splits_option("a fault severity is free"),
     no_progress: bool = typer.Option(False, "--no-progress", help="No progress bar."),
     json_out: bool = typer.Option(False, "--json", help="Print the run summary as JSON."),
     force: bool = typer.Option(False, "--force", help="Refit results of other settings; "
@@ -129,7 +130,7 @@ def fleet_identify(
     warn_torsional_tooth_fault(kind, names)
     settings = FleetSettings(free=tuple(names), kind=kind, f_sun=f_sun,
                              starts=starts, refine=refine, max_steps=max_steps, tol=tol,
-                             channel=opts.channel_token(channel),
+                             channel=opts.channel_token(channel), splits=splits,
                              grid=grid, order_step=order_step, f_max=f_max,
                              batch_size=batch_size,
                              max_retries=max_retries, discover=discover)

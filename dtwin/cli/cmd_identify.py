@@ -5,7 +5,7 @@
                    [--model torsional|translational] [--f-sun HZ] [--runup LOW HIGH]
                    [--solver lm|gauss-newton|dogleg] [--starts N] [--refine K] [--jac fwd|rev]
                    [--max-steps N] [--channel C] [--fit-window auto|full|START:LENGTH]
-                   [--json] [--out DIR] [--force]
+                   [--splits/--no-splits] [--json] [--out DIR] [--force]
 
     dtwin severity RECORD (--spec FILE | --preset NAME) [--location sun|planet|ring]
                    [--free extra,names] [--f-sun HZ] [--fit-window auto|full|START:LENGTH]
@@ -214,6 +214,7 @@ def identify(
     max_steps: int = typer.Option(40, "--max-steps", help="Solver steps."),
     channel: str = opts.channel_option(),
     fit_window: str = fit_window_option(),
+    splits: bool | None = opts.splits_option("a fault severity is free"),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("identify.json, spectrum_fit.png, loss.png"),
@@ -256,7 +257,7 @@ def identify(
     with opts.working("fitting", enabled=not progress):
         res = fit(recs, gb.spec, names, kind=model, f_sun=f_sun,
                   runup=tuple(runup) if runup else None, solver=solver, starts=starts,
-                  refine=refine, jac=jac, max_steps=max_steps, channel=ch,
+                  refine=refine, jac=jac, max_steps=max_steps, channel=ch, splits=splits,
                   progress=progress and not _quiet())
     report = {"records": [str(p) for p in records], "gearbox": gb.source,
               "model": model, **_window_report(segs), **res.to_dict()}
@@ -270,7 +271,7 @@ def identify(
               inputs=records,
               gearbox=gb, parameters={"free": names, "solver": solver, "starts": starts,
                                       "refine": refine, "jac": jac, "model": model,
-                                      "fit_window": window.text()})
+                                      "fit_window": window.text(), "splits": splits})
 
 
 def _quiet() -> bool:
@@ -340,13 +341,8 @@ def severity(
         help="Also fit the loss's shape (sharp, soft, felt beyond the tooth's contact, "
              "confined to its middle like a pit): the intervals become the union over the "
              "shapes the record cannot reject. One fit per shape."),
-    splits: bool | None = typer.Option(
-        None, "--splits/--no-splits",
-        help="With a calibrated spec, also fit the other end of its excitation/response split "
-             "(the stiffness waveform's excitation, a flat response), which a healthy record "
-             "cannot tell apart and a faulty one can; the split the record prefers is "
-             "reported (default: on where the calibration fitted an excitation or a response "
-             "shape). One more fit per shape."),
+    splits: bool | None = opts.splits_option("the calibration fitted an excitation or a "
+                                             "response shape", "One more fit per shape."),
     flanks: bool | None = typer.Option(
         None, "--flanks/--no-flanks",
         help="For a planet fault, fit it on each flank of the planet tooth (both, the one "

@@ -72,6 +72,17 @@ def channel_option() -> Any:
     return typer.Option("0", "--channel", help="Channel name or index.")
 
 
+def splits_option(default_when: str, cost: str = "One more fit.") -> Any:
+    """``--splits/--no-splits``: fit both ends of a calibrated spec's excitation/response split
+    (:mod:`dtwin.identify.split`); on by default where `default_when`."""
+    return typer.Option(
+        None, "--splits/--no-splits",
+        help="With a calibrated spec, also fit the other end of its excitation/response split "
+             "(the stiffness waveform's excitation, a flat response), which a healthy record "
+             "cannot tell apart and a faulty one can; the split the record prefers is "
+             f"reported (default: on where {default_when}). {cost}")
+
+
 def sample_rate_option() -> Any:
     return typer.Option(None, "--sample-rate", help="Sampling rate (Hz) if the file states none.")
 

@@ -31,7 +31,9 @@ class FleetSettings:
       with, otherwise torsional, :func:`dtwin.build.twin_kind`); `initial`:
       ``((name, value), ...)`` starting values (SI); `f_sun`: input speed (Hz) for every
       record (None: estimated from each record).
-    - `solver`, `starts`, `refine`, `max_steps`, `tol`, `channel`: as :func:`dtwin.identify.fit.fit`.
+    - `solver`, `starts`, `refine`, `max_steps`, `tol`, `channel`, `splits`: as
+      :func:`dtwin.identify.fit.fit` (`splits` None: a calibrated spec's fault severities are
+      fitted with both ends of its excitation/response split, :mod:`dtwin.identify.split`).
     - `grid`: ``orders`` (default: the order domain, module docstring) or ``hz`` (DFT bins, as
       ``dtwin identify``; records batch together only within 0.1 Hz of speed).
     - `order_step`: step of the order grid (orders of the input speed; None: one DFT bin at
@@ -56,6 +58,7 @@ class FleetSettings:
     max_steps: int = 40
     tol: float = 1e-4
     channel: int | str = 0
+    splits: bool | None = None
     grid: str = "orders"
     order_step: float | None = None
     f_max: float | None = None
@@ -105,7 +108,8 @@ class FleetSettings:
         """Keyword arguments of :func:`dtwin.identify.fit.fit` / ``fit_batch`` (without the starts);
         call on :meth:`resolved` settings."""
         kw: dict[str, Any] = dict(kind=self.kind, solver=self.solver, max_steps=self.max_steps,
-                                  tol=self.tol, channel=self.channel, f_sun=self.f_sun)
+                                  tol=self.tol, channel=self.channel, f_sun=self.f_sun,
+                                  splits=self.splits)
         if self.initial:
             kw["initial"] = dict(self.initial)
         if self.grid == "orders":
@@ -121,7 +125,7 @@ class FleetSettings:
         and the spec (not the batching, retries or discovery)."""
         fit = {k: getattr(self, k) for k in ("free", "kind", "initial", "f_sun", "solver",
                                              "starts", "refine", "max_steps", "tol", "channel",
-                                             "grid", "order_step", "f_max")}
+                                             "splits", "grid", "order_step", "f_max")}
         spec = {k: v for k, v in dict(spec_data).items() if k != "source"}
         blob = json.dumps(to_jsonable({"fit": fit, "spec": spec}), sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]

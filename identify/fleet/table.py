@@ -31,7 +31,9 @@ def table_rows(results: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str, Any
 
     Columns: ``record, machine, timestamp, status, converged, loss, gap_db, f_sun,
     iterations, lack_of_fit, widened`` (the loss over the loss the noise alone leaves, and the
-    factor every interval was widened by for it, :mod:`dtwin.identify.uncertainty`), per
+    factor every interval was widened by for it, :mod:`dtwin.identify.uncertainty`),
+    ``excitation`` (the end of a calibrated spec's excitation/response split reported,
+    :mod:`dtwin.identify.split`; empty where one was fitted), per
     parameter ``<name>, <name>_lo95, <name>_hi95, <name>_determined``, then
     ``effects`` (discovered effects, ``;``-joined), ``discover_gap_initial_db``,
     ``discover_gap_final_db``, ``discover_status``, ``error``, ``key``, ``sha256``."""
@@ -53,6 +55,7 @@ def table_rows(results: Sequence[Mapping[str, Any]]) -> tuple[list[dict[str, Any
         unc = (r.get("fit") or {}).get("uncertainty") or {}
         row["lack_of_fit"] = _num(unc.get("lack_of_fit"))
         row["widened"] = _num(unc.get("widened"))
+        row["excitation"] = r.get("excitation") or None
         iv = r.get("intervals_95", {}) or {}
         nd = r.get("not_determined", {}) or {}
         for n in names:

@@ -121,7 +121,7 @@ def _fit_entry(job: Mapping[str, Any], res, *, fingerprint: str, engine: str, ba
         "not_determined": dict(res.not_determined), "converged": bool(res.converged),
         "at_bound": list(res.at_bound), "message": res.message, "loss": float(res.loss),
         "iterations": int(res.iterations), "f_sun": ops.get("f_sun"), "operating_point": ops,
-        "gap_db": gap, "engine": engine, "batched_with": batched, "wall_time_s": wall,
+        "gap_db": gap, "excitation": res.excitation, "engine": engine, "batched_with": batched, "wall_time_s": wall,
         "host": socket.gethostname(), "pid": os.getpid(), "finished": _now(),
         "fit": res.to_dict(),
     }
@@ -158,8 +158,8 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
             seg = segment_for_fit(rec, spec, settings.f_sun, channel=settings.channel)
             if seg.windowed:  # dtwin.identify.segment: a steady stretch at the rate needed
                 rec, windows[job["key"]] = seg.record, seg.to_dict()
-            prob, _ = _fit.make_problem(rec, spec, free, **{k: v for k, v in kw.items()
-                                                      if k not in ("solver", "max_steps", "tol")})
+            prob, _ = _fit.make_problem(rec, spec, free, **{
+                k: v for k, v in kw.items() if k not in ("solver", "max_steps", "tol", "splits")})
             ready.append((job, rec, prob))
         except DtwinError as e:
             entries[job["key"]] = failure_entry(job, e, stage="read", fingerprint=fingerprint)

@@ -1,0 +1,168 @@
+"""The calibration's excitation/response split, and which end of it a faulty record prefers.
+
+A healthy record at one load measures each mesh harmonic as the product of the mesh's
+excitation and the sensor's response at that frequency (:mod:`dtwin.identify.calibrate`). The
+calibration's transmission-error harmonics and response knots split that product one way; a twin
+whose response is some dB higher at the mesh band while its transmission error cancels as much
+of the stiffness waveform's excitation fits the healthy record as well (or better, where the
+twin's own sun and ring excitations do not match the machine's). A tooth fault is not cancelled:
+its sidebands, the stiffness it removes (N/m) times the static mesh deflection, pass the
+response as it is, so a response too high at the mesh band reads the fault too small by the
+same factor (2.4–4.6× on a four-planet record whose calibration raised its response 19 dB over
+the band). The faulty record can tell the splits apart, since the fault's own lines fix the
+response against the stiffness the fault removes.
+
+So a fault severity is fitted with both ends of the split: the calibrated spec as it is
+(:data:`SPLIT_CALIBRATED`), and the same spec with the stiffness waveform's excitation alone and
+a flat response (:data:`SPLIT_STIFFNESS`, :func:`stiffness_split`); window, damping and load
+shares stay as calibrated. The fits are scored by one rule (:func:`model_form_tolerance`): the
+split of least loss is reported, and a split whose ``‖r‖²`` exceeds it by no more than the
+larger of ``χ²₁(95 %)`` in units of the residual variance and what the best fit leaves
+unexplained beyond the noise cannot be rejected. :func:`choose_split` applies it to two
+:class:`~dtwin.identify.fit.FitResult` (used by :func:`dtwin.identify.fit.fit` and
+:func:`~dtwin.identify.fit.fit_batch`, so by ``dtwin identify`` and ``dtwin fleet``);
+:mod:`dtwin.identify.severity` applies it over its loss shapes and flanks too.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from dtwin.build import is_calibrated
+from dtwin.errors import SettingsError
+from dtwin.registry import lookup
+from dtwin.spec import Spec, load_spec, spec_to_dict
+from dtwin.twin import Twin
+
+from .confounding import calibrated_excitation
+from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, Uncertainty
+
+if TYPE_CHECKING:
+    from .fit import FitResult
+
+__all__ = ["SPLIT_CALIBRATED", "SPLIT_STIFFNESS", "choose_split", "fault_names",
+           "model_form_tolerance", "other_split", "stiffness_split"]
+
+#: What each end of a calibrated spec's excitation/response split is called in results.
+SPLIT_CALIBRATED = "calibrated"
+SPLIT_STIFFNESS = "stiffness waveform, flat response"
+
+
+def stiffness_split(spec_or_twin) -> Spec | None:
+    """The other end of a calibrated spec's excitation/response split (module docstring): the
+    same spec with its mesh excitation back at the stiffness waveform's own (every ``[mesh]
+    excitation_*`` transmission-error harmonic 0 m) and a flat sensor response at the calibrated
+    knots' mean level (dB); window, damping and load shares as calibrated. None for a twin, an
+    uncalibrated spec, or a calibrated spec that has neither (a calibration that kept the spec's
+    values). The spec handed in is not modified."""
+    if isinstance(spec_or_twin, Twin):
+        return None
+    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
+    if not is_calibrated(spec):
+        return None
+    data = spec_to_dict(spec)
+    data.pop("source", None)
+    mesh, sensor = data["mesh"], data["sensor"]
+    te = bool(calibrated_excitation(spec))
+    frf = sensor.get("frf_db")
+    shaped = frf is not None and len(frf) > 1 and float(np.ptp(np.asarray(frf, float))) > 0.0
+    if not (te or shaped):
+        return None
+    for k, v in mesh.items():
+        if k.startswith("excitation_") and v is not None:
+            mesh[k] = [0.0] * len(v)
+    if shaped:
+        sensor["frf_db"] = [float(np.mean(frf))] * len(frf)
+    return load_spec(data)
+
+
+def fault_names(names: Sequence[str]) -> tuple[str, ...]:
+    """The names among `names` that are a tooth fault's severity (registry ``faults.*``)."""
+    return tuple(n for n in names if lookup(n).spec_path.startswith("faults."))
+
+
+def other_split(spec_or_twin, names: Sequence[str], splits: bool | None) -> Spec | None:
+    """The spec to fit beside `spec_or_twin` (:func:`stiffness_split`), or None: `splits` None
+    gives it where a fault severity is among `names` and the spec has a split, True wherever the
+    spec has one (a clear error where it has none), False never."""
+    if splits is False:
+        return None
+    if splits is None and not fault_names(names):
+        return None
+    other = stiffness_split(spec_or_twin)
+    if splits and other is None:
+        raise SettingsError("splits=True (--splits) needs a calibrated spec with a calibrated "
+                            "mesh excitation or sensor response (dtwin calibrate); this one has "
+                            "none: leave the option out")
+    return other
+
+
+def model_form_tolerance(unc: Uncertainty | None, loss: float) -> float:
+    """How far (in ``‖r‖²``) a fit of another model form may lie above the best fit, of loss
+    `loss` (½‖r‖²) and uncertainty `unc`, and not be rejected: the larger of ``χ²₁(95 %)`` in
+    units of the residual variance (neighbour-correlation and lack-of-fit factors included) and
+    what the best fit leaves unexplained beyond the noise, ``‖r‖² − E``
+    (:func:`dtwin.identify.uncertainty.expected_noise_rss`). Infinite without `unc`."""
+    if unc is None:
+        return float("inf")
+    rss = 2.0 * float(loss)
+    lof = float(unc.lack_of_fit)
+    excess = rss - rss / lof if np.isfinite(lof) and lof > 0 else 0.0
+    return max(CHI2_95 * unc.s2 * unc.kappa * unc.widened ** 2, excess)
+
+
+def _ref(res: FitResult, i: int) -> float:
+    """The scale a half-width is judged against (as :func:`dtwin.identify.uncertainty.analyse`
+    judges it)."""
+    pset = res.problem.pset if res.problem is not None else None
+    v = float(res.values[res.names[i]])
+    if pset is not None and pset.transforms[i] == "logit":
+        return max(abs(v), 0.1 * (float(pset.upper[i]) - float(pset.lower[i])))
+    return abs(v)
+
+
+def choose_split(fits: Sequence[tuple[str, FitResult]]) -> FitResult:
+    """The fit of least loss among `fits` (``(split, FitResult)``, the same parameters, one
+    record), with ``excitation`` set to its split and ``splits`` to a row per fit (split, loss,
+    values, 95 % intervals, accepted). Where another split is accepted
+    (:func:`model_form_tolerance`) every interval is the union over the accepted splits, and a
+    parameter whose union half-width exceeds ``HALF_WIDTH_LIMIT`` of its scale is flagged not
+    determined, naming what each split read."""
+    losses = np.array([r.loss if np.isfinite(r.loss) else np.inf for _, r in fits])
+    b = int(np.argmin(losses))
+    name_b, best = fits[b]
+    tol = model_form_tolerance(best.uncertainty, losses[b])
+    rows: list[dict[str, Any]] = []
+    for (split, res), loss in zip(fits, losses, strict=True):
+        row: dict[str, Any] = {"excitation": split, "loss": float(loss),
+                               "values": dict(res.values),
+                               "accepted": bool(2.0 * (loss - losses[b]) <= tol)}
+        if res.uncertainty is not None:
+            row["intervals_95"] = {n: list(map(float, res.uncertainty.interval[i]))
+                                   for i, n in enumerate(res.names)}
+        rows.append(row)
+    unc = best.uncertainty
+    accepted = [(s, r) for (s, r), row in zip(fits, rows, strict=True) if row["accepted"]]
+    if unc is not None and len(accepted) > 1:
+        interval = np.array(unc.interval, dtype=float, copy=True)
+        flags = dict(unc.not_determined)
+        for i, n in enumerate(best.names):
+            for _, r in accepted:
+                if r.uncertainty is not None:
+                    a, c = r.uncertainty.interval[r.names.index(n)]
+                    interval[i] = (min(interval[i, 0], a), max(interval[i, 1], c))
+            half = 0.5 * (interval[i, 1] - interval[i, 0])
+            if n not in flags and not half <= HALF_WIDTH_LIMIT * _ref(best, i):
+                read = ", ".join(f"{r.values[n]:.4g} ({s})" for s, r in accepted)
+                flags[n] = (f"the calibration's excitation/response splits the record cannot "
+                            f"tell apart read it {read}; 95 % interval over both "
+                            f"[{interval[i, 0]:.4g}, {interval[i, 1]:.4g}]")
+        best.uncertainty = dataclasses.replace(unc, interval=interval, not_determined=flags)
+    best.excitation = name_b
+    best.splits = rows
+    best.wall_time = float(sum(r.wall_time for _, r in fits))
+    return best
