@@ -24,6 +24,7 @@ from dtwin.spec import load_spec
 
 from ..discover import DiscoverySettings, discover
 from ..segment import segment_for_fit
+from ..split import SPLIT_STIFFNESS, stiffness_split
 from .settings import FAIL_ENV, SCHEMA, FleetSettings
 from .store import _now
 
@@ -222,11 +223,15 @@ def discover_task(job: Mapping[str, Any], spec_data: Mapping[str, Any], settings
                   inject: str | None = None, attempts_dir: str | None = None) -> dict[str, Any]:
     """Discovery on one record about its fitted twin (:func:`dtwin.identify.discover.discover`):
     effects named with their main parameter, held-out gap before and after, unexplained lines.
-    A `DtwinError` is reported; other exceptions propagate (retried)."""
+    The twin is the spec's, or the other end of a calibrated spec's excitation/response split
+    where the fit reported that one (:mod:`dtwin.identify.split`). A `DtwinError` is reported;
+    other exceptions propagate (retried)."""
     _inject({**job, "path": job["path"] + "#discover"}, inject, attempts_dir, engine == "ray")
     t0 = time.perf_counter()
     try:
         spec = load_spec(spec_data)
+        if fit_entry.get("excitation") == SPLIT_STIFFNESS:
+            spec = stiffness_split(spec)
         rec = read_record(job["path"])
         twin = _fitted_twin(spec, settings, fit_entry.get("values", {}), fit_entry.get("f_sun"))
         res = discover(rec.select([settings.channel]), spec, base_twin=twin,
