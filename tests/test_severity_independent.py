@@ -185,7 +185,7 @@ def _bench_identify(bench_spec):
     from dtwin.identify.fit import fit
 
     rec = read_record(SAMPLES / "bench_sun_fault.dtwin.h5")
-    # 41 Levenberg–Marquardt steps to converge (zeta_mesh wanders along its flat direction)
+    # 33–41 Levenberg–Marquardt steps to converge (zeta_mesh wanders along its flat direction)
     ident = fit(rec, bench_spec, ["k_sun_planet", "zeta_mesh", "sun_fault"],
                 initial={"sun_fault": 0.3}, max_steps=80)
     print(ident.table())
@@ -198,9 +198,12 @@ def test_bench_identify_severity_and_fleet_agree(bench_spec, tmp_path):
     each with the twin the spec was calibrated with (translational, dtwin.build.twin_kind),
     agree within their intervals; bench_healthy's severity interval holds 0; mesh damping,
     which this 5 kHz record cannot determine, is flagged (README).
-    Measured: identify converges (41 steps) at k_sun_planet 2.88e8, zeta_mesh NOT DETERMINED,
-    sun_fault 0.544 [0.499, 0.589], lack of fit 1.17; severity 0.516 [0.296, 0.729] (band
-    jackknife); bench_healthy 0.034 [0, 0.069]."""
+    Measured: identify fits both ends of the calibration's excitation/response split
+    (dtwin.identify.split) and the record rejects neither: calibrated k_sun_planet 2.81e8,
+    sun_fault 0.542 (loss 70.98), stiffness waveform with a flat response 2.58e9, 0.641 (loss
+    68.37, reported; 33 steps); sun_fault 0.641 [0.496, 0.675] over both, zeta_mesh NOT
+    DETERMINED, lack of fit 1.13; severity 0.490 [0.406, 0.518] (excitation splits); fleet
+    [0.480, 0.557]; bench_healthy 0.002 [0, 0.031]."""
     from dtwin import read_record
     from dtwin.identify.fleet import FleetSettings, run_fleet
     from dtwin.identify.severity import estimate_severity
@@ -231,7 +234,9 @@ def test_bench_identify_flags_mesh_stiffness(bench_spec):
     stiffness times the transmission error and share clearances calibration fitted at the
     ISO value); dtwin.identify.confounding frees the excitation's four harmonics and the two
     clearances at the optimum and the interval becomes [1.06e8, 7.80e8]: flagged, with the
-    reason given. The sun fault stays determined."""
+    reason given. The other end of the calibration's excitation/response split, which the
+    record does not reject, reads 2.58e9; the reported interval is the union over both,
+    [2.08e8, 2.80e9], flagged with both readings named. The sun fault stays determined."""
     from dtwin.spec import load_spec, lumped_from_spec
 
     ident = _bench_identify(bench_spec)
@@ -247,11 +252,16 @@ def test_bench_identify_from_the_default_start_flags_mesh_stiffness(bench_spec):
     `dtwin identify bench_sun_fault --free k_sun_planet,sun_fault` runs it: the first optimum
     (sun_fault ≈ 0) is left by the severity's profile, the second (k_sun_planet 7.09e8, a
     minimum where the fault's sidebands near 2 f_m follow the stiffness) by the stiffness's
-    scan, and the fit ends where the calibration confounds the stiffness: flagged.
-    Measured: loss 122.4 → 74.1 (profile) → 71.0 (scan), k_sun_planet 2.83e8 NOT DETERMINED
-    (with the calibration free [1.13e8, 7.10e8]), sun_fault 0.542 [0.497, 0.587]."""
+    scan, and the fit ends where the calibration confounds the stiffness: flagged. The fault
+    severity is fitted with both ends of the calibration's excitation/response split too
+    (dtwin.identify.split): the record rejects neither, so the stiffness is flagged over both.
+    Measured: calibrated split loss 122.4 → 74.1 (profile) → 71.0 (scan), k_sun_planet 2.89e8
+    (with the calibration free [1.13e8, 7.10e8]), sun_fault 0.544; the stiffness waveform with
+    a flat response loss 68.5, k_sun_planet 1.92e9, sun_fault 0.605; reported k_sun_planet NOT
+    DETERMINED [2.15e8, 2.64e9], sun_fault 0.605 [0.498, 0.641]."""
     from dtwin import read_record
     from dtwin.identify.fit import fit
+    from dtwin.identify.split import SPLIT_CALIBRATED
 
     rec = read_record(SAMPLES / "bench_sun_fault.dtwin.h5")
     ident = fit(rec, bench_spec, ["k_sun_planet", "sun_fault"], max_steps=80)
@@ -259,7 +269,10 @@ def test_bench_identify_from_the_default_start_flags_mesh_stiffness(bench_spec):
     assert [m["by"] for m in ident.relocations][-1:] == ["scan"], ident.relocations
     assert ident.status("k_sun_planet") == "NOT DETERMINED"
     assert ident.status("sun_fault") != "NOT DETERMINED"
-    assert ident.values["k_sun_planet"] < 4.5e8
+    rows = {r["excitation"]: r for r in ident.splits}
+    assert rows[SPLIT_CALIBRATED]["values"]["k_sun_planet"] < 4.5e8
+    lo, hi = ident.interval("k_sun_planet")
+    assert all(lo <= r["values"]["k_sun_planet"] <= hi for r in ident.splits if r["accepted"])
 
 
 def test_shape_profile_keeps_the_shapes_a_model_form_error_cannot_reject(monkeypatch):
