@@ -188,7 +188,12 @@ def _files(result, name: str, report: dict, unit: str | None, headline: dict | N
             + ([result.message] if result.message != "converged" else []),
             figures=figures,
             tables={"Fitted parameters (95 % intervals)": fit_rows(result),
-                    "Operating points": result.operating_points})
+                    "Operating points": result.operating_points,
+                    **({"Excitation/response splits fitted (dtwin.identify.split)": [
+                        {"split": r["excitation"], "loss": r["loss"], **r["values"],
+                         "reported": r["excitation"] == result.excitation,
+                         "accepted": r["accepted"]} for r in result.splits]}
+                       if getattr(result, "splits", None) else {})})
         return out
 
     return files
