@@ -216,8 +216,7 @@ def test_order_domain_shapes_do_not_depend_on_speed(fleet_records, spec):
     recs = [read_record(fleet_records / f"m{i}" / f"rec{i}.dtwin.h5") for i in range(3)]
 
     def problems(settings):
-        kw = settings.resolved(spec_to_dict(spec)).fit_kwargs()
-        kw = {k: v for k, v in kw.items() if k not in ("solver", "max_steps", "tol")}
+        kw = settings.resolved(spec_to_dict(spec)).problem_kwargs()
         return [make_problem(r, spec, ["sun_fault"], **kw)[0] for r in recs]
 
     orders = problems(_settings())

@@ -120,6 +120,12 @@ class FleetSettings:
                                       else float(self.order_step))
         return kw
 
+    def problem_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`dtwin.identify.fit.make_problem`: :meth:`fit_kwargs`
+        without the solver's."""
+        return {k: v for k, v in self.fit_kwargs().items()
+                if k not in ("solver", "max_steps", "tol", "splits")}
+
     def fingerprint(self, spec_data: Mapping[str, Any]) -> str:
         """SHA-256 (16 hex digits) of everything that changes a fit result: the fit settings
         and the spec (not the batching, retries or discovery)."""

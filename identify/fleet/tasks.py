@@ -159,8 +159,7 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
             seg = segment_for_fit(rec, spec, settings.f_sun, channel=settings.channel)
             if seg.windowed:  # dtwin.identify.segment: a steady stretch at the rate needed
                 rec, windows[job["key"]] = seg.record, seg.to_dict()
-            prob, _ = _fit.make_problem(rec, spec, free, **{
-                k: v for k, v in kw.items() if k not in ("solver", "max_steps", "tol", "splits")})
+            prob, _ = _fit.make_problem(rec, spec, free, **settings.problem_kwargs())
             ready.append((job, rec, prob))
         except DtwinError as e:
             entries[job["key"]] = failure_entry(job, e, stage="read", fingerprint=fingerprint)
