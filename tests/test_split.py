@@ -51,9 +51,10 @@ def crack(tmp_path_factory):
                     faults=(fault,))
     rec = simulate(tw, duration=2.0, f_sun=25.0, daq=DAQ(sample_rate=10000.0, snr_db=30.0),
                    discard=0.2, seed=540).to_record()
-    path = tmp_path_factory.mktemp("split") / "crack.dtwin.h5"
-    write_record(rec, path)
-    return rec, path, float(peak_stiffness_loss(fault, tw.lp, reference="mean"))
+    folder = tmp_path_factory.mktemp("split")
+    for name in ("crack.dtwin.h5", "crack_copy.dtwin.h5"):  # a fleet batch of two
+        write_record(rec, folder / name)
+    return rec, folder, float(peak_stiffness_loss(fault, tw.lp, reference="mean"))
 
 
 def _peak(res) -> float:
@@ -75,13 +76,14 @@ def test_identify_and_fleet_read_a_fault_through_the_split_the_record_prefers(cr
     one, and the other is reported, its peak stiffness loss within 25 % of the crack's, where
     the calibrated split alone reads it 2.4× small (as `dtwin severity` does,
     tests/test_severity_rules.py). Measured: identify 0.488 (32.8 %; calibrated split 0.202,
-    loss 80.7 against 77.8), fleet 0.492 [0.477, 0.508]; the crack's 36.0 %."""
+    loss 80.7 against 77.8), fleet (one record alone) 0.492 [0.477, 0.508]; the crack's
+    36.0 %."""
     from dtwin.identify.fit import fit
     from dtwin.identify.fleet import FleetSettings, run_fleet
     from dtwin.identify.fleet.table import table_rows
     from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS, choose_split
 
-    rec, path, truth = crack
+    rec, folder, truth = crack
     res = fit(rec, CALIBRATED, ["sun_fault"])
     print(res.table(), truth)
     rows = {r["excitation"]: r for r in res.splits}
@@ -110,12 +112,15 @@ def test_identify_and_fleet_read_a_fault_through_the_split_the_record_prefers(cr
                              ("b", second(0.01, [0.0, 0.02], 50.0))])
     assert rejected.interval("sun_fault") == res.interval("sun_fault")
 
-    run_fleet([str(path)], CALIBRATED, tmp_path / "fleet", FleetSettings(free=("sun_fault",)),
-              engine="local", progress=False)
+    # the fleet fits the two copies in one batch (fit_batch), each split a batch of its own
+    run_fleet([str(folder / "*.dtwin.h5")], CALIBRATED, tmp_path / "fleet",
+              FleetSettings(free=("sun_fault",), batch_size=2), engine="local", progress=False)
     entries = [json.loads(p.read_text()) for p in (tmp_path / "fleet").rglob("*.json")]
-    (entry,) = [e for e in entries if isinstance(e, dict) and e.get("kind") == "fit"]
-    print(entry["values"], entry["intervals_95"], entry["excitation"])
-    assert entry["excitation"] == SPLIT_STIFFNESS
-    lo, hi = entry["intervals_95"]["sun_fault"]
-    assert lo <= res.interval("sun_fault")[1] and res.interval("sun_fault")[0] <= hi
-    assert table_rows([entry])[0][0]["excitation"] == SPLIT_STIFFNESS
+    entries = [e for e in entries if isinstance(e, dict) and e.get("kind") == "fit"]
+    assert len(entries) == 2
+    for entry in entries:
+        print(entry["values"], entry["intervals_95"], entry["excitation"])
+        assert entry["batched_with"] == 2 and entry["excitation"] == SPLIT_STIFFNESS
+        lo, hi = entry["intervals_95"]["sun_fault"]
+        assert lo <= res.interval("sun_fault")[1] and res.interval("sun_fault")[0] <= hi
+    assert [r["excitation"] for r in table_rows(entries)[0]] == [SPLIT_STIFFNESS] * 2
