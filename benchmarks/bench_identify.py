@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import tempfile
 import time
 from pathlib import Path
 
@@ -25,9 +24,9 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from _independent import IND, baseline_calibration  # noqa: E402
 from _timing import load_average  # noqa: E402
 
-IND = Path(__file__).resolve().parents[2] / "shared" / "independent"
 RECORDS = [IND / "sun-fault-0.60.csv"]
 
 
@@ -42,17 +41,11 @@ def main(argv=None) -> int:
         print("[]" if args.json else f"no independent records at {IND}")
         return 0
 
-    from dtwin.identify.calibrate import calibrate
     from dtwin.identify.fit import fit
     from dtwin.io.readers import read_record
 
-    spec, rows = args.spec, []
-    if spec is None:
-        w0 = time.perf_counter()
-        res = calibrate([IND / "baseline-1.csv"], IND / "gearbox.toml")
-        spec = Path(tempfile.mkdtemp()) / "calibrated.toml"
-        res.write_spec(spec)
-        rows.append(dict(kind="calibrate", run_s=time.perf_counter() - w0))
+    rows: list = []
+    spec = args.spec if args.spec is not None else baseline_calibration(rows)
     free = [n.strip() for n in args.free.split(",") if n.strip()]
     for path in args.records:
         load0, w0, c0 = load_average()[0], time.perf_counter(), time.process_time()

@@ -170,9 +170,9 @@ class SeverityEstimate:
     kind departs from the one the spec was calibrated with, what that means (module
     docstring, "The twin"); `low_band`: whether the fit held the low
     band (:func:`with_low_band`); `excitation`: of a calibrated spec's two excitation/response
-    splits, the one the reported fit used (:data:`~dtwin.identify.split.SPLIT_CALIBRATED`, :data:`~dtwin.identify.split.SPLIT_STIFFNESS`;
-    module docstring, "The calibration's split"), empty when one was fitted; `flank`: for a
-    planet fault, the flank of the planet tooth the reported fit put it on (``both``, ``sun``,
+    splits, the one the reported fit used (:data:`~dtwin.identify.split.SPLIT_CALIBRATED`,
+    :data:`~dtwin.identify.split.SPLIT_STIFFNESS`; module docstring, "The calibration's
+    split"), empty when one was fitted; `flank`: for a planet fault, the flank of the planet tooth the reported fit put it on (``both``, ``sun``,
     ``ring``; module docstring, "A planet fault's flank"), empty for a sun or ring fault."""
 
     location: str
@@ -403,16 +403,16 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
     is (``ramps=None``), and the twin's note (:func:`_twin_kind`); with `low_band` the
     observation holds the low band too (:func:`with_low_band`; None: for a sun or ring fault on
     a steady spectrum record, :data:`LOW_BAND_LOCATIONS`; returned as used). With `splits`
-    (None: where :func:`~dtwin.identify.split.stiffness_split` gives one) every shape is fitted again with the spec's
-    other excitation/response split, and with `flanks` (:func:`_flanks`) on each planet-tooth
-    flank. `tags` names what varies beyond the shape: ``"excitation"`` (:data:`~dtwin.identify.split.SPLIT_CALIBRATED`,
-    :data:`~dtwin.identify.split.SPLIT_STIFFNESS`) where two splits were fitted, ``"flank"`` where several flanks
-    were."""
+    (None: where :func:`~dtwin.identify.split.stiffness_split` gives one) every shape is fitted
+    again with the spec's other excitation/response split, and with `flanks` (:func:`_flanks`)
+    on each planet-tooth flank. `tags` names what varies beyond the shape: ``"excitation"``
+    (:data:`~dtwin.identify.split.SPLIT_CALIBRATED`, :data:`~dtwin.identify.split.SPLIT_STIFFNESS`)
+    where two splits were fitted, ``"flank"`` where several flanks were."""
     location = names[0].removesuffix("_fault")
     flank_list = _flanks(spec_or_twin, location, flanks)
     pk, fk = _split_kwargs(dict(fit_kwargs))
     pk["kind"], note = _twin_kind(spec_or_twin, pk.get("kind"))
-    other = other_split(spec_or_twin, names, splits)
+    other = other_split(spec_or_twin, names, splits)  # names[0] is the fault: None fits both
     specs = [(SPLIT_CALIBRATED, spec_or_twin), (SPLIT_STIFFNESS, other)] if other is not None \
         else [("", spec_or_twin)]
     out = []
@@ -587,7 +587,8 @@ def estimate_severity(
     :data:`SHAPE_GRID`; None: the twin's fault as it is, one fit); `low_band`: fit the low band
     too (None: for a sun or ring fault on a steady record, :data:`LOW_BAND_LOCATIONS`);
     `jackknife`; `splits`: fit a calibrated spec's other excitation/response split too (None:
-    where it has one, :func:`~dtwin.identify.split.stiffness_split`; module docstring, "The calibration's split");
+    where it has one, :func:`~dtwin.identify.split.stiffness_split`; module docstring, "The
+    calibration's split");
     `flanks`: for a planet fault, the planet-tooth flanks to fit (True: :data:`PLANET_FLANKS`;
     a sequence of them; False: the fault's own; None: all three unless the spec names the
     planet fault's flank; module docstring, "A planet fault's flank"); keyword arguments of

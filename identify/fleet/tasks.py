@@ -122,7 +122,8 @@ def _fit_entry(job: Mapping[str, Any], res, *, fingerprint: str, engine: str, ba
         "not_determined": dict(res.not_determined), "converged": bool(res.converged),
         "at_bound": list(res.at_bound), "message": res.message, "loss": float(res.loss),
         "iterations": int(res.iterations), "f_sun": ops.get("f_sun"), "operating_point": ops,
-        "gap_db": gap, "excitation": res.excitation, "engine": engine, "batched_with": batched, "wall_time_s": wall,
+        "gap_db": gap, "excitation": res.excitation, "engine": engine,
+        "batched_with": batched, "wall_time_s": wall,
         "host": socket.gethostname(), "pid": os.getpid(), "finished": _now(),
         "fit": res.to_dict(),
     }
