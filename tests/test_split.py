@@ -124,3 +124,34 @@ def test_identify_and_fleet_read_a_fault_through_the_split_the_record_prefers(cr
         lo, hi = entry["intervals_95"]["sun_fault"]
         assert lo <= res.interval("sun_fault")[1] and res.interval("sun_fault")[0] <= hi
     assert [r["excitation"] for r in table_rows(entries)[0]] == [SPLIT_STIFFNESS] * 2
+
+
+def test_fleet_discovery_builds_the_split_the_fit_reported(monkeypatch, tmp_path):
+    """`dtwin fleet identify --discover`: discovery runs about the fitted twin of the split the
+    fit reported, the calibrated spec's or its other end (flat response, no transmission error);
+    discovery itself is a stand-in that records what it was handed."""
+    from dtwin.identify.fleet import FleetSettings, tasks
+    from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS
+    from dtwin.spec import load_spec, spec_to_dict
+
+    seen = []
+
+    def stand_in(record, spec, **kw):
+        seen.append(spec)
+        raise tasks.DtwinError("stand-in")
+
+    monkeypatch.setattr(tasks, "discover", stand_in)
+    monkeypatch.setattr(tasks, "read_record", lambda path: type("R", (), {
+        "select": lambda self, ch: self})())
+    cal = load_spec(CALIBRATED)
+    job = {"path": "r.dtwin.h5", "key": "r", "machine": None, "timestamp": None,
+           "identity_source": "path", "sha256": ""}
+    for split in (SPLIT_CALIBRATED, SPLIT_STIFFNESS, ""):
+        entry = tasks.discover_task(job, spec_to_dict(cal), FleetSettings(), {
+            "values": {"sun_fault": 0.3}, "f_sun": 25.0, "excitation": split},
+            fingerprint="test")
+        assert entry["status"] == "failed" and entry["error"] == "stand-in"
+    flat = [len(set(s["sensor"]["frf_db"])) == 1 for s in seen]
+    assert flat == [False, True, False]
+    assert any(seen[0]["mesh"]["excitation_ring_cos"])
+    assert not any(seen[1]["mesh"]["excitation_ring_cos"])
