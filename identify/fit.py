@@ -67,7 +67,13 @@ from .residuals import (
     point_groups,
     residual_count,
 )
-from .split import SPLIT_CALIBRATED, SPLIT_STIFFNESS, choose_split, other_split
+from .split import (
+    SPLIT_CALIBRATED,
+    SPLIT_STIFFNESS,
+    choose_split,
+    low_band_losses,
+    other_split,
+)
 from .uncertainty import Uncertainty, analyse, expected_noise_rss
 
 __all__ = ["FitResult", "Problem", "SOLVERS", "fit", "fit_batch", "make_problem", "stack_problems"]
@@ -651,8 +657,10 @@ class FitResult:
             mark = "reported" if row["excitation"] == self.excitation else \
                 "not rejected: intervals over both" if row["accepted"] else "rejected"
             vals = ", ".join(f"{n} {row['values'][n]:.5g}" for n in self.names)
+            low = (f" (with the low band, not fitted: {row['low_band_loss']:.5g})"
+                   if "low_band_loss" in row else "")
             rows.append(f"excitation/response split {row['excitation']!r}: loss "
-                        f"{row['loss']:.5g}, {vals} ({mark})")
+                        f"{row['loss']:.5g}{low}, {vals} ({mark})")
         u = self.uncertainty
         if u is not None and np.isfinite(u.lack_of_fit):
             rows.append(f"lack of fit: loss {u.lack_of_fit:.3g}× what the noise alone leaves"
@@ -917,9 +925,10 @@ def fit(
     - `throw`: raise `FitError` when not converged or at a bound.
     - `splits`: with a calibrated spec whose mesh excitation or sensor response was calibrated,
       fit the free parameters again with the other end of its excitation/response split (the
-      stiffness waveform's excitation, a flat response) and report the split of least loss,
-      with intervals over both where the record cannot reject either
-      (:mod:`dtwin.identify.split`); None: where a fault severity is free (a healthy record
+      stiffness waveform's excitation, a flat response) and report the split of least loss
+      (for a sun or ring fault, scored with the low band too, which the fits do not use:
+      :func:`~dtwin.identify.split.low_band_losses`), with intervals over both where the
+      record cannot reject either (:mod:`dtwin.identify.split`); None: where a fault severity is free (a healthy record
       cannot tell the splits apart, a fault's sidebands can), True: for any parameters, False:
       never. Not with `problem`.
     - keyword arguments of :func:`make_problem`: ``f_sun``, ``runup``, ``features``,
@@ -937,8 +946,10 @@ def fit(
                   max_steps=max_steps, tol=tol, sigma_tol=sigma_tol, batch=batch,
                   uncertainty=uncertainty, scan=scan, confounding=confounding,
                   progress=progress, splits=False, **problem_kwargs)
-        res = choose_split([(SPLIT_CALIBRATED, fit(records, spec_or_twin, free, **kw)),
-                            (SPLIT_STIFFNESS, fit(records, other, free, **kw))])
+        pair = [(spec_or_twin, fit(records, spec_or_twin, free, **kw)),
+                (other, fit(records, other, free, **kw))]
+        res = choose_split([(SPLIT_CALIBRATED, pair[0][1]), (SPLIT_STIFFNESS, pair[1][1])],
+                           low_band_losses(pair, records, check_free(free), problem_kwargs))
         if throw and (not res.converged or res.at_bound):
             raise FitError(res.message)
         return res
@@ -1142,9 +1153,12 @@ def fit_batch(
         kw = dict(solver=solver, jac=jac, max_steps=max_steps, tol=tol, sigma_tol=sigma_tol,
                   batch=batch, uncertainty=uncertainty, confounding=confounding, splits=False,
                   **problem_kwargs)
-        return [choose_split([(SPLIT_CALIBRATED, a), (SPLIT_STIFFNESS, b)]) for a, b in zip(
-            fit_batch(records, spec_or_twin, free, **kw), fit_batch(records, other, free, **kw),
-            strict=True)]
+        names = check_free(free)
+        return [choose_split([(SPLIT_CALIBRATED, a), (SPLIT_STIFFNESS, b)],
+                             low_band_losses([(spec_or_twin, a), (other, b)], rec, names,
+                                             problem_kwargs))
+                for rec, a, b in zip(records, fit_batch(records, spec_or_twin, free, **kw),
+                                     fit_batch(records, other, free, **kw), strict=True)]
     t0 = time.perf_counter()
     made = [make_problem(r, spec_or_twin, free, jac=jac, **problem_kwargs) for r in records]
     problems = [m[0] for m in made]

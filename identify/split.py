@@ -16,7 +16,10 @@ So a fault severity is fitted with both ends of the split: the calibrated spec a
 (:data:`SPLIT_CALIBRATED`), and the same spec with the stiffness waveform's excitation alone and
 a flat response (:data:`SPLIT_STIFFNESS`, :func:`stiffness_split`); window, damping and load
 shares stay as calibrated. The fits are scored by one rule (:func:`model_form_tolerance`): the
-split of least loss is reported, and a split whose ``‖r‖²`` exceeds it by no more than the
+split of least loss is reported (for a sun or ring fault fitted on the mesh bands, the loss
+with the low band added, which the fits did not use: :func:`low_band_losses`; there a small
+fault's comb stands tens of dB over the floor where its mesh sidebands stand a few, and the
+mesh lines, which the calibrated split was chosen to fit, would otherwise decide), and a split whose ``‖r‖²`` exceeds it by no more than the
 larger of ``χ²₁(95 %)`` in units of the residual variance and what the best fit leaves
 unexplained beyond the noise cannot be rejected. :func:`choose_split` applies it to two
 :class:`~dtwin.identify.fit.FitResult` (used by :func:`dtwin.identify.fit.fit` and
@@ -30,10 +33,12 @@ import dataclasses
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+import jax.numpy as jnp
 import numpy as np
 
 from dtwin.build import is_calibrated
 from dtwin.errors import SettingsError
+from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
 from dtwin.spec import Spec, load_spec, spec_to_dict
 from dtwin.twin import Twin
@@ -44,8 +49,9 @@ from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, Uncertainty
 if TYPE_CHECKING:
     from .fit import FitResult
 
-__all__ = ["SPLIT_CALIBRATED", "SPLIT_STIFFNESS", "choose_split", "fault_names",
-           "model_form_tolerance", "other_split", "stiffness_split"]
+__all__ = ["LOW_BAND_FAULTS", "SPLIT_CALIBRATED", "SPLIT_STIFFNESS", "choose_split",
+           "fault_names", "low_band_losses", "model_form_tolerance", "other_split",
+           "stiffness_split"]
 
 #: What each end of a calibrated spec's excitation/response split is called in results.
 SPLIT_CALIBRATED = "calibrated"
@@ -101,6 +107,55 @@ def other_split(spec_or_twin, names: Sequence[str], splits: bool | None) -> Spec
     return other
 
 
+#: Fault locations whose split is scored with the low band too (as
+#: :data:`dtwin.identify.severity.LOW_BAND_LOCATIONS`: the sun's and the ring's comb lies where
+#: the records put it).
+LOW_BAND_FAULTS = ("sun_fault", "ring_fault")
+
+
+def low_band_losses(fits: Sequence[tuple[Any, FitResult]], records, names: Sequence[str],
+                    problem_kwargs: dict[str, Any]) -> list[float] | None:
+    """Each fit's loss (½‖r‖²) over its own points and the low band of `records` (the fault's
+    comb below the first mesh band, :func:`dtwin.identify.severity.with_low_band`), at its fitted
+    values: `fits` are ``(spec, FitResult)`` of one record set. The low band is where a small
+    sun or ring fault makes its strongest lines and where the fit did not look, so it scores the
+    splits on data the fits did not use. A fit on the DFT grid is scored with its own problem
+    and the low band added; one in the order domain with a DFT-grid problem of the same record
+    at the fitted values and operating point. None where it does not apply: no sun or ring
+    fault among `names` (:data:`LOW_BAND_FAULTS`), a run-up, or a fit without uncertainty."""
+    from .fit import _batched_loss, make_problem
+    from .residuals import Features
+    from .severity import with_low_band
+
+    if not any(n in LOW_BAND_FAULTS for n in names):
+        return None
+    recs = list(records) if isinstance(records, (list, tuple)) else [records]
+    channel = problem_kwargs.get("channel", 0)
+    keep = {k: v for k, v in problem_kwargs.items()
+            if k not in ("features", "weights", "f_sun", "initial", "runup")}
+    out = []
+    for spec, res in fits:
+        prob = res.problem
+        if prob is None or res.uncertainty is None or \
+                any(o.kind != "spectrum" or o.ramp for o in prob.observations):
+            return None
+        theta = np.asarray(res.theta)
+        if any(o.order_domain for o in prob.observations):
+            f_sun = [op.get("f_sun") for op in res.operating_points]
+            if len(f_sun) != len(recs) or any(f is None for f in f_sun):
+                return None
+            prob, _ = make_problem(recs, spec, list(res.names), initial=dict(res.values),
+                                   f_sun=f_sun, features=Features(), **keep)
+            theta = np.zeros_like(theta)
+        lp = prob.twin.lp
+        obs = [with_low_band(o, rec, channel=channel, n_planets=int(lp.n_planets),
+                             f_carrier=Kinematics.from_gear_set(lp, float(o.speed[0])).f_carrier)
+               for o, rec in zip(prob.observations, recs, strict=True)]
+        prob = dataclasses.replace(prob, observations=tuple(obs))
+        out.append(float(np.asarray(_batched_loss(jnp.asarray(theta)[None], prob, "map"))[0]))
+    return out
+
+
 def model_form_tolerance(unc: Uncertainty | None, loss: float) -> float:
     """How far (in ``‖r‖²``) a fit of another model form may lie above the best fit, of loss
     `loss` (½‖r‖²) and uncertainty `unc`, and not be rejected: the larger of ``χ²₁(95 %)`` in
@@ -125,22 +180,28 @@ def _ref(res: FitResult, i: int) -> float:
     return abs(v)
 
 
-def choose_split(fits: Sequence[tuple[str, FitResult]]) -> FitResult:
+def choose_split(fits: Sequence[tuple[str, FitResult]],
+                 scores: Sequence[float] | None = None) -> FitResult:
     """The fit of least loss among `fits` (``(split, FitResult)``, the same parameters, one
-    record), with ``excitation`` set to its split and ``splits`` to a row per fit (split, loss,
-    values, 95 % intervals, accepted). Where another split is accepted
-    (:func:`model_form_tolerance`) every interval is the union over the accepted splits, and a
-    parameter whose union half-width exceeds ``HALF_WIDTH_LIMIT`` of its scale is flagged not
-    determined, naming what each split read."""
-    losses = np.array([r.loss if np.isfinite(r.loss) else np.inf for _, r in fits])
+    record set), or of least `scores` where given (:func:`low_band_losses`), with
+    ``excitation`` set to its split and ``splits`` to a row per fit (split, loss, score, values,
+    95 % intervals, accepted). Where another split is accepted (its loss or score within
+    :func:`model_form_tolerance` of the best fit's) every interval is the union over the
+    accepted splits, and a parameter whose union half-width exceeds ``HALF_WIDTH_LIMIT`` of its
+    scale is flagged not determined, naming what each split read."""
+    fit_losses = np.array([r.loss if np.isfinite(r.loss) else np.inf for _, r in fits])
+    losses = fit_losses if scores is None else \
+        np.array([v if np.isfinite(v) else np.inf for v in scores])
     b = int(np.argmin(losses))
     name_b, best = fits[b]
-    tol = model_form_tolerance(best.uncertainty, losses[b])
+    tol = model_form_tolerance(best.uncertainty, fit_losses[b])
     rows: list[dict[str, Any]] = []
-    for (split, res), loss in zip(fits, losses, strict=True):
-        row: dict[str, Any] = {"excitation": split, "loss": float(loss),
+    for (split, res), loss, fit_loss in zip(fits, losses, fit_losses, strict=True):
+        row: dict[str, Any] = {"excitation": split, "loss": float(fit_loss),
                                "values": dict(res.values),
                                "accepted": bool(2.0 * (loss - losses[b]) <= tol)}
+        if scores is not None:
+            row["low_band_loss"] = float(loss)
         if res.uncertainty is not None:
             row["intervals_95"] = {n: list(map(float, res.uncertainty.interval[i]))
                                    for i, n in enumerate(res.names)}

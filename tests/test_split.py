@@ -90,6 +90,9 @@ def test_identify_and_fleet_read_a_fault_through_the_split_the_record_prefers(cr
     assert set(rows) == {SPLIT_CALIBRATED, SPLIT_STIFFNESS}
     assert res.excitation == SPLIT_STIFFNESS and res.to_dict()["excitation"] == SPLIT_STIFFNESS
     assert not rows[SPLIT_CALIBRATED]["accepted"] and rows[SPLIT_STIFFNESS]["accepted"]
+    # scored with the low band too (a sun fault), which the fits did not use
+    assert rows[SPLIT_STIFFNESS]["low_band_loss"] < rows[SPLIT_CALIBRATED]["low_band_loss"]
+    assert all(r["low_band_loss"] > r["loss"] for r in res.splits)
     assert rows[SPLIT_CALIBRATED]["values"]["sun_fault"] < 0.6 * res.values["sun_fault"]
     assert abs(_peak(res) - truth) <= 0.25 * truth
     assert "'calibrated': loss" in res.table() and "(rejected)" in res.table()
