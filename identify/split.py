@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.build import is_calibrated
-from dtwin.errors import SettingsError
+from dtwin.errors import DtwinError, SettingsError
 from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
 from dtwin.spec import Spec, load_spec, spec_to_dict
@@ -121,8 +121,9 @@ def low_band_losses(fits: Sequence[tuple[Any, FitResult]], records, names: Seque
     sun or ring fault makes its strongest lines and where the fit did not look, so it scores the
     splits on data the fits did not use. A fit on the DFT grid is scored with its own problem
     and the low band added; one in the order domain with a DFT-grid problem of the same record
-    at the fitted values and operating point. None where it does not apply: no sun or ring
-    fault among `names` (:data:`LOW_BAND_FAULTS`), a run-up, or a fit without uncertainty."""
+    at the fitted values and operating point. None where it does not apply (the fits are then
+    scored by their own losses): no sun or ring fault among `names` (:data:`LOW_BAND_FAULTS`), a
+    run-up, a fit without uncertainty, or a score that could not be computed."""
     from .fit import _batched_loss, make_problem
     from .residuals import Features
     from .severity import with_low_band
@@ -144,8 +145,11 @@ def low_band_losses(fits: Sequence[tuple[Any, FitResult]], records, names: Seque
             f_sun = [op.get("f_sun") for op in res.operating_points]
             if len(f_sun) != len(recs) or any(f is None for f in f_sun):
                 return None
-            prob, _ = make_problem(recs, spec, list(res.names), initial=dict(res.values),
-                                   f_sun=f_sun, features=Features(), **keep)
+            try:
+                prob, _ = make_problem(recs, spec, list(res.names), initial=dict(res.values),
+                                       f_sun=f_sun, features=Features(), **keep)
+            except DtwinError:  # scored by the fits' own losses then
+                return None
             theta = np.zeros_like(theta)
         lp = prob.twin.lp
         obs = [with_low_band(o, rec, channel=channel, n_planets=int(lp.n_planets),
@@ -153,7 +157,7 @@ def low_band_losses(fits: Sequence[tuple[Any, FitResult]], records, names: Seque
                for o, rec in zip(prob.observations, recs, strict=True)]
         prob = dataclasses.replace(prob, observations=tuple(obs))
         out.append(float(np.asarray(_batched_loss(jnp.asarray(theta)[None], prob, "map"))[0]))
-    return out
+    return out if all(np.isfinite(out)) else None
 
 
 def model_form_tolerance(unc: Uncertainty | None, loss: float) -> float:
