@@ -199,10 +199,10 @@ def test_bench_identify_severity_and_fleet_agree(bench_spec, tmp_path):
     agree within their intervals; bench_healthy's severity interval holds 0; mesh damping,
     which this 5 kHz record cannot determine, is flagged (README).
     Measured: identify fits both ends of the calibration's excitation/response split
-    (dtwin.identify.split) and the record rejects neither: calibrated k_sun_planet 2.81e8,
-    sun_fault 0.542 (loss 70.98), stiffness waveform with a flat response 2.58e9, 0.641 (loss
-    68.37, reported; 33 steps); sun_fault 0.641 [0.496, 0.675] over both, zeta_mesh NOT
-    DETERMINED, lack of fit 1.13; severity 0.490 [0.406, 0.518] (excitation splits); fleet
+    (dtwin.identify.split): calibrated k_sun_planet 2.81e8, sun_fault 0.542 (loss 70.98, 141.6
+    with the low band), stiffness waveform with a flat response 2.58e9, 0.641 (loss 68.37, 161.3
+    with the low band: rejected); reported sun_fault 0.542 [0.496, 0.587] (33 steps), zeta_mesh
+    NOT DETERMINED, lack of fit 1.17; severity 0.490 [0.406, 0.518] (excitation splits); fleet
     [0.480, 0.557]; bench_healthy 0.002 [0, 0.031]."""
     from dtwin import read_record
     from dtwin.identify.fleet import FleetSettings, run_fleet
@@ -234,9 +234,9 @@ def test_bench_identify_flags_mesh_stiffness(bench_spec):
     stiffness times the transmission error and share clearances calibration fitted at the
     ISO value); dtwin.identify.confounding frees the excitation's four harmonics and the two
     clearances at the optimum and the interval becomes [1.06e8, 7.80e8]: flagged, with the
-    reason given. The other end of the calibration's excitation/response split, which the
-    record does not reject, reads 2.58e9; the reported interval is the union over both,
-    [2.08e8, 2.80e9], flagged with both readings named. The sun fault stays determined."""
+    reason given. The other end of the calibration's excitation/response split reads 2.58e9
+    with a lower loss on the mesh bands; the low band, which neither fit uses, rejects it
+    (161.3 against 141.6). The sun fault stays determined."""
     from dtwin.spec import load_spec, lumped_from_spec
 
     ident = _bench_identify(bench_spec)
@@ -254,11 +254,11 @@ def test_bench_identify_from_the_default_start_flags_mesh_stiffness(bench_spec):
     minimum where the fault's sidebands near 2 f_m follow the stiffness) by the stiffness's
     scan, and the fit ends where the calibration confounds the stiffness: flagged. The fault
     severity is fitted with both ends of the calibration's excitation/response split too
-    (dtwin.identify.split): the record rejects neither, so the stiffness is flagged over both.
-    Measured: calibrated split loss 122.4 → 74.1 (profile) → 71.0 (scan), k_sun_planet 2.89e8
-    (with the calibration free [1.13e8, 7.10e8]), sun_fault 0.544; the stiffness waveform with
-    a flat response loss 68.5, k_sun_planet 1.92e9, sun_fault 0.605; reported k_sun_planet NOT
-    DETERMINED [2.15e8, 2.64e9], sun_fault 0.605 [0.498, 0.641]."""
+    (dtwin.identify.split), and the union of their intervals would hold both readings.
+    Measured: calibrated split loss 122.3 → 74.2 (profile) → 71.0 (scan), k_sun_planet 2.89e8
+    (with the calibration free [1.22e8, 6.82e8]), sun_fault 0.544 [0.498, 0.589]: reported, its
+    loss with the low band 141.6; the stiffness waveform with a flat response loss 68.5,
+    k_sun_planet 1.92e9, sun_fault 0.605, with the low band 156.9: rejected."""
     from dtwin import read_record
     from dtwin.identify.fit import fit
     from dtwin.identify.split import SPLIT_CALIBRATED
