@@ -939,8 +939,8 @@ def fit(
     """
     if solver not in SOLVERS:
         raise SettingsError(f"solver must be one of {SOLVERS}, got {solver!r}")
-    other = None if problem is not None or isinstance(free, ParameterSet) else \
-        other_split(spec_or_twin, check_free(free), splits)
+    names = None if problem is not None or isinstance(free, ParameterSet) else check_free(free)
+    other = None if names is None else other_split(spec_or_twin, names, splits)
     if other is not None:  # both ends of the calibration's split (dtwin.identify.split)
         kw = dict(solver=solver, starts=starts, refine=refine, spread=spread, seed=seed, jac=jac,
                   max_steps=max_steps, tol=tol, sigma_tol=sigma_tol, batch=batch,
@@ -949,7 +949,7 @@ def fit(
         pair = [(spec_or_twin, fit(records, spec_or_twin, free, **kw)),
                 (other, fit(records, other, free, **kw))]
         res = choose_split([(SPLIT_CALIBRATED, pair[0][1]), (SPLIT_STIFFNESS, pair[1][1])],
-                           low_band_losses(pair, records, check_free(free), problem_kwargs))
+                           low_band_losses(pair, records, names, problem_kwargs))
         if throw and (not res.converged or res.at_bound):
             raise FitError(res.message)
         return res
@@ -1148,12 +1148,12 @@ def fit_batch(
     stiffness scanned (:func:`fit` does both). `splits`: as for :func:`fit` (both ends of a
     calibrated spec's excitation/response split, a batch each, chosen per record).
     **Returns:** one :class:`FitResult` per record, as :func:`fit` would."""
-    other = other_split(spec_or_twin, check_free(free), splits)
+    names = check_free(free)
+    other = other_split(spec_or_twin, names, splits)
     if other is not None:  # both ends of the calibration's split (dtwin.identify.split)
         kw = dict(solver=solver, jac=jac, max_steps=max_steps, tol=tol, sigma_tol=sigma_tol,
                   batch=batch, uncertainty=uncertainty, confounding=confounding, splits=False,
                   **problem_kwargs)
-        names = check_free(free)
         return [choose_split([(SPLIT_CALIBRATED, a), (SPLIT_STIFFNESS, b)],
                              low_band_losses([(spec_or_twin, a), (other, b)], rec, names,
                                              problem_kwargs))

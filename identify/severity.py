@@ -172,8 +172,8 @@ class SeverityEstimate:
     band (:func:`with_low_band`); `excitation`: of a calibrated spec's two excitation/response
     splits, the one the reported fit used (:data:`~dtwin.identify.split.SPLIT_CALIBRATED`,
     :data:`~dtwin.identify.split.SPLIT_STIFFNESS`; module docstring, "The calibration's
-    split"), empty when one was fitted; `flank`: for a planet fault, the flank of the planet tooth the reported fit put it on (``both``, ``sun``,
-    ``ring``; module docstring, "A planet fault's flank"), empty for a sun or ring fault."""
+    split"), empty when one was fitted; `flank`: for a planet fault, the flank of the planet
+    tooth the reported fit put it on (``both``, ``sun``, ``ring``; module docstring, "A planet fault's flank"), empty for a sun or ring fault."""
 
     location: str
     severity: float
@@ -312,6 +312,18 @@ def with_low_band(obs, record, *, channel: int | str = 0, floor_bins: int = 31,
         freqs=cat(freqs[sel], obs.freqs))
 
 
+def with_low_band_problem(problem, records, *, channel: int | str = 0):
+    """`problem` with the low band (:func:`with_low_band`) added to the observation of each of
+    `records` (one per observation, in order; a single record for the first observation alone),
+    at the planet-pass frequency of each observation's speed."""
+    recs = list(records) if isinstance(records, (list, tuple)) else [records]
+    lp = problem.twin.lp
+    new = tuple(with_low_band(o, rec, channel=channel, n_planets=int(lp.n_planets),
+                              f_carrier=Kinematics.from_gear_set(lp, float(o.speed[0])).f_carrier)
+                for o, rec in zip(problem.observations, recs, strict=False))
+    return dataclasses.replace(problem, observations=new + problem.observations[len(new):])
+
+
 def _shapes(ramps) -> tuple[tuple[float, float], ...]:
     """``ramps`` as ``((ramp, spread), …)``: ``"grid"`` (:data:`RAMP_GRID`, no spread),
     ``"shapes"`` (:data:`SHAPE_GRID`), or a sequence of ramps or ``(ramp, spread)`` pairs."""
@@ -426,11 +438,7 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
             low_band = (obs.kind == "spectrum" and not obs.ramp and not obs.order_domain
                         and location in LOW_BAND_LOCATIONS)
         if low_band:
-            kin = Kinematics.from_gear_set(problem.twin.lp, float(obs.speed[0]))
-            new = with_low_band(obs, record, channel=pk.get("channel", 0),
-                                n_planets=int(problem.twin.lp.n_planets),
-                                f_carrier=kin.f_carrier)
-            problem = dataclasses.replace(problem, observations=(new,) + problem.observations[1:])
+            problem = with_low_band_problem(problem, record, channel=pk.get("channel", 0))
         i = _fault_index(problem.twin, location)
         for flank in flank_list:
             tags = {"excitation": split} if split else {}

@@ -38,13 +38,12 @@ import numpy as np
 
 from dtwin.build import is_calibrated
 from dtwin.errors import DtwinError, SettingsError
-from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
 from dtwin.spec import Spec, load_spec, spec_to_dict
 from dtwin.twin import Twin
 
 from .confounding import calibrated_excitation
-from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, Uncertainty
+from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, Uncertainty, half_width_scale
 
 if TYPE_CHECKING:
     from .fit import FitResult
@@ -126,7 +125,7 @@ def low_band_losses(fits: Sequence[tuple[Any, FitResult]], records, names: Seque
     run-up, a fit without uncertainty, or a score that could not be computed."""
     from .fit import _batched_loss, make_problem
     from .residuals import Features
-    from .severity import with_low_band
+    from .severity import with_low_band_problem
 
     if not any(n in LOW_BAND_FAULTS for n in names):
         return None
@@ -151,11 +150,9 @@ def low_band_losses(fits: Sequence[tuple[Any, FitResult]], records, names: Seque
             except DtwinError:  # scored by the fits' own losses then
                 return None
             theta = np.zeros_like(theta)
-        lp = prob.twin.lp
-        obs = [with_low_band(o, rec, channel=channel, n_planets=int(lp.n_planets),
-                             f_carrier=Kinematics.from_gear_set(lp, float(o.speed[0])).f_carrier)
-               for o, rec in zip(prob.observations, recs, strict=True)]
-        prob = dataclasses.replace(prob, observations=tuple(obs))
+        if len(prob.observations) != len(recs):
+            return None
+        prob = with_low_band_problem(prob, recs, channel=channel)
         out.append(float(np.asarray(_batched_loss(jnp.asarray(theta)[None], prob, "map"))[0]))
     return out if all(np.isfinite(out)) else None
 
@@ -172,16 +169,6 @@ def model_form_tolerance(unc: Uncertainty | None, loss: float) -> float:
     lof = float(unc.lack_of_fit)
     excess = rss - rss / lof if np.isfinite(lof) and lof > 0 else 0.0
     return max(CHI2_95 * unc.s2 * unc.kappa * unc.widened ** 2, excess)
-
-
-def _ref(res: FitResult, i: int) -> float:
-    """The scale a half-width is judged against (as :func:`dtwin.identify.uncertainty.analyse`
-    judges it)."""
-    pset = res.problem.pset if res.problem is not None else None
-    v = float(res.values[res.names[i]])
-    if pset is not None and pset.transforms[i] == "logit":
-        return max(abs(v), 0.1 * (float(pset.upper[i]) - float(pset.lower[i])))
-    return abs(v)
 
 
 def choose_split(fits: Sequence[tuple[str, FitResult]],
@@ -221,7 +208,10 @@ def choose_split(fits: Sequence[tuple[str, FitResult]],
                     a, c = r.uncertainty.interval[r.names.index(n)]
                     interval[i] = (min(interval[i, 0], a), max(interval[i, 1], c))
             half = 0.5 * (interval[i, 1] - interval[i, 0])
-            if n not in flags and not half <= HALF_WIDTH_LIMIT * _ref(best, i):
+            pset = best.problem.pset if best.problem is not None else None
+            ref = abs(float(best.values[n])) if pset is None else half_width_scale(
+                float(best.values[n]), pset.transforms[i], pset.lower[i], pset.upper[i])
+            if n not in flags and not half <= HALF_WIDTH_LIMIT * ref:
                 read = ", ".join(f"{r.values[n]:.4g} ({s})" for s, r in accepted)
                 flags[n] = (f"the calibration's excitation/response splits the record cannot "
                             f"tell apart read it {read}; 95 % interval over both "

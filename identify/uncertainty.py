@@ -106,6 +106,15 @@ HALF_WIDTH_LIMIT = 0.5
 LACK_OF_FIT_LIMIT = 2.0
 
 
+def half_width_scale(value: float, transform: str, lower: float, upper: float) -> float:
+    """What a parameter's 95 % half-width is judged against (``HALF_WIDTH_LIMIT`` of it, or
+    the parameter is not determined): ``|value|``, and for a ``logit`` parameter at least 10 %
+    of its range (a severity near 0 is still determined by a narrow interval)."""
+    if transform == "logit":
+        return max(abs(float(value)), 0.1 * (float(upper) - float(lower)))
+    return abs(float(value))
+
+
 @dataclasses.dataclass(frozen=True)
 class Uncertainty:
     """Result of :func:`analyse` (SI values; names in `names` order).
@@ -335,10 +344,7 @@ def analyse(
 
     def flag(i, n):
         half = 0.5 * (interval[i, 1] - interval[i, 0])
-        if pset.transforms[i] == "logit":
-            ref = max(abs(values[i]), 0.1 * (pset.upper[i] - pset.lower[i]))
-        else:
-            ref = abs(values[i])
+        ref = half_width_scale(values[i], pset.transforms[i], pset.lower[i], pset.upper[i])
         out = None
         if not np.isfinite(half) or half > HALF_WIDTH_LIMIT * ref:
             out = (f"95 % half-width {half:.3g} exceeds {100 * HALF_WIDTH_LIMIT:.0f} % of "

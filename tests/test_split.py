@@ -59,13 +59,10 @@ def crack(tmp_path_factory):
 
 def _peak(res) -> float:
     """The fitted sun fault's peak stiffness loss (reference: the mean mesh stiffness)."""
-    from dtwin.faults import peak_stiffness_loss
+    from dtwin.identify.severity import _fault_index, _peak
 
     twin = res.problem.twin
-    (fault,) = [p.fault for p in twin.parts if getattr(p, "fault", None) is not None
-                and p.fault.location == "sun"]
-    return float(peak_stiffness_loss(dataclasses.replace(fault, severity=res.values["sun_fault"]),
-                                     twin.lp, reference="mean"))
+    return _peak(twin, _fault_index(twin, "sun"), res.values["sun_fault"])
 
 
 def test_identify_and_fleet_read_a_fault_through_the_split_the_record_prefers(crack, tmp_path):
