@@ -57,8 +57,8 @@ from .parts.supports import Supports
 from .parts.torque_ripple import TorqueRipple
 from .parts.transfer_path import AbstractTransferPath
 
-__all__ = ["fold_times", "hunting_cycles", "hunting_period", "periodic_reason", "shaft_turns",
-           "tiled_times"]
+__all__ = ["fold_times", "hunting_cycles", "hunting_period", "mechanical_cycles",
+           "mechanical_period", "mechanical_reason", "periodic_reason", "rigid_advance", "shaft_turns", "tiled_times"]
 
 
 def _lcm(*ns: int) -> int:
@@ -82,8 +82,10 @@ def _constant_in_time(load) -> bool:
     return isinstance(load, FluctuatingLoad) and _concretely_zero(load.amplitude)
 
 
-def _planet_dependence(twin) -> tuple[bool, str | None]:
-    """(whether a part depends on a planet's own angle, reason the twin is not periodic)."""
+def _planet_dependence(twin, signal: bool = True) -> tuple[bool, str | None]:
+    """(whether a part depends on a planet's own angle, reason the twin is not periodic).
+    With ``signal=False`` only the gear set's periodicity counts: a mount path's line, which
+    reaches the sensor without moving the gears, does not break it."""
     # parts whose forces depend on the mesh phases, the sun or carrier angle only
     angle_only = (Supports, MeshExcitation, AbstractTransferPath, PlanetPositionErrors,
                   SunEccentricity, CarrierEccentricity, MeshOffsets, TransmissionError,
@@ -112,7 +114,7 @@ def _planet_dependence(twin) -> tuple[bool, str | None]:
                 return planet, "planet bearing defect of non-integer order"
             planet = True
         elif isinstance(p, MountPath):
-            if not (_concretely_zero(p.a_cos) and _concretely_zero(p.a_sin)):
+            if signal and not (_concretely_zero(p.a_cos) and _concretely_zero(p.a_sin)):
                 return planet, f"mount path line at {p.f:g} Hz varies in time"
         elif not isinstance(p, angle_only):
             return planet, f"part {type(p).__name__} is not known to be periodic"
@@ -135,6 +137,86 @@ def hunting_cycles(twin) -> int | None:
     lp = twin.lp
     zs, zr, zp = int(lp.z_sun), int(lp.z_ring), int(lp.z_planet)
     return _lcm(zs, zr, zp) if planet else _lcm(zs, zr)
+
+
+def _part_cycles(p, zs: int, zr: int, zp: int) -> int | None:
+    """Mesh cycles after which part `p`'s forces on the gear set repeat at constant speed
+    (0 for a part that is not known to repeat); an output-only transfer path repeats every
+    cycle as far as the gear set is concerned."""
+    if isinstance(p, (Supports, MeshExcitation, PlanetPositionErrors, CarrierEccentricity,
+                      MeshOffsets, TransmissionError, DrivePart, LoadPart, MountPath)):
+        return 1
+    if isinstance(p, AbstractTransferPath):
+        return 1 if p.output_only else 0
+    if isinstance(p, SunEccentricity):
+        return 1 if _concretely_zero(p.e) else zs
+    if isinstance(p, LocalFault):
+        if _concretely_zero(getattr(p.fault, "severity", None)):
+            return 1
+        return {"sun": zs, "ring": zr, "planet": zp}.get(p.fault.location, 0)
+    if isinstance(p, PlanetBearingDefect):
+        return 1 if _concretely_zero(p.amplitude) else zp
+    if isinstance(p, TorqueRipple):
+        # the electrical angle h p theta_s: the sun turns (Zs + Zr) / (Zs Zr) per mesh cycle
+        order = int(p.harmonic) * int(p.pole_pairs)
+        return zs * zr // math.gcd(zs * zr, order * (zs + zr))
+    return 0
+
+
+def mechanical_cycles(twin) -> int | None:
+    """Mesh cycles after which the **gear set's** state repeats at constant speed, up to the
+    rigid rotation (:func:`rigid_advance`): the least common multiple of its parts' periods —
+    1 for the meshes, supports and static imperfections, `Zs` for a sun fault or run-out, `Zr`
+    for a ring fault, `Zp` for a planet fault or bearing defect, a whole number of electrical
+    turns for a torque ripple. Shorter than :func:`hunting_cycles` (by up to `Zr` times):
+    the planet-pass window of a sensor on the housing, whose period is a carrier turn, acts
+    after the gear set (the transfer paths' own states are one-way filters of the gear set's
+    forces, `AbstractTransferPath.output_only`). None when the twin is not periodic
+    (:func:`periodic_reason`) or a part's period is not known."""
+    if mechanical_reason(twin) is not None:
+        return None
+    lp = twin.lp
+    zs, zr, zp = int(lp.z_sun), int(lp.z_ring), int(lp.z_planet)
+    return _lcm(*(_part_cycles(p, zs, zr, zp) for p in twin.parts))
+
+
+def mechanical_reason(twin) -> str | None:
+    """Why the gear set's state at constant speed is not (known to be) periodic
+    (:func:`mechanical_cycles`); None when it is."""
+    why = _planet_dependence(twin, signal=False)[1]
+    if why is not None:
+        return why
+    lp = twin.lp
+    zs, zr, zp = int(lp.z_sun), int(lp.z_ring), int(lp.z_planet)
+    for p in twin.parts:
+        if _part_cycles(p, zs, zr, zp) == 0:
+            if isinstance(p, AbstractTransferPath):
+                return (f"transfer path {type(p).__name__}'s states are not a filter of the "
+                        "gear set's motion alone")
+            return f"part {type(p).__name__} has no known period"
+    return None
+
+
+def mechanical_period(twin, f_sun=None):
+    """:func:`mechanical_cycles` in seconds at input speed `f_sun` (Hz; default the drive's
+    constant set point, may be traced); None when the twin is not periodic."""
+    cycles = mechanical_cycles(twin)
+    if cycles is None:
+        return None
+    if f_sun is None:
+        drive = next(p.drive for p in twin.parts if isinstance(p, DrivePart))
+        f_sun = drive.speed.final / (2.0 * jnp.pi)
+    return cycles / mesh_frequency(twin, f_sun)
+
+
+def rigid_advance(twin, cycles: int) -> tuple[float, float]:
+    """Angles ``(sun, carrier)`` (rad) that the shafts turn in `cycles` mesh cycles at constant
+    speed: ``2 pi cycles (Zs + Zr) / (Zs Zr)`` and ``2 pi cycles / Zr``. Independent of the
+    speed; whole turns over a hunting period (:func:`shaft_turns`), fractions of a turn over a
+    :func:`mechanical_cycles` period."""
+    lp = twin.lp
+    zs, zr = int(lp.z_sun), int(lp.z_ring)
+    return 2.0 * math.pi * cycles * (zs + zr) / (zs * zr), 2.0 * math.pi * cycles / zr
 
 
 def mesh_frequency(twin, f_sun):

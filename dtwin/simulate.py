@@ -8,8 +8,8 @@ Pipeline (docs/references.md §6):
    step-size control) on scaled integration
    coordinates (`dtwin.twin`), the state saved on a grid `oversample` times finer than the DAQ
    rate (at constant speed, with `SolverOptions(periodic="auto")`, only a settling time and one
-   hunting period are integrated and the grid's later samples taken at their phases in it:
-   `dtwin.periodic`); the sensor signal is computed from the states with the model's own equations
+   period of the gear set are integrated and the grid's later samples taken at their phases in
+   it, advanced by the rigid rotation: `dtwin.periodic`); the sensor signal is computed from the states with the model's own equations
    (accelerations from the vector field, batched with `vmap` over the saved times: no
    differentiation of sampled output);
 3. DAQ: a linear-phase FIR low-pass (Kaiser window, cut-off 0.4 × the output rate, ≥ 80 dB
@@ -40,14 +40,14 @@ from .errors import SolverError
 from .integrator import UnrolledTsit5
 from .io.record import Record
 from .parts.drive import DrivePart, LoadPart
+from .parts.speed_source import IdealSpeedSource
 from .parts.transfer_path import AbstractTransferPath, ring_velocity_fixed
 from .periodic import (
     fold_times,
-    hunting_cycles,
-    hunting_period,
+    mechanical_cycles,
+    mechanical_reason,
     mesh_frequency,
-    periodic_reason,
-    shaft_turns,
+    rigid_advance,
 )
 from .sensor_response import apply_frf, knot_basis
 from .twin import Coords, Twin
@@ -85,13 +85,16 @@ class SolverOptions:
       `diffrax.Tsit5` with the stages written out (~5–20 % less time per step on a CPU); False →
       `diffrax.Tsit5` itself (same steps and solution to rounding).
     - `periodic`: ``"off"`` (default): the whole record is integrated. ``"auto"``: when the twin
-      runs at constant speed and its response is periodic (`dtwin.periodic.hunting_cycles`),
-      only `periodic_settle` s of start-up transient and one hunting period are integrated and
-      the record's later samples are taken at their phases in that period (reference §6,
+      runs at constant speed and its gear set's motion is periodic
+      (`dtwin.periodic.mechanical_cycles`: one mesh cycle for a healthy gearbox, `Zs` cycles
+      with a sun fault, …), only `periodic_settle` s of start-up transient and one such period
+      are integrated, the record's later samples are taken at their phases in that period
+      advanced by the rigid rotation, and the housing paths' filters (which see the planets
+      pass with the carrier's period) are applied to the whole record afterwards (reference §6,
       "Periodic steady state"); used when `periodic_settle` + the period + a probe window fit
       in at most `periodic_max_fraction` of the simulated span, otherwise the whole record is
-      integrated. `simulate` checks the periodicity (the signal one period later over a probe
-      window, relative rms difference `SimResult.periodic_defect`); where it exceeds
+      integrated. `simulate` checks the periodicity (every planet's mesh forces one period later
+      over a probe window, relative rms difference `SimResult.periodic_defect`); where it exceeds
       `periodic_tol` it tries a longer settling time (`longer_settle`) and then integrates the
       whole record; `SimResult.method` says which was used. The
       default None means ``max(1e-3, 50 rtol)``: the defect also holds the integrator's own
@@ -196,10 +199,10 @@ class SimResult(eqx.Module):
       `deflection_ring_planet` (m), dissipated powers (W), drive and load outputs (torques N·m,
       currents A, powers W …);
     - `num_steps`: accepted solver steps; `f_sun`: nominal input speed (Hz).
-    - `method`: ``"full"`` (the whole record integrated) or ``"periodic"`` (one hunting period
-      after a settling time, tiled: `SolverOptions.periodic`), with the reason when
+    - `method`: ``"full"`` (the whole record integrated) or ``"periodic"`` (one period of the
+      gear set after a settling time, tiled: `SolverOptions.periodic`), with the reason when
       ``periodic="auto"`` fell back; `periodic_defect`: the measured relative rms change of the
-      signal over one period (None when not tiled).
+      planets' mesh forces over one period (None when not tiled).
     """
 
     time: Float[Array, " n"]
@@ -336,8 +339,23 @@ def daq_filter(oversample: int) -> np.ndarray:
     return taps / taps.sum()
 
 
-def _observe(twin: Twin, ops, quantity, t, y):
+def _filtered_paths(twin: Twin, quantity: str) -> list[int]:
+    """Indices (in `twin.parts`) of the transfer paths whose states `_observe(..., split=True)`
+    leaves to a filter after the solve (output-only paths with states)."""
+    if quantity == "ring_velocity":
+        return []
+    return [i for i, p in enumerate(twin.parts) if isinstance(p, AbstractTransferPath)
+            and p.output_only and p.aux_size > 0]
+
+
+def _observe(twin: Twin, ops, quantity, t, y, split: bool = False):
+    """The observables at time `t` (s) and state ``y = (z, z', aux)`` (unscaled). With
+    `split`, the output-only transfer paths' states in `y` are ignored: the signal is computed
+    with them at zero, and for each such path (`_filtered_paths`) the observables also hold
+    its source (``"source_<i>"``) and the signal's derivative with respect to its states
+    (``"gain_<i>"``), the signal being affine in them; `_filter_paths` completes it."""
     _, _, _, q, qdot, qddot, mesh, outputs = twin.accelerations(t, y, ops)
+    extra = {}
     if quantity == "ring_velocity":
         paths = twin.find(AbstractTransferPath)
         ang = paths[0].direction_angle if paths else jnp.pi / 2
@@ -345,8 +363,19 @@ def _observe(twin: Twin, ops, quantity, t, y):
         sig = ring_velocity_fixed(q, qdot) @ d
     else:
         sig = jnp.zeros(())
-        for p, a in zip(twin.parts, twin.split_aux(y[2]), strict=True):
-            if isinstance(p, AbstractTransferPath):
+        filtered = _filtered_paths(twin, quantity) if split else []
+        for i, (p, a) in enumerate(zip(twin.parts, twin.split_aux(y[2]), strict=True)):
+            if not isinstance(p, AbstractTransferPath):
+                continue
+            if i in filtered:
+                def acc(states, p=p):
+                    return p.acceleration(twin, t, q, qdot, qddot, mesh, states)
+
+                zero = jnp.zeros_like(a)
+                sig = sig + acc(zero)
+                extra[f"gain_{i}"] = jax.jacfwd(acc)(zero)
+                extra[f"source_{i}"] = p.source(twin, q, mesh)
+            else:
                 sig = sig + p.acceleration(twin, t, q, qdot, qddot, mesh, a)
     out = {
         "signal": sig,
@@ -361,6 +390,7 @@ def _observe(twin: Twin, ops, quantity, t, y):
     }
     for k, v in outputs.items():
         out[k] = jnp.asarray(v)
+    out.update(extra)
     return out
 
 
@@ -369,6 +399,16 @@ def _solve(twin: Twin, y0, t0, t1, ts, quantity: str, rtol, atol, dtmax, max_ste
            adjoint: str, progress: bool, pcoeff, icoeff, unrolled: bool, rate_scale_hz: float):
     # every setting comes from `SolverOptions` (its defaults are the only ones)
     ops = twin.operators()
+    ys, result, nsteps = _integrate(twin, ops, y0, t0, t1, ts, rtol, atol, dtmax, max_steps,
+                                    adjoint, progress, pcoeff, icoeff, unrolled, rate_scale_hz)
+    obs = jax.vmap(lambda t, y: _observe(twin, ops, quantity, t, y))(ts, ys)
+    return obs, result, nsteps
+
+
+def _integrate(twin: Twin, ops, y0, t0, t1, ts, rtol, atol, dtmax, max_steps: int, adjoint: str,
+               progress: bool, pcoeff, icoeff, unrolled: bool, rate_scale_hz: float):
+    """Integrate the twin from ``y0 = (z, z', aux)`` at `t0` to `t1` (s), the state saved at
+    `ts`. **Returns** ``((z, z', aux) at ts (unscaled), result, accepted steps)``."""
     sz, sv = state_scales(twin, rate_scale_hz)
     n = twin.n_dof
     z0, zd0, aux0 = y0
@@ -413,8 +453,7 @@ def _solve(twin: Twin, y0, t0, t1, ts, quantity: str, rtol, atol, dtmax, max_ste
         throw=False,
         progress_meter=meter,
     )
-    obs = jax.vmap(lambda t, y: _observe(twin, ops, quantity, t, unflat(y)))(ts, sol.ys)
-    return obs, sol.result, sol.stats["num_accepted_steps"]
+    return jax.vmap(unflat)(sol.ys), sol.result, sol.stats["num_accepted_steps"]
 
 
 #: High-rate samples of the window, just after the tiled period, over which the signal is
@@ -445,47 +484,118 @@ def settling_sequence(solver: SolverOptions) -> tuple[SolverOptions, ...]:
 
 def periodic_plan(twin: Twin, f_sun: float, t0: float, t_end: float, solver: SolverOptions,
                   fs_hi: float, start: str = "steady") -> tuple[float | None, str]:
-    """Whether a record over ``[t0, t_end]`` (s) is integrated over one hunting period:
-    ``(period_estimate_s, "periodic")`` or ``(None, reason)`` (the reason it is integrated in
-    full). The period follows the drive's set point; where that is traced, `f_sun` (Hz,
-    static) estimates it for the decision."""
+    """Whether a record over ``[t0, t_end]`` (s) is integrated over one period of the gear set
+    (`dtwin.periodic.mechanical_cycles`): ``(period_estimate_s, "periodic")`` or
+    ``(None, reason)`` (the reason it is integrated in full). The period follows the drive's
+    set point; where that is traced, `f_sun` (Hz, static) estimates it for the decision."""
     if solver.periodic == "off":
         return None, "full"
     if start != "steady":
         return None, "full (periodic: a start from rest is a run-up)"
-    cycles = hunting_cycles(twin)
+    cycles = mechanical_cycles(twin)
     if cycles is None:
-        return None, f"full (periodic: {periodic_reason(twin)})"
-    T = hunting_period(twin)
-    T = (cycles / float(mesh_frequency(twin, float(f_sun))) if isinstance(T, jax.core.Tracer)
-         else float(T))
+        return None, f"full (periodic: {mechanical_reason(twin)})"
+    T = cycles / float(mesh_frequency(twin, float(f_sun)))
     need = solver.periodic_settle + T + PERIODIC_PROBE / fs_hi
     if need > solver.periodic_max_fraction * (t_end - t0):
-        return None, (f"full (periodic: settle {solver.periodic_settle:g} s + hunting period "
+        return None, (f"full (periodic: settle {solver.periodic_settle:g} s + period "
                       f"{T:.3g} s is more than {solver.periodic_max_fraction:g} of the "
                       f"{t_end - t0:.3g} s simulated)")
     return T, "periodic"
 
 
-def _solve_tiled(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, settle: float,
+#: Slowest decay of an output filter's start (time constants) that its prefix lets pass, and
+#: the prefix (s) where a filter's time constant is traced (unknown when compiling).
+FILTER_PREFIX_TAUS, FILTER_PREFIX_TRACED = 16.0, 1.0
+
+
+def _filter_prefix(twin: Twin, quantity: str, fs_hi: float) -> int:
+    """Samples of constant source put before the record when the output-only paths' states are
+    filtered after the solve (`_filter_paths`): `FILTER_PREFIX_TAUS` of the slowest path's time
+    constant, so that what the circular filter wraps from the record's end has decayed to
+    ``exp(-16) = 1e-7`` when the record starts."""
+    taus = [twin.parts[i].aux_decay_time() for i in _filtered_paths(twin, quantity)]
+    if not taus:
+        return 0
+    span = max(FILTER_PREFIX_TRACED if tau is None else FILTER_PREFIX_TAUS * tau for tau in taus)
+    return int(math.ceil(span * fs_hi))
+
+
+def _filter_paths(twin: Twin, obs: dict, fs_hi: float, n_pre: int) -> dict:
+    """Complete the signal of `_observe(..., split=True)` on a uniform grid of rate `fs_hi`
+    (Hz): each output-only path's states are its source filtered by its frequency response
+    (`AbstractTransferPath.aux_response`), started as the solve starts them — in the steady
+    state of the first sample's source (`aux_from_state`) — by `n_pre` samples of that source
+    before the grid; the filter is applied by FFT (exact for a source band-limited to
+    `fs_hi` / 2)."""
+    obs = dict(obs)
+    sig = obs["signal"]
+    for key in [k for k in obs if k.startswith("source_")]:
+        i = int(key.split("_")[1])
+        src, gain = obs.pop(key), obs.pop(f"gain_{i}")
+        n = src.shape[0]
+        x = jnp.concatenate([jnp.full((n_pre,), src[0]), src])
+        m = int(scipy.fft.next_fast_len(x.shape[0], real=True))
+        X = jnp.fft.rfft(x, m)
+        R = twin.parts[i].aux_response(2.0 * jnp.pi * jnp.fft.rfftfreq(m, 1.0 / fs_hi))
+        states = jnp.fft.irfft(X[:, None] * R, m, axis=0)[n_pre : n_pre + n]
+        sig = sig + jnp.sum(gain * states, axis=1)
+    obs["signal"] = sig
+    return obs
+
+
+def _aux_advance(twin: Twin, sun: float) -> np.ndarray:
+    """How much each of the parts' states advances under the rigid rotation that turns the sun
+    by `sun` rad: an ideal speed source's rotor angle by `sun`, every other state by 0."""
+    out = []
+    for p in twin.parts:
+        adv = np.zeros(p.aux_size)
+        if isinstance(p, DrivePart) and isinstance(p.drive, IdealSpeedSource):
+            adv[:] = sun
+        out.append(adv)
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+@eqx.filter_jit
+def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles: int, n_pre: int,
                  quantity: str, rtol, atol, dtmax, max_steps: int, adjoint: str, progress: bool,
                  pcoeff, icoeff, unrolled: bool, rate_scale_hz: float):
-    """`_solve` over `settle` s and one hunting period only, the observables gathered back onto
-    the whole grid `ts_np` (s): a sample at ``t >= t_ref + T`` (``t_ref = t0 + settle``) is the
-    sample at ``t_ref + (t - t_ref) mod T`` (`dtwin.periodic.fold_times`), unwrapped shaft
-    angles advanced by the whole turns over the periods removed. Differentiable (the period
-    follows the drive's set point, traced or not). **Returns** ``(observables, result, steps,
-    defect)`` with `defect` the rms of the signal's change over one period on a window of
-    `PERIODIC_PROBE` samples after the period, over the signal's rms."""
-    period = hunting_period(twin)
-    sun_turns, car_turns = shaft_turns(twin, hunting_cycles(twin))
-    t_ref = t0 + settle
-    save, back, turns, t1 = _tiled_grid(jnp.asarray(ts_np), t_ref, period, fs_hi)
-    obs, result, nsteps = _solve(twin, y0, jnp.asarray(t0, dtype=jnp.float64), t1, save,
-                                 quantity, rtol, atol, dtmax, max_steps,
-                                 adjoint, progress, pcoeff, icoeff, unrolled, rate_scale_hz)
-    out, defect = _untiled(obs, back, turns, sun_turns, car_turns)
-    return out, result, nsteps, defect
+    """`_solve` over ``[t0, t_ref]`` (settling) and one period of the gear set (`cycles` mesh
+    cycles, `dtwin.periodic.mechanical_cycles`) only, the observables on the whole grid `ts`
+    (s, uniform at `fs_hi` Hz): a sample at ``t >= t_ref + T`` takes the state at
+    ``t_ref + (t - t_ref) mod T`` (`dtwin.periodic.fold_times`) advanced by the rigid rotation
+    over the periods removed (`dtwin.periodic.rigid_advance`), and is observed at its own time
+    `t`; the output-only transfer paths' states are filtered from their sources over the
+    whole grid afterwards (`_filter_paths`, `n_pre` samples of prefix), since a sensor on the
+    housing sees the planets pass with the carrier's period, not the gear set's.
+    Differentiable (the period follows the drive's set point, traced or not). **Returns**
+    ``(observables, result, steps, defect)`` with `defect` the rms change of every planet's
+    two mesh forces over one period, on a window of `PERIODIC_PROBE` samples after it, over
+    their rms variation in that window."""
+    ops = twin.operators()
+    drive = next(p.drive for p in twin.parts if isinstance(p, DrivePart))
+    period = cycles / mesh_frequency(twin, drive.speed.final / (2.0 * jnp.pi))
+    save, back, turns, t1 = _tiled_grid(ts, t_ref, period, fs_hi)
+    (z, zd, aux), result, nsteps = _integrate(twin, ops, y0, t0, t1, save, rtol, atol, dtmax,
+                                              max_steps, adjoint, progress, pcoeff, icoeff,
+                                              unrolled, rate_scale_hz)
+    z, zd, aux = z[back], zd[back], aux[back]
+    n = ts.shape[0]
+    sun, car = rigid_advance(twin, cycles)
+    z_rec = z[:n].at[:, twin._index("theta_c")].add(turns * car)
+    aux_rec = aux[:n] + turns[:, None] * jnp.asarray(_aux_advance(twin, sun))[None, :]
+    obs = jax.vmap(lambda t, y: _observe(twin, ops, quantity, t, y, split=True))(
+        ts, (z_rec, zd[:n], aux_rec))
+    obs = _filter_paths(twin, obs, fs_hi, n_pre)
+
+    def forces(t, y):
+        mesh = twin.accelerations(t, y, ops)[6]
+        return jnp.concatenate([mesh.force_sp, mesh.force_rp])
+
+    probe = jax.vmap(forces)(save[back][n:], (z[n:], zd[n:], aux[n:]))
+    a, b = probe[:PERIODIC_PROBE], probe[PERIODIC_PROBE:]
+    defect = jnp.sqrt(jnp.mean((b - a) ** 2) / jnp.mean((a - jnp.mean(a, axis=0)) ** 2))
+    return obs, result, nsteps, defect
 
 
 @jax.jit
@@ -501,34 +611,12 @@ def _tiled_grid(ts, t_ref, period, fs_hi):
     return every[order], jnp.argsort(order), turns, t_ref + period + probe[-1]
 
 
-@functools.partial(jax.jit, static_argnums=(3, 4))
-def _untiled(obs, back, turns, sun_turns: int, car_turns: int):
-    """The observables of `_solve_tiled` back in the record's order, unwrapped shaft angles
-    advanced by the whole turns removed, and the periodic defect (see `_solve_tiled`)."""
-    obs = {k: v[back] for k, v in obs.items()}
-    n = turns.shape[0]
-    sig = obs["signal"]
-    a, b = sig[n : n + PERIODIC_PROBE], sig[n + PERIODIC_PROBE :]
-    body = sig[:n]
-    defect = jnp.sqrt(jnp.mean((b - a) ** 2) / jnp.mean((body - jnp.mean(body)) ** 2))
-    two_pi = 2.0 * jnp.pi
-    out = {}
-    for k, v in obs.items():
-        v = v[:n]
-        if k in ("theta_sun", "theta_motor"):
-            v = v + turns * two_pi * sun_turns
-        elif k == "theta_carrier":
-            v = v + turns * two_pi * car_turns
-        out[k] = v
-    return out, defect
-
-
 def _observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, f_sun: float,
                  quantity: str, solver: SolverOptions, dtmax, progress: bool = False,
                  start: str = "steady"):
     """The observables on the high-rate grid `ts_np` (s) from `t0` (s), integrated in full or
-    over one hunting period (`periodic_plan`). **Returns** ``(observables, result, steps,
-    method, defect)``; `defect` None when integrated in full."""
+    over one period of the gear set (`periodic_plan`). **Returns** ``(observables, result,
+    steps, method, defect)``; `defect` None when integrated in full."""
     t1 = float(ts_np[-1])
     T, method = periodic_plan(twin, f_sun, t0, t1, solver, fs_hi, start)
     # times, tolerances and the step limit enter the compiled solve as values, not as constants
@@ -546,8 +634,10 @@ def _observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, f_s
     # static `f_sun`) decides, the step budget covers the whole record as well
     span = max(solver.periodic_settle + 1.01 * T + PERIODIC_PROBE / fs_hi, t1 - t0)
     max_steps = solver.max_steps or _step_budget(span)
-    ys, result, nsteps, defect = _solve_tiled(twin, y0, t0, ts_np, fs_hi, solver.periodic_settle,
-                                              *common, max_steps, *rest)
+    ys, result, nsteps, defect = _solve_tiled(
+        twin, y0, f64(t0), f64(t0 + solver.periodic_settle), jnp.asarray(ts_np), float(fs_hi),
+        mechanical_cycles(twin), _filter_prefix(twin, quantity, fs_hi), *common, max_steps,
+        *rest)
     return ys, result, nsteps, method, defect
 
 
@@ -663,7 +753,7 @@ def simulate(
             break
         tried.append(f"{float(defect):.2g} after {option.periodic_settle:g} s")
     if tried and defect is None:
-        method = (f"full (periodic: the signal's rms change over one period was "
+        method = (f"full (periodic: the mesh forces' rms change over one period was "
                   f"{', '.join(tried)}, above periodic_tol = {solver.periodic_tolerance:g})")
     if check:
         _raise_for(result, t1)

@@ -21,7 +21,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .transfer_path import AbstractTransferPath
+from .transfer_path import (
+    AbstractTransferPath,
+    second_order_decay_time,
+    second_order_response,
+)
 
 __all__ = ["HousingResonance", "resonance_gain"]
 
@@ -56,6 +60,19 @@ class HousingResonance(AbstractTransferPath):
         phi = q.theta_c + twin.lp.planet_angles - self.sensor_angle
         w = (0.5 * (1.0 + jnp.cos(phi))) ** self.window_exponent
         return jnp.sum(w * mesh.force_rp) / twin.lp.m_ring
+
+    @property
+    def output_only(self) -> bool:
+        return True
+
+    def source(self, twin, q, mesh):
+        return self._source(twin, q, mesh)
+
+    def aux_response(self, omega):
+        return second_order_response(omega, 2.0 * jnp.pi * self.f_res, self.zeta)
+
+    def aux_decay_time(self):
+        return second_order_decay_time(2.0 * np.pi * self.f_res, self.zeta)
 
     def aux_from_state(self, twin, t, q, qdot, mesh):
         """Steady start: the mode follows the quasi-static force."""

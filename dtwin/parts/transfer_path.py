@@ -31,11 +31,13 @@ from __future__ import annotations
 import abc
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
 from .base import AbstractPart
+from .shaft import concrete_float
 
 
 def _rot(theta, v):
@@ -82,6 +84,52 @@ class AbstractTransferPath(AbstractPart):
     @abc.abstractmethod
     def acceleration(self, twin, t, q, qdot, qddot, mesh, aux) -> Float[Array, ""]: ...
 
+    @property
+    def output_only(self) -> bool:
+        """Whether the path acts on the sensor alone: no force on the gear set, and its own
+        states (if any) a linear time-invariant filter of one scalar :meth:`source` of the gear
+        set's motion, ``aux = R(i omega) source`` (:meth:`aux_response`), entering
+        :meth:`acceleration` linearly. Such states can be computed after the gear set's
+        solve (`dtwin.simulate`'s periodic steady state does). True for a path without states."""
+        return self.aux_size == 0
+
+    def source(self, twin, q, mesh) -> Float[Array, ""]:
+        """The scalar input (m/s²) of the path's states at the configuration `q` and mesh state
+        `mesh` (only for an :attr:`output_only` path with states)."""
+        raise NotImplementedError(f"{type(self).__name__} has no source")
+
+    def aux_response(self, omega) -> Array:
+        """Frequency response of each of the path's states to :meth:`source` at angular
+        frequencies `omega` (rad/s): complex, shape ``omega.shape + (aux_size,)``."""
+        raise NotImplementedError(f"{type(self).__name__} has no aux_response")
+
+    def aux_decay_time(self) -> float | None:
+        """Slowest time constant (s) of the path's states, ``1 / min |Re(pole)|``; None where a
+        parameter is traced (its value unknown here)."""
+        return None
+
+
+def second_order_decay_time(omega0, zeta) -> float | None:
+    """``1 / min |Re(pole)|`` (s) of ``s² + 2 zeta omega0 s + omega0²``; None for tracers."""
+    w, z = concrete_float(omega0), concrete_float(zeta)
+    if w is None or z is None or w <= 0.0 or z <= 0.0:
+        return None
+    slow = w * (z - np.sqrt(z * z - 1.0)) if z > 1.0 else w * z
+    return 1.0 / slow
+
+
+def second_order_response(omega, omega0, zeta):
+    """``[H, i omega H]`` with ``H = omega0² / ((i omega)² + 2 zeta omega0 i omega + omega0²)``:
+    the response of a second-order low-pass's output and its rate, shape ``omega.shape + (2,)``.
+    Complex numbers built from real parts (JAX's strict dtype promotion)."""
+    omega = jnp.asarray(omega, dtype=jnp.float64)
+    re = omega0**2 - omega**2
+    im = 2.0 * zeta * omega0 * omega
+    den = re * re + im * im
+    h = jax.lax.complex(omega0**2 * re / den, -omega0**2 * im / den)
+    dh = jax.lax.complex(-omega * jnp.imag(h), omega * jnp.real(h))
+    return jnp.stack([h, dh], axis=-1)
+
 
 class PlanetPassTransferPath(AbstractTransferPath):
     """Ring motion plus planet mesh forces seen through a planet-angle window (module docs)."""
@@ -108,6 +156,20 @@ class PlanetPassTransferPath(AbstractTransferPath):
     def windowed_force(self, twin, q, mesh) -> Float[Array, ""]:
         """``sum_i w_i F_rp_i / m_ring`` (m/s²) before the high-pass."""
         return jnp.sum(self.window(twin, q) * mesh.force_rp) / twin.lp.m_ring
+
+    @property
+    def output_only(self) -> bool:
+        return True
+
+    def source(self, twin, q, mesh):
+        return self.windowed_force(twin, q, mesh)
+
+    def aux_response(self, omega):
+        # the Butterworth low-pass L(s) = w² / (s² + sqrt(2) w s + w²) and its rate
+        return second_order_response(omega, 2.0 * jnp.pi * self.highpass_hz, np.sqrt(0.5))
+
+    def aux_decay_time(self):
+        return second_order_decay_time(2.0 * np.pi * self.highpass_hz, np.sqrt(0.5))
 
     def aux_from_state(self, twin, t, q, qdot, mesh):
         """Filter states of a steady run: the low-pass holds the windowed force."""
