@@ -644,7 +644,7 @@ def _observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, f_s
 def _step_budget(span: float) -> int:
     """The default step limit of a solve over `span` s: 400 000 steps per simulated second
     plus 10 000, rounded up to a multiple of 100 000 so that spans a little apart (another
-    speed's hunting period) share one compiled solve (the limit is static in it)."""
+    speed's period) share one compiled solve (the limit is static in it)."""
     need = 400_000 * span + 10_000
     return int(math.ceil(need / 100_000) * 100_000)
 

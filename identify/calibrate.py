@@ -64,8 +64,8 @@ fit rerun from there (an outer Gauss–Newton iteration, at most
 with the smallest gap is kept, and the cross-validation is repeated about its point (whose
 start the whole records chose, so that held-out gap leans optimistic; the confirmed gap is the
 one written into the spec). Where the twin still departs from the linearised response, it is
-cross-validated itself, each half's values simulated in full. The response over one hunting
-period is tiled only where the start-up transient has died out within the settling time (the
+cross-validated itself, each half's values simulated in full. The response over one period of
+the gear set is tiled only where the start-up transient has died out within the settling time (the
 periodicity defect of the linearised simulation, as :func:`dtwin.simulate.simulate` checks
 it): otherwise a longer settling time, then the whole record.
 
@@ -174,7 +174,7 @@ class CalibrationSettings:
       multiple of N, stand above the line threshold in the records (module docstring).
     - `share_prior`: prior standard deviation of each relative load share.
     - `solver`: `dtwin.simulate.SolverOptions` of the simulations. None: the linearised
-      response is one hunting period after a settling time, tiled
+      response is one period of the gear set after a settling time, tiled
       (``SolverOptions(periodic="auto")``, which integrates the whole record when the twin is
       not periodic at constant speed), and the confirmation integrates the whole record.
     - `relinearize`, `relinearize_db`: when the confirmation's gap exceeds the linearised
@@ -600,7 +600,7 @@ def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings, theta_lin):
         # the calibration's weakly determined directions then lead its fit to another optimum
         return jax.linearize(sig, jnp.asarray(theta_lin, dtype=jnp.float64))
 
-    # one hunting period tiled is the response only where the start-up transient has died out
+    # one period of the gear set tiled is the response only where the start-up transient has died out
     # within the settling time (as `simulate` checks with concrete values): otherwise the
     # tiles' joins put a broadband hump under the twin's lightly damped modes. Settle longer,
     # then integrate the whole record.

@@ -467,7 +467,7 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     rs, _ = twin.kinematic_ratios
     f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
     dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
-    # in full, or over one hunting period when `solver.periodic` allows (dtwin.simulate)
+    # in full, or over one period of the gear set when `solver.periodic` allows (dtwin.simulate)
     ys, _, nsteps, _, defect = _observables(twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity,
                                             solver, dtmax)
     sig = _daq(ys, taps, daq, fs_out, nsteps, 0, float(discard)).signal
@@ -481,7 +481,7 @@ def model_signal(twin, obs: Observation, solver=None):
 
 def model_signal_and_defect(twin, obs: Observation, solver=None):
     """``(signal, defect)``: :func:`model_signal` and the periodicity defect of a tiled response
-    (relative rms change of the signal over one hunting period,
+    (relative rms change of the planets' mesh forces over one period of the gear set,
     `dtwin.simulate.SimResult.periodic_defect`), None where the record is integrated in full.
     JAX."""
     solver = solver or SolverOptions()

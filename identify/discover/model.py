@@ -127,8 +127,8 @@ class ExtendedModel:
 
 
 def _ext_signal_impl(model: ExtendedModel, theta):
-    # with concrete parameters `simulate` checks the periodic steady state (one hunting period
-    # tiled when the twin is periodic, `SolverOptions.periodic`) and falls back to the whole
+    # with concrete parameters `simulate` checks the periodic steady state (one period of the gear
+    # set tiled when the twin is periodic, `SolverOptions.periodic`) and falls back to the whole
     # record when the signal is not periodic; under `jax.jvp` it could not check, so the whole
     # record is integrated there
     solver = model.solver

@@ -34,7 +34,7 @@ class DiscoverySettings:
     - `rtol`, `atol`: solver tolerances of the model simulations; `response`: ``"fd"`` or
       ``"jvp"`` (:meth:`ExtendedModel.ensure_responses`).
     - `periodic`: ``"auto"`` (default) simulates a constant-speed, periodic model over a
-      settling time and one hunting period and tiles it, checking the periodicity and
+      settling time and one period of the gear set and tiles it, checking the periodicity and
       settling longer, then integrating the whole record, where it fails
       (`dtwin.simulate.settling_sequence`); ``"off"`` always integrates the whole record.
     - `respecialise`: after each added effect, specialise the candidates again from the current
