@@ -47,7 +47,6 @@ from .periodic import (
     mechanical_cycles,
     mechanical_reason,
     mesh_frequency,
-    rigid_advance,
 )
 from .sensor_response import apply_frf, knot_basis
 from .twin import Coords, Twin
@@ -527,7 +526,8 @@ def _filter_prefix(twin: Twin, quantity: str, fs_hi: float) -> int:
     if not taus:
         return 0
     span = max(FILTER_PREFIX_TRACED if tau is None else FILTER_PREFIX_TAUS * tau for tau in taus)
-    return int(math.ceil(span * fs_hi))
+    # a power of two: twins whose filters differ a little share the compiled solve
+    return 1 << int(math.ceil(math.log2(max(span * fs_hi, 1.0))))
 
 
 def _filter_paths(twin: Twin, obs: dict, fs_hi: float, n_pre: int) -> dict:
@@ -553,20 +553,20 @@ def _filter_paths(twin: Twin, obs: dict, fs_hi: float, n_pre: int) -> dict:
     return obs
 
 
-def _aux_advance(twin: Twin, sun: float) -> np.ndarray:
-    """How much each of the parts' states advances under the rigid rotation that turns the sun
-    by `sun` rad: an ideal speed source's rotor angle by `sun`, every other state by 0."""
+def _aux_advance(twin: Twin) -> np.ndarray:
+    """How much each of the parts' states advances under the rigid rotation per radian the sun
+    turns: an ideal speed source's rotor angle by 1, every other state by 0."""
     out = []
     for p in twin.parts:
         adv = np.zeros(p.aux_size)
         if isinstance(p, DrivePart) and isinstance(p.drive, IdealSpeedSource):
-            adv[:] = sun
+            adv[:] = 1.0
         out.append(adv)
     return np.concatenate(out) if out else np.zeros(0)
 
 
 @eqx.filter_jit
-def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles: int, n_pre: int,
+def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles, n_pre: int,
                  probe: tuple[int, int], quantity: str, rtol, atol, dtmax, max_steps: int, adjoint: str, progress: bool,
                  pcoeff, icoeff, unrolled: bool, rate_scale_hz: float):
     """`_solve` over ``[t0, t_ref]`` (settling) and one period of the gear set (`cycles` mesh
@@ -595,9 +595,11 @@ def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles: int, n_pre
                                               unrolled, rate_scale_hz)
     z, zd, aux = z[back], zd[back], aux[back]
     n = ts.shape[0]
-    sun, car = rigid_advance(twin, cycles)
+    # `rigid_advance` with the cycles a value: twins of other periods share the compilation
+    zs, zr = int(twin.lp.z_sun), int(twin.lp.z_ring)
+    sun, car = 2.0 * jnp.pi * cycles * (zs + zr) / (zs * zr), 2.0 * jnp.pi * cycles / zr
     z_rec = z[:n].at[:, twin._index("theta_c")].add(turns * car)
-    aux_rec = aux[:n] + turns[:, None] * jnp.asarray(_aux_advance(twin, sun))[None, :]
+    aux_rec = aux[:n] + (turns * sun)[:, None] * jnp.asarray(_aux_advance(twin))[None, :]
     obs = jax.vmap(lambda t, y: _observe(twin, ops, quantity, t, y, split=True))(
         ts, (z_rec, zd[:n], aux_rec))
     obs = _filter_paths(twin, obs, fs_hi, n_pre)
@@ -660,7 +662,7 @@ def _observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, f_s
     max_steps = solver.max_steps or _step_budget(span)
     ys, result, nsteps, defect = _solve_tiled(
         twin, y0, f64(t0), f64(t0 + solver.periodic_settle), jnp.asarray(ts_np), float(fs_hi),
-        cycles, _filter_prefix(twin, quantity, fs_hi), probe, *common, max_steps, *rest)
+        f64(cycles), _filter_prefix(twin, quantity, fs_hi), probe, *common, max_steps, *rest)
     return ys, result, nsteps, method, defect
 
 
