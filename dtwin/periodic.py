@@ -1,12 +1,13 @@
-"""Periodic steady state at constant speed: the hunting period and the tiled sampling grid.
+"""Periodic steady state at constant speed: the gear set's period, the sensor signal's hunting
+period and the tiled sampling grid.
 
 At constant input speed every excitation of the twin is a function of the gears' relative
 positions: the mesh stiffness and transmission error of each planet's meshes repeat every mesh
 cycle; a local fault on the sun repeats when the sun is back in the same place relative to the
 carrier (`Zs` mesh cycles), one on the ring or the planet-pass window of a sensor on the ring
 when the carrier is back relative to the ring (`Zr` mesh cycles), one on a planet when the
-planet is back relative to the carrier (`Zp` mesh cycles). The forced response of the damped
-twin therefore repeats after the **hunting period**
+planet is back relative to the carrier (`Zp` mesh cycles). The sensor signal therefore repeats
+after the **hunting period**
 
     T = lcm(Zs, Zr[, Zp]) / f_mesh,   f_mesh = Zr f_carrier = Zr Zs f_sun / (Zs + Zr),
 
@@ -19,17 +20,30 @@ the sun turns `lcm · (Zs + Zr) / (Zs Zr)` times and the carrier
 with a planet fault on 21/31/84,
 `T = 2604 / 504 Hz = 5.17 s`.
 
+The **gear set's** state repeats much sooner (:func:`mechanical_cycles`): the twin's equations
+are written in the carrier's frame, where nothing depends on the carrier's absolute angle, so
+only the parts' own periods count — one mesh cycle for a healthy gearbox, `Zs` cycles with a
+sun fault (21 cycles, 0.042 s, on the paper's gearbox at 30 Hz, against its 1.13 s hunting
+period), `Zp` with a planet fault (31 cycles, 0.062 s on 21/31/84). After that period the state
+is the same up to the rigid rotation, a fraction of a turn of each shaft
+(:func:`rigid_advance`). The planet-pass window that lengthens the signal's period acts after
+the gear set: a sensor path's states filter the windowed mesh forces one way
+(`dtwin.parts.transfer_path.AbstractTransferPath.output_only`).
+
 A record of a constant-speed run after the start-up transient is then the periodic response
 sampled at the phases ``(t_k - t_ref) mod T``: :func:`fold_times` maps a sampling grid onto one
 period, and :func:`tiled_times` also sorts it and gives the permutation back into record order
-(`dtwin.simulate.simulate` with ``SolverOptions(periodic="auto")``).
+(`dtwin.simulate.simulate` with ``SolverOptions(periodic="auto")`` tiles one period of the gear
+set, advances each sample by the rigid rotation and filters the sensor paths over the whole
+record).
 
-:func:`hunting_cycles` knows which parts keep the response periodic; a part it does not know,
-a drive other than a constant ideal speed source (a motor's slip makes the speed differ from
-the set point), a time-varying load (unless its fluctuation's amplitude is a concrete zero) or
-a mount path's line (:class:`dtwin.parts.mount_path.MountPath`, unless both its amplitudes are
-concrete zeros) make the twin not periodic (None, with the reason from
-:func:`periodic_reason`).
+:func:`hunting_cycles` and :func:`mechanical_cycles` know which parts keep the response
+periodic; a part they do not know, a drive other than a constant ideal speed source (a motor's
+slip makes the speed differ from the set point), a time-varying load (unless its fluctuation's
+amplitude is a concrete zero) make the twin not periodic (None, with the reason from
+:func:`periodic_reason` or :func:`mechanical_reason`); so does, for the signal's hunting period
+only, a mount path's line (:class:`dtwin.parts.mount_path.MountPath`, unless both its
+amplitudes are concrete zeros), which reaches the sensor without moving the gears.
 """
 
 from __future__ import annotations

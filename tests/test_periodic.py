@@ -66,6 +66,7 @@ def spec():
 @pytest.fixture(scope="module")
 def twins(spec):
     from dtwin.parts.housing_resonance import HousingResonance
+    from dtwin.parts.mount_path import MountPath
 
     def faulty(where):
         return build_twin(spec, kind="torsional", f_sun=F_SUN,
@@ -74,16 +75,19 @@ def twins(spec):
     # a housing mode in the sensor path: a second output filter, resonant (Q = 10) in the band
     housing = faulty("sun").with_parts(HousingResonance(jnp.asarray(1.0), jnp.asarray(1500.0),
                                                         jnp.asarray(0.05)))
+    # a line through the housing's mounts: observed at each sample's own time, it does not
+    # move the gears and so does not break the gear set's period
+    mount = faulty("sun").with_parts(MountPath(jnp.asarray(0.5), jnp.asarray(0.2), f=2.1))
     return {"healthy": build_twin(spec, kind="torsional", f_sun=F_SUN),
             "sun fault": faulty("sun"), "ring fault": faulty("ring"),
-            "planet fault": faulty("planet"), "housing mode": housing}
+            "planet fault": faulty("planet"), "housing mode": housing, "mount path": mount}
 
 
 #: mesh cycles of the gear set's period on 21/30/81 (`mechanical_cycles`): the sun back
 #: relative to the carrier after Zs cycles, a planet after Zp, the carrier relative to the
 #: ring after Zr; the planet-pass window of the sensor does not count
 GEAR_SET_CYCLES = {"healthy": 1, "sun fault": 21, "ring fault": 81, "planet fault": 30,
-                   "housing mode": 21}
+                   "housing mode": 21, "mount path": 21}
 
 
 @pytest.fixture(scope="module")
@@ -293,3 +297,48 @@ def test_a_slowly_settling_twin_is_tiled_after_a_longer_settle():
     whole = np.asarray(simulate(twin, solver=SolverOptions(), **kw).signal)
     np.testing.assert_allclose(np.asarray(short.signal), whole, rtol=0,
                                atol=1e-9 * np.std(whole))
+
+
+def test_gear_set_period_of_each_part(spec):
+    """`mechanical_cycles` of each part against the cycle count found by stepping: the sun's
+    run-out turns with the sun relative to the carrier (Zs), a torque ripple of electrical order
+    h p with the sun's absolute angle, an inert part adds nothing, a sensor path whose states
+    act back on the gear set has no known period."""
+    from fractions import Fraction
+
+    from dtwin.parts.imperfections import SunEccentricity
+    from dtwin.parts.torque_ripple import TorqueRipple
+    from dtwin.parts.transfer_path import AbstractTransferPath
+
+    tw = build_twin(spec, kind="torsional")
+    assert mechanical_cycles(tw) == 1
+    assert mechanical_cycles(tw.with_parts(SunEccentricity(jnp.asarray(2e-7)))) == 21
+    assert mechanical_cycles(tw.with_parts(SunEccentricity(jnp.asarray(0.0)))) == 1
+
+    def stepped(order):  # least n with n * order * (Zs + Zr) / (Zs Zr) an integer
+        n = 1
+        while (Fraction(n * order * 102, 21 * 81)).denominator != 1:
+            n += 1
+        return n
+
+    for pole_pairs, harmonic in ((4, 6), (2, 1), (3, 2)):
+        ripple = tw.with_parts(TorqueRipple(jnp.asarray(0.1), jnp.asarray(0.0),
+                                            pole_pairs=pole_pairs, harmonic=harmonic))
+        assert mechanical_cycles(ripple) == stepped(pole_pairs * harmonic)
+        assert hunting_cycles(ripple) % mechanical_cycles(ripple) == 0
+
+    class Feedback(AbstractTransferPath):  # states of its own, not declared a one-way filter
+        @property
+        def aux_size(self):
+            return 1
+
+        def acceleration(self, twin, t, q, qdot, qddot, mesh, aux):
+            return aux[0]
+
+    odd = tw.with_parts(Feedback())
+    assert mechanical_cycles(odd) is None
+    from dtwin.periodic import mechanical_reason
+
+    assert "not a filter of the gear set's motion" in mechanical_reason(odd)
+    T, why = periodic_plan(odd, 30.0, 0.0, 4.0, PERIODIC, 20_000.0)
+    assert T is None and "not a filter" in why
