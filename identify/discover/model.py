@@ -54,6 +54,11 @@ class ExtendedModel:
                                      or [np.zeros(0)])
         self._columns: dict[int, np.ndarray] = {}
         self._base: np.ndarray | None = None
+        #: whether the base signal was one tiled period (None: read from disk, not known), the
+        #: base integrated in full where a response needs it, the last simulation's method
+        self._base_tiled: bool | None = None
+        self._base_full: np.ndarray | None = None
+        self.last_method = ""
         self._disk = _disk_path(self)
         if self._disk is not None and self._disk.exists():
             with np.load(self._disk) as z:
@@ -86,15 +91,29 @@ class ExtendedModel:
             parts += list(self.effects[i].parts(theta[self.slice(i)], self.base_twin, self.kin))
         return self.base_twin.with_parts(*parts)
 
-    def signal(self, theta_units) -> np.ndarray:
-        """Simulated sensor signal (no noise) at `theta_units`."""
-        return np.asarray(_ext_signal(self, jnp.asarray(theta_units, dtype=jnp.float64)))
+    def signal(self, theta_units, full: bool = False) -> np.ndarray:
+        """Simulated sensor signal (no noise) at `theta_units`; `full`: the whole record
+        integrated, not one tiled period (`dtwin.simulate.SolverOptions.periodic`)."""
+        return np.asarray(_ext_signal(self, jnp.asarray(theta_units, dtype=jnp.float64), full))
 
     def base_signal(self) -> np.ndarray:
         if self._base is None:
             self._base = self.signal(np.zeros(self.size))
+            self._base_tiled = self.last_method == "periodic"
             self._save()
         return self._base
+
+    def _difference_base(self) -> np.ndarray:
+        """The base signal integrated as the last simulation was: a response is a difference
+        of two simulations, and a tiled and a whole-record integration differ by what the
+        twin's sampling aliases (`dtwin.simulate`, the sensor paths' filters), which must not
+        enter it."""
+        base = self.base_signal()
+        if self._base_tiled and self.last_method != "periodic":
+            if self._base_full is None:
+                self._base_full = self.signal(np.zeros(self.size), full=True)
+            return self._base_full
+        return base
 
     def ensure_responses(self, indices: Sequence[int]) -> None:
         """Compute the responses of effects `indices`, one column per parameter.
@@ -116,7 +135,9 @@ class ExtendedModel:
                     self._base = np.asarray(primal)
                 self._columns[j] = np.asarray(tang)
             else:
-                self._columns[j] = self.signal(tangent) - self.base_signal()
+                self.base_signal()
+                sig = self.signal(tangent)
+                self._columns[j] = sig - self._difference_base()
             self._save()
 
     def response(self, i: int) -> np.ndarray:
@@ -126,18 +147,20 @@ class ExtendedModel:
         return np.stack([self._columns[j] for j in range(sl.start, sl.stop)], axis=1)
 
 
-def _ext_signal_impl(model: ExtendedModel, theta):
+def _ext_signal_impl(model: ExtendedModel, theta, full: bool = False):
     # with concrete parameters `simulate` checks the periodic steady state (one period of the gear
     # set tiled when the twin is periodic, `SolverOptions.periodic`) and falls back to the whole
     # record when the signal is not periodic; under `jax.jvp` it could not check, so the whole
     # record is integrated there
     solver = model.solver
     traced = isinstance(theta, jax.core.Tracer)
-    if traced:
+    if traced or full:
         solver = dataclasses.replace(solver, periodic="off")
     res = simulate(model.twin(theta), duration=model.duration, f_sun=model.f_sun, daq=model.daq,
                    solver=solver, check=not traced)
     model.methods[res.method] += 1
+    if not traced:
+        model.last_method = res.method
     return res.signal
 
 
@@ -179,10 +202,10 @@ def extended_model(base_twin, effects, kin, daq, n_samples, f_sun, solver=None,
     return _MODEL_CACHE[key]
 
 
-def _ext_signal(model: ExtendedModel, theta):
+def _ext_signal(model: ExtendedModel, theta, full: bool = False):
     # no outer jit: `simulate` builds its time grid with concrete values; its solve is jitted
     # (and cached by the twin's structure), so repeated calls do not recompile
-    return _ext_signal_impl(model, theta)
+    return _ext_signal_impl(model, theta, full)
 
 
 def _ext_jvp(model: ExtendedModel, theta, tangent):
