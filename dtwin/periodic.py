@@ -72,7 +72,8 @@ from .parts.torque_ripple import TorqueRipple
 from .parts.transfer_path import AbstractTransferPath
 
 __all__ = ["fold_times", "hunting_cycles", "hunting_period", "mechanical_cycles",
-           "mechanical_period", "mechanical_reason", "periodic_reason", "rigid_advance", "shaft_turns", "tiled_times"]
+           "mechanical_period", "mechanical_reason", "periodic_reason", "rigid_advance",
+           "shaft_turns", "tiled_times"]
 
 
 def _lcm(*ns: int) -> int:
@@ -153,7 +154,7 @@ def hunting_cycles(twin) -> int | None:
     return _lcm(zs, zr, zp) if planet else _lcm(zs, zr)
 
 
-def _part_cycles(p, zs: int, zr: int, zp: int) -> int | None:
+def _part_cycles(p, zs: int, zr: int, zp: int) -> int:
     """Mesh cycles after which part `p`'s forces on the gear set repeat at constant speed
     (0 for a part that is not known to repeat); an output-only transfer path repeats every
     cycle as far as the gear set is concerned."""
@@ -185,8 +186,8 @@ def mechanical_cycles(twin) -> int | None:
     turns for a torque ripple. Shorter than :func:`hunting_cycles` (by up to `Zr` times):
     the planet-pass window of a sensor on the housing, whose period is a carrier turn, acts
     after the gear set (the transfer paths' own states are one-way filters of the gear set's
-    forces, `AbstractTransferPath.output_only`). None when the twin is not periodic
-    (:func:`periodic_reason`) or a part's period is not known."""
+    forces, `AbstractTransferPath.output_only`). None when the gear set is not periodic or a
+    part's period is not known (:func:`mechanical_reason`)."""
     if mechanical_reason(twin) is not None:
         return None
     lp = twin.lp

@@ -9,7 +9,8 @@ Pipeline (docs/references.md §6):
    coordinates (`dtwin.twin`), the state saved on a grid `oversample` times finer than the DAQ
    rate (at constant speed, with `SolverOptions(periodic="auto")`, only a settling time and one
    period of the gear set are integrated and the grid's later samples taken at their phases in
-   it, advanced by the rigid rotation: `dtwin.periodic`); the sensor signal is computed from the states with the model's own equations
+   it, advanced by the rigid rotation: `dtwin.periodic`); the sensor signal is computed from
+   the states with the model's own equations
    (accelerations from the vector field, batched with `vmap` over the saved times: no
    differentiation of sampled output);
 3. DAQ: a linear-phase FIR low-pass (Kaiser window, cut-off 0.4 × the output rate, ≥ 80 dB
@@ -567,12 +568,14 @@ def _aux_advance(twin: Twin) -> np.ndarray:
 
 @eqx.filter_jit
 def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles, n_pre: int,
-                 probe: tuple[int, int], quantity: str, rtol, atol, dtmax, max_steps: int, adjoint: str, progress: bool,
-                 pcoeff, icoeff, unrolled: bool, rate_scale_hz: float):
+                 probe: tuple[int, int], quantity: str, rtol, atol, dtmax, max_steps: int,
+                 adjoint: str, progress: bool, pcoeff, icoeff, unrolled: bool,
+                 rate_scale_hz: float):
     """`_solve` over ``[t0, t_ref]`` (settling) and one period of the gear set (`cycles` mesh
-    cycles, `dtwin.periodic.mechanical_cycles`) only, the observables on the whole grid `ts`
-    (s, uniform at `fs_hi` Hz): a sample at ``t >= t_ref + T`` takes the state at
-    ``t_ref + (t - t_ref) mod T`` (`dtwin.periodic.fold_times`) advanced by the rigid rotation
+    cycles, `dtwin.periodic.mechanical_cycles`; a value, so that twins of other periods share
+    the compilation) only, the observables on the whole grid `ts` (s, uniform at `fs_hi` Hz):
+    a sample at ``t >= t_ref + T`` takes the state at ``t_ref + (t - t_ref) mod T``
+    (`dtwin.periodic.fold_times`) advanced by the rigid rotation
     over the periods removed (`dtwin.periodic.rigid_advance`), and is observed at its own time
     `t`; the output-only transfer paths' states are filtered from their sources over the
     whole grid afterwards (`_filter_paths`, `n_pre` samples of prefix), since a sensor on the
