@@ -93,8 +93,9 @@ class SolverOptions:
       pass with the carrier's period) are applied to the whole record afterwards (reference §6,
       "Periodic steady state"); used when `periodic_settle` + the period + a probe window fit
       in at most `periodic_max_fraction` of the simulated span, otherwise the whole record is
-      integrated. `simulate` checks the periodicity (every planet's mesh forces one period later
-      over a probe window, relative rms difference `SimResult.periodic_defect`); where it exceeds
+      integrated. `simulate` checks the periodicity (the signal over a probe window one period
+      after the settling time, as integrated and as tiled: relative rms difference
+      `SimResult.periodic_defect`); where it exceeds
       `periodic_tol` it tries a longer settling time (`longer_settle`) and then integrates the
       whole record; `SimResult.method` says which was used. The
       default None means ``max(1e-3, 50 rtol)``: the defect also holds the integrator's own
@@ -201,8 +202,8 @@ class SimResult(eqx.Module):
     - `num_steps`: accepted solver steps; `f_sun`: nominal input speed (Hz).
     - `method`: ``"full"`` (the whole record integrated) or ``"periodic"`` (one period of the
       gear set after a settling time, tiled: `SolverOptions.periodic`), with the reason when
-      ``periodic="auto"`` fell back; `periodic_defect`: the measured relative rms change of the
-      planets' mesh forces over one period (None when not tiled).
+      ``periodic="auto"`` fell back; `periodic_defect`: the relative rms difference of the
+      signal as integrated and as tiled over a probe window (None when not tiled).
     """
 
     time: Float[Array, " n"]
@@ -456,17 +457,9 @@ def _integrate(twin: Twin, ops, y0, t0, t1, ts, rtol, atol, dtmax, max_steps: in
     return jax.vmap(unflat)(sol.ys), sol.result, sol.stats["num_accepted_steps"]
 
 
-#: High-rate samples of the window, just after the tiled period, over which the mesh forces
-#: are compared with the same phases one period earlier (`periodic_defect`); at least four
-#: mesh cycles (`_probe_length`).
+#: High-rate samples of the window, just after the tiled period, over which the signal as
+#: integrated is compared with the signal as tiled (`periodic_defect`).
 PERIODIC_PROBE = 256
-
-
-def _probe_length(fs_hi: float, f_mesh: float) -> tuple[int, int]:
-    """``(probe samples, samples per mesh cycle)`` at rate `fs_hi` and mesh frequency `f_mesh`
-    (Hz): `PERIODIC_PROBE`, or four mesh cycles where those are longer."""
-    cycle = max(1, int(round(fs_hi / f_mesh)))
-    return max(PERIODIC_PROBE, 4 * cycle), cycle
 
 
 #: How much longer `longer_settle` lets the start-up transient decay, and its least time (s).
@@ -505,7 +498,7 @@ def periodic_plan(twin: Twin, f_sun: float, t0: float, t_end: float, solver: Sol
         return None, f"full (periodic: {mechanical_reason(twin)})"
     f_mesh = float(mesh_frequency(twin, float(f_sun)))
     T = cycles / f_mesh
-    need = solver.periodic_settle + T + _probe_length(fs_hi, f_mesh)[0] / fs_hi
+    need = solver.periodic_settle + T + PERIODIC_PROBE / fs_hi
     if need > solver.periodic_max_fraction * (t_end - t0):
         return None, (f"full (periodic: settle {solver.periodic_settle:g} s + period "
                       f"{T:.3g} s is more than {solver.periodic_max_fraction:g} of the "
@@ -568,7 +561,7 @@ def _aux_advance(twin: Twin) -> np.ndarray:
 
 @eqx.filter_jit
 def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles, n_pre: int,
-                 probe: tuple[int, int], quantity: str, rtol, atol, dtmax, max_steps: int,
+                 quantity: str, rtol, atol, dtmax, max_steps: int,
                  adjoint: str, progress: bool, pcoeff, icoeff, unrolled: bool,
                  rate_scale_hz: float):
     """`_solve` over ``[t0, t_ref]`` (settling) and one period of the gear set (`cycles` mesh
@@ -581,18 +574,16 @@ def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles, n_pre: int
     whole grid afterwards (`_filter_paths`, `n_pre` samples of prefix), since a sensor on the
     housing sees the planets pass with the carrier's period, not the gear set's.
     Differentiable (the period follows the drive's set point, traced or not). **Returns**
-    ``(observables, result, steps, defect)`` with `defect` the rms change over one period of
-    every planet's two mesh forces averaged over a mesh cycle, on a window of ``probe[0]``
-    samples after the period (``probe[1]`` samples a mesh cycle, `_probe_length`), over the
-    forces' rms variation in that window. The average over a mesh cycle keeps what a start-up
-    transient leaves (the slow, lightly damped modes of a drive or a housing) and removes the
-    mesh-rate content where the integrator's own error lies: on the paper's gearbox at
-    ``rtol = 1e-4`` the defect of a settled response is 3–7e-4 with it and 1–4e-2 without."""
+    ``(observables, result, steps, defect)`` with `defect` the rms difference, over a window of
+    `PERIODIC_PROBE` samples one period after `t_ref`, between the signal as integrated there
+    and as the tiling makes it (the window at `t_ref` advanced by one period), both without the
+    output-only paths' filtered states, over the rms of the record's signal: what a start-up
+    transient that outlasted the settling time would leave in the tiled record."""
     ops = twin.operators()
     drive = next(p.drive for p in twin.parts if isinstance(p, DrivePart))
     period = cycles / mesh_frequency(twin, drive.speed.final / (2.0 * jnp.pi))
-    n_probe, cycle = probe
-    save, back, turns, t1 = _tiled_grid(ts, t_ref, period, fs_hi, n_probe)
+    n_probe = PERIODIC_PROBE
+    save, back, turns, t1 = _tiled_grid(ts, t_ref, period, fs_hi)
     (z, zd, aux), result, nsteps = _integrate(twin, ops, y0, t0, t1, save, rtol, atol, dtmax,
                                               max_steps, adjoint, progress, pcoeff, icoeff,
                                               unrolled, rate_scale_hz)
@@ -607,30 +598,30 @@ def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles, n_pre: int
         ts, (z_rec, zd[:n], aux_rec))
     obs = _filter_paths(twin, obs, fs_hi, n_pre)
 
-    def forces(t, y):
-        mesh = twin.accelerations(t, y, ops)[6]
-        return jnp.concatenate([mesh.force_sp, mesh.force_rp])
+    # the periodicity check: the probe window one period after `t_ref` as integrated, and as
+    # the tiling makes it (the window at `t_ref` advanced by one period), observed alike
+    tp = save[back][n + n_probe :]
+    head = (z[n : n + n_probe].at[:, twin._index("theta_c")].add(car), zd[n : n + n_probe],
+            aux[n : n + n_probe] + sun * jnp.asarray(_aux_advance(twin))[None, :])
+    tail = (z[n + n_probe :], zd[n + n_probe :], aux[n + n_probe :])
 
-    f = jax.vmap(forces)(save[back][n:], (z[n:], zd[n:], aux[n:]))
-    a, b = f[:n_probe], f[n_probe:]
+    def sensor(t, y):
+        return _observe(twin, ops, quantity, t, y, split=True)["signal"]
 
-    def cycle_mean(x):
-        c = jnp.cumsum(x, axis=0)
-        return (c[cycle:] - c[:-cycle]) / cycle
-
-    change = cycle_mean(b) - cycle_mean(a)
-    defect = jnp.sqrt(jnp.mean(change**2) / jnp.mean((a - jnp.mean(a, axis=0)) ** 2))
+    change = jax.vmap(sensor)(tp, tail) - jax.vmap(sensor)(tp, head)
+    sig = obs["signal"]
+    defect = jnp.sqrt(jnp.mean(change**2) / jnp.mean((sig - jnp.mean(sig)) ** 2))
     return obs, result, nsteps, defect
 
 
-@functools.partial(jax.jit, static_argnums=4)
-def _tiled_grid(ts, t_ref, period, fs_hi, n_probe: int = PERIODIC_PROBE):
+@jax.jit
+def _tiled_grid(ts, t_ref, period, fs_hi):
     """The save times of `_solve_tiled`, sorted: the record's times mapped onto one period,
-    then two probe windows of `n_probe` samples at ``t_ref`` and ``t_ref + period``.
+    then two probe windows of `PERIODIC_PROBE` samples at ``t_ref`` and ``t_ref + period``.
     **Returns** ``(save, back, turns, t1)``: ``save[back]`` restores that order, `turns` the
     whole periods removed from each time, `t1` (s) the last save time."""
     mapped, turns = fold_times(ts, t_ref, period)
-    probe = jnp.arange(n_probe, dtype=jnp.float64) / fs_hi
+    probe = jnp.arange(PERIODIC_PROBE, dtype=jnp.float64) / fs_hi
     every = jnp.concatenate([mapped, t_ref + probe, t_ref + period + probe])
     order = jnp.argsort(every)
     save = every[order]
@@ -660,12 +651,11 @@ def _observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, f_s
     # the period follows the drive's set point, traced in a fit: its estimate `T` (from the
     # static `f_sun`) decides, the step budget covers the whole record as well
     cycles = mechanical_cycles(twin)
-    probe = _probe_length(fs_hi, cycles / T)
-    span = max(solver.periodic_settle + 1.01 * T + probe[0] / fs_hi, t1 - t0)
+    span = max(solver.periodic_settle + 1.01 * T + PERIODIC_PROBE / fs_hi, t1 - t0)
     max_steps = solver.max_steps or _step_budget(span)
     ys, result, nsteps, defect = _solve_tiled(
         twin, y0, f64(t0), f64(t0 + solver.periodic_settle), jnp.asarray(ts_np), float(fs_hi),
-        f64(cycles), _filter_prefix(twin, quantity, fs_hi), probe, *common, max_steps, *rest)
+        f64(cycles), _filter_prefix(twin, quantity, fs_hi), *common, max_steps, *rest)
     return ys, result, nsteps, method, defect
 
 
@@ -781,7 +771,7 @@ def simulate(
             break
         tried.append(f"{float(defect):.2g} after {option.periodic_settle:g} s")
     if tried and defect is None:
-        method = (f"full (periodic: the mesh forces' rms change over one period was "
+        method = (f"full (periodic: the signal's rms change over one period was "
                   f"{', '.join(tried)}, above periodic_tol = {solver.periodic_tolerance:g})")
     if check:
         _raise_for(result, t1)

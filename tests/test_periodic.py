@@ -222,7 +222,7 @@ def test_falls_back(spec, twins, records):
     # a periodicity check that fails: integrated in full, the record is the full one
     strict = dataclasses.replace(PERIODIC, periodic_tol=1e-12)
     r = simulate(tw, duration=DURATION, f_sun=F_SUN, discard=DISCARD, daq=DAQ8, solver=strict)
-    assert r.method.startswith("full (periodic: the mesh forces' rms change")
+    assert r.method.startswith("full (periodic: the signal's rms change")
     np.testing.assert_array_equal(np.asarray(r.signal), np.asarray(records["sun fault"][0].signal))
 
 
@@ -293,7 +293,7 @@ def test_a_slowly_settling_twin_is_tiled_after_a_longer_settle():
     # a record too short for the longer settling time is integrated in full, once
     kw = dict(kw, duration=0.6, discard=0.05)
     short = simulate(twin, solver=PERIODIC, **kw)
-    assert short.method.startswith("full (periodic: the mesh forces' rms change"), short.method
+    assert short.method.startswith("full (periodic: the signal's rms change"), short.method
     whole = np.asarray(simulate(twin, solver=SolverOptions(), **kw).signal)
     np.testing.assert_allclose(np.asarray(short.signal), whole, rtol=0,
                                atol=1e-9 * np.std(whole))
