@@ -65,8 +65,8 @@ with the smallest gap is kept, and the cross-validation is repeated about its po
 start the whole records chose, so that held-out gap leans optimistic; the confirmed gap is the
 one written into the spec). Where the twin still departs from the linearised response, it is
 cross-validated itself, each half's values simulated in full. The response over one period of
-the gear set is tiled only where the start-up transient has died out within the settling time (the
-periodicity defect of the linearised simulation, as :func:`dtwin.simulate.simulate` checks
+the gear set is tiled only where the start-up transient has died out within the settling time
+(the periodicity defect of the linearised simulation, as :func:`dtwin.simulate.simulate` checks
 it): otherwise a longer settling time, then the whole record.
 
 **Adoption** (:func:`adoption`). The calibrated values replace the spec's only when the held-out
@@ -600,8 +600,8 @@ def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings, theta_lin):
         # the calibration's weakly determined directions then lead its fit to another optimum
         return jax.linearize(sig, jnp.asarray(theta_lin, dtype=jnp.float64))
 
-    # one period of the gear set tiled is the response only where the start-up transient has died out
-    # within the settling time (as `simulate` checks with concrete values): otherwise the
+    # one period of the gear set tiled is the response only where the start-up transient has
+    # died out within the settling time (as `simulate` checks with concrete values): otherwise the
     # tiles' joins put a broadband hump under the twin's lightly damped modes. Settle longer,
     # then integrate the whole record.
     for option in settling_sequence(solver):

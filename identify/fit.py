@@ -123,9 +123,9 @@ class Problem(eqx.Module):
 
     def simulated(self, theta):
         """``(signals, values, defect)``: :meth:`signals` and the largest periodicity defect
-        of the records simulated over one period of the gear set and tiled (relative rms change
-        of the planets' mesh forces over one period, `dtwin.simulate.SimResult.periodic_defect`; 0 where no record
-        is tiled). A defect above `SolverOptions.periodic_tolerance` means the start-up
+        of the records simulated over one period of the gear set and tiled (relative rms
+        difference of a signal as integrated and as tiled over a probe window,
+        `dtwin.simulate.SimResult.periodic_defect`; 0 where no record is tiled). A defect above `SolverOptions.periodic_tolerance` means the start-up
         transient had not died out within the settling time (:func:`fit` then fits again)."""
         values = self.pset.values(theta)
         tw = self.pset.apply(self.twin, values)
@@ -170,8 +170,8 @@ def _settled_fit(problem: Problem, refine, starts, defect_of, say
     settling time, then on the whole record, while the fitted response is not periodic; `notes`
     say why each time (for the fit's message).
 
-    A fit simulates one period of the gear set after `Problem.periodic_settle` and tiles it inside its
-    compiled solve, where the parameters are traced and nothing can be checked; the solve
+    A fit simulates one period of the gear set after `Problem.periodic_settle` and tiles it
+    inside its compiled solve, where the parameters are traced and nothing can be checked; the solve
     returns the periodicity defect of its last accepted point instead
     (:meth:`Problem.simulated`), and ``defect_of(outcome)`` picks the one that counts (the best
     start's, a batch's largest). Where it exceeds `SolverOptions.periodic_tolerance` (a lightly
@@ -778,8 +778,8 @@ def make_problem(
     """Checks, operating points and observations → a :class:`Problem` (no simulation yet).
 
     Arguments as :func:`fit`; `periodic`: ``"auto"`` (default: a constant-speed record whose
-    settling time (0.1 s) and the gear set's period fit in 3/4 of it is simulated over those only and
-    tiled, ``dtwin.simulate.SolverOptions.periodic``; run-ups and twins whose response is not
+    settling time (0.1 s) and the gear set's period fit in 3/4 of it is simulated over those
+    only and tiled, ``dtwin.simulate.SolverOptions.periodic``; run-ups and twins whose response is not
     periodic are simulated in full; :func:`fit` settles longer where the tiled response at its
     optimum was not periodic) or ``"off"`` (always in full).
     **Returns:** ``(problem, operating_points)``.

@@ -481,7 +481,7 @@ def model_signal(twin, obs: Observation, solver=None):
 
 def model_signal_and_defect(twin, obs: Observation, solver=None):
     """``(signal, defect)``: :func:`model_signal` and the periodicity defect of a tiled response
-    (relative rms change of the planets' mesh forces over one period of the gear set,
+    (relative rms difference of the signal as integrated and as tiled over a probe window,
     `dtwin.simulate.SimResult.periodic_defect`), None where the record is integrated in full.
     JAX."""
     solver = solver or SolverOptions()
