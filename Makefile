@@ -18,7 +18,8 @@ export DTWIN_JAX_CACHE := $(abspath $(VENV))/jax-cache
 # tests/_xdist_crash.py (imported by tests/conftest.py) gives a crashed test its rerun budget on
 # the controller, which otherwise hears it from a worker that may die before it is read.
 # Up to 5 crashed tests a run are rerun: the full suite has lost one or two workers a run that
-# way (two in each of three runs on 2026-11-28, each test passing on its rerun and alone).
+# way (two in each of three runs on 2026-11-28, inside XLA's backend_compile_and_load; each
+# test passed on its rerun).
 XDIST := -n 2 --dist worksteal --reruns 1 --only-rerun "pytest-xdist worker crashed" --max-suite-reruns 5
 
 .PHONY: venv demo test test-all lint bench notebooks clean
