@@ -215,7 +215,12 @@ def mechanical_reason(twin) -> str | None:
 def mechanical_period(twin, f_sun=None):
     """:func:`mechanical_cycles` in seconds at input speed `f_sun` (Hz; default the drive's
     constant set point, may be traced); None when the twin is not periodic."""
-    cycles = mechanical_cycles(twin)
+    return _seconds(twin, mechanical_cycles(twin), f_sun)
+
+
+def _seconds(twin, cycles, f_sun):
+    """`cycles` mesh cycles in seconds at `f_sun` (Hz; None: the drive's constant set point);
+    None for None cycles."""
     if cycles is None:
         return None
     if f_sun is None:
@@ -224,11 +229,11 @@ def mechanical_period(twin, f_sun=None):
     return cycles / mesh_frequency(twin, f_sun)
 
 
-def rigid_advance(twin, cycles: int) -> tuple[float, float]:
+def rigid_advance(twin, cycles) -> tuple[float, float]:
     """Angles ``(sun, carrier)`` (rad) that the shafts turn in `cycles` mesh cycles at constant
     speed: ``2 pi cycles (Zs + Zr) / (Zs Zr)`` and ``2 pi cycles / Zr``. Independent of the
     speed; whole turns over a hunting period (:func:`shaft_turns`), fractions of a turn over a
-    :func:`mechanical_cycles` period."""
+    :func:`mechanical_cycles` period. `cycles` may be a JAX value (then so are the angles)."""
     lp = twin.lp
     zs, zr = int(lp.z_sun), int(lp.z_ring)
     return 2.0 * math.pi * cycles * (zs + zr) / (zs * zr), 2.0 * math.pi * cycles / zr
@@ -243,13 +248,7 @@ def mesh_frequency(twin, f_sun):
 def hunting_period(twin, f_sun=None):
     """Hunting period (s) at input speed `f_sun` (Hz; default: the drive's constant set point,
     may be traced); None when the twin is not periodic."""
-    cycles = hunting_cycles(twin)
-    if cycles is None:
-        return None
-    if f_sun is None:
-        drive = next(p.drive for p in twin.parts if isinstance(p, DrivePart))
-        f_sun = drive.speed.final / (2.0 * jnp.pi)
-    return cycles / mesh_frequency(twin, f_sun)
+    return _seconds(twin, hunting_cycles(twin), f_sun)
 
 
 def shaft_turns(twin, cycles: int) -> tuple[int, int]:

@@ -48,6 +48,7 @@ from .periodic import (
     mechanical_cycles,
     mechanical_reason,
     mesh_frequency,
+    rigid_advance,
 )
 from .sensor_response import apply_frf, knot_basis
 from .twin import Coords, Twin
@@ -589,11 +590,11 @@ def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles, n_pre: int
                                               unrolled, rate_scale_hz)
     z, zd, aux = z[back], zd[back], aux[back]
     n = ts.shape[0]
-    # `rigid_advance` with the cycles a value: twins of other periods share the compilation
-    zs, zr = int(twin.lp.z_sun), int(twin.lp.z_ring)
-    sun, car = 2.0 * jnp.pi * cycles * (zs + zr) / (zs * zr), 2.0 * jnp.pi * cycles / zr
-    z_rec = z[:n].at[:, twin._index("theta_c")].add(turns * car)
-    aux_rec = aux[:n] + (turns * sun)[:, None] * jnp.asarray(_aux_advance(twin))[None, :]
+    # the cycles a value: twins of other periods share the compilation
+    sun, car = rigid_advance(twin, cycles)
+    ic, aux_adv = twin._index("theta_c"), jnp.asarray(_aux_advance(twin))
+    z_rec = z[:n].at[:, ic].add(turns * car)
+    aux_rec = aux[:n] + (turns * sun)[:, None] * aux_adv[None, :]
     obs = jax.vmap(lambda t, y: _observe(twin, ops, quantity, t, y, split=True))(
         ts, (z_rec, zd[:n], aux_rec))
     obs = _filter_paths(twin, obs, fs_hi, n_pre)
@@ -601,8 +602,8 @@ def _solve_tiled(twin: Twin, y0, t0, t_ref, ts, fs_hi: float, cycles, n_pre: int
     # the periodicity check: the probe window one period after `t_ref` as integrated, and as
     # the tiling makes it (the window at `t_ref` advanced by one period), observed alike
     tp = save[back][n + n_probe :]
-    head = (z[n : n + n_probe].at[:, twin._index("theta_c")].add(car), zd[n : n + n_probe],
-            aux[n : n + n_probe] + sun * jnp.asarray(_aux_advance(twin))[None, :])
+    head = (z[n : n + n_probe].at[:, ic].add(car), zd[n : n + n_probe],
+            aux[n : n + n_probe] + sun * aux_adv[None, :])
     tail = (z[n + n_probe :], zd[n + n_probe :], aux[n + n_probe :])
 
     def sensor(t, y):
