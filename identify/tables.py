@@ -56,10 +56,16 @@ def fit_dataframe(result: Any):
     return _frame(fit_rows(result))
 
 
+def _total(g: Any) -> float:
+    """A gap's total (dB); NaN where there is none."""
+    return float("nan") if g is None else float(g.total)
+
+
 def discovery_rows(result: Any) -> list[dict[str, Any]]:
     """One row per step of a discovery (:class:`dtwin.identify.discover.DiscoveryResult`):
     effect named, main parameter with its 99 % interval and unit, held-out gap before and
-    after (dB), p-value."""
+    after (dB; as reported, the twin with the effect simulated in full), the search's gaps
+    (bins `threshold_db` over the floor; after: linearised), p-value."""
     rows = []
     for s in result.steps:
         unit = s.main.get("unit", "")
@@ -68,8 +74,11 @@ def discovery_rows(result: Any) -> list[dict[str, Any]]:
                      "lower_99": float(s.main["interval"][0]),
                      "upper_99": float(s.main["interval"][1]),
                      "unit": "dimensionless" if unit == "1" else unit,
-                     "gap_before_db": float(s.gap_before.total),
-                     "gap_after_db": float(s.gap_after.total), "p_value": float(s.p_value)})
+                     "gap_before_db": _total(s.heldout_before),
+                     "gap_after_db": _total(s.heldout_after),
+                     "search_gap_before_db": float(s.gap_before.total),
+                     "search_gap_after_db": float(s.gap_after.total),
+                     "p_value": float(s.p_value)})
     return rows
 
 

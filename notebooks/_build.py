@@ -848,7 +848,7 @@ NB04 = [
         rows.append([s.number, s.named, s.group, ", ".join(s.indistinguishable_from) or "—",
                      f"{s.p_value:.2g}", f"{s.main['name']} = {s.main['value']:.3g} "
                      f"{s.main['unit']} [{lo:.3g}, {hi:.3g}]",
-                     f"{s.gap_before.total:.2f} → {s.gap_after.total:.2f}"])
+                     f"{s.heldout_before.total:.2f} → {s.heldout_after.total:.2f}"])
     display(md_table(rows, ["step", "named", "group", "indistinguishable from", "p-value",
                             "main parameter (99 % interval)", "held-out gap (dB)"]))
     print(f"held-out gap: base {result.initial_gap.total:.2f} dB → final "

@@ -40,6 +40,19 @@ def _score(c) -> str:
     return f"{c.score:.3g} ({c.score_df}), rank {c.score_rank}"
 
 
+def _total(g) -> str:
+    """A gap's total (dB) as text; "—" where a result predates the reported gap."""
+    return "—" if g is None else f"{g.total:.2f}"
+
+
+def _gap_rule(settings) -> str:
+    """Which bins the reported held-out gap counts, in words."""
+    if settings.gap_threshold_db is None:
+        return ("bins where the record or the model stands over the height that noise alone "
+                "reaches with probability 1 % in the band, as calibration's gap")
+    return f"bins {settings.gap_threshold_db:g} dB over the floor"
+
+
 def markdown_report(result, record_name: str) -> str:
     """The readable report (Markdown) of a :class:`dtwin.identify.discover.DiscoveryResult`."""
     out = [f"# Discrepancy discovery: {record_name}", "",
@@ -51,7 +64,8 @@ def markdown_report(result, record_name: str) -> str:
            f"random tone matches some kinematic combination at this resolution and order bound: "
            f"{100 * result.chance_match_probability:.1f} %.", "",
            f"Held-out gap of the base model: **{result.initial_gap.total:.2f} dB**; final: "
-           f"**{result.final_gap.total:.2f} dB**. Stopped: {result.stop_reason}.", "",
+           f"**{result.final_gap.total:.2f} dB** ({_gap_rule(result.settings)}). Stopped: "
+           f"{result.stop_reason}.", "",
            "![gap](gap.png)", "", "![base](spectrum_step0.png)", ""]
     for s in result.steps:
         out += [f"## Step {s.number}: {s.named}", "",
@@ -65,9 +79,10 @@ def markdown_report(result, record_name: str) -> str:
                 f"- why: residual lines {_fmt_lines(s.matched_lines)}"
                 + (f"; on the effect's signature: {', '.join(sorted(set(filter(None, s.matched_labels)))[:8])}"
                    if any(s.matched_labels) else ""),
-                f"- held-out gap {s.gap_before.total:.2f} → {s.gap_after.total:.2f} dB "
-                f"(full model confirmed: {s.gap_confirmed.total:.2f} dB); p = {s.p_value:.2g} "
-                f"≤ {s.level:.2g}",
+                f"- held-out gap {_total(s.heldout_before)} → {_total(s.heldout_after)} dB; "
+                f"the search's (bins {result.settings.threshold_db:g} dB over the floor) "
+                f"{s.gap_before.total:.2f} → {s.gap_after.total:.2f} dB (full model confirmed: "
+                f"{s.gap_confirmed.total:.2f} dB); p = {s.p_value:.2g} ≤ {s.level:.2g}",
                 f"- {s.main['name']}: {s.main['value']:.4g} {_unit_text(s.main['unit'])}, 99 % interval "
                 f"[{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}] (typical on real "
                 f"machines {s.main['typical_range'][0]:g}–{s.main['typical_range'][1]:g}: "
@@ -79,7 +94,7 @@ def markdown_report(result, record_name: str) -> str:
         for p in s.parameters:
             out.append(f"| {p['name']} | {p['value']:.4g} | [{p['interval'][0]:.3g}, "
                        f"{p['interval'][1]:.3g}] | {_unit_text(p['unit'])} |")
-        out += ["", "| candidate | group | coverage | score (df) | p | held-out gap (dB) "
+        out += ["", "| candidate | group | coverage | score (df) | p | search's gap (dB) "
                 "| identified | set aside |", "|---|---|---|---|---|---|---|---|"]
         for c in s.candidates:
             out.append(f"| {c.name} | {c.group} | {c.coverage:.2f} | {_score(c)} | "
@@ -90,7 +105,7 @@ def markdown_report(result, record_name: str) -> str:
     last = [c for c in result.last_candidates if id(c) not in kept]
     if last:
         out += ["## Candidates refit in the last step (none kept)", "",
-                "| candidate | group | coverage | score (df) | p | held-out gap (dB) | identified "
+                "| candidate | group | coverage | score (df) | p | search's gap (dB) | identified "
                 "| set aside |", "|---|---|---|---|---|---|---|---|"]
         out += [f"| {c.name} | {c.group} | {c.coverage:.2f} | {_score(c)} | {c.p_value:.3g} | "
                 f"{c.gap_after:.2f} | {c.identified} | {c.rejected or c.screened or ''} |"
@@ -163,8 +178,8 @@ def discover(
     def table() -> None:
         typer.echo(f"base model: held-out gap {result.initial_gap.total:.2f} dB")
         for s in result.steps:
-            typer.echo(f"step {s.number}: {s.named:28s} gap {s.gap_before.total:6.2f} → "
-                       f"{s.gap_after.total:6.2f} dB  p={s.p_value:.2g}  {s.main['name']} "
+            typer.echo(f"step {s.number}: {s.named:28s} gap {_total(s.heldout_before):>6s} → "
+                       f"{_total(s.heldout_after):>6s} dB  p={s.p_value:.2g}  {s.main['name']} "
                        f"{s.main['value']:.3g}"
                        + ("" if s.main['unit'] in ("1", "", "-") else f" {s.main['unit']}")
                        + f" [{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}]"

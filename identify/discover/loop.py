@@ -242,8 +242,17 @@ def discover(
         return np.array([_log_gain(Y[f], Z0[f], floor[f], settings.threshold_db)
                          for f in range(settings.n_folds)])
 
-    def heldout_gap(a_model_folds):
+    def search_gap(a_model_folds):
+        """The search's held-out gap: bins `threshold_db` over the floor (its decisions)."""
         return gap(freqs, Y, a_model_folds, bands, floor, settings.threshold_db)
+
+    def reported_gap(a_model_folds):
+        """The held-out gap as reported (`gap_threshold_db`; None: family-wise, as calibration's)."""
+        return gap(freqs, Y, a_model_folds, bands, floor, settings.gap_threshold_db)
+
+    def heldout_spectra(Z):
+        """Fold spectra of a model signal with each fold's gain fitted on the other fold."""
+        return np.exp(swap(fold_gains(Z)))[:, None] * np.abs(Z)
 
     def swap(v):
         return v[::-1]
@@ -264,16 +273,18 @@ def discover(
         _, Z0 = segment_spectra(m_sig, fs, settings.n_folds)
         lg0 = fold_gains(Z0)
         # held-out gap of the current model: gains fitted on the other fold
-        gap_now = heldout_gap(np.exp(swap(lg0))[:, None] * np.abs(Z0))
+        gap_now = search_gap(np.exp(swap(lg0))[:, None] * np.abs(Z0))
+        held_now = reported_gap(np.exp(swap(lg0))[:, None] * np.abs(Z0))
         _, m_full = amplitude_spectrum(m_sig * float(np.exp(np.mean(lg0))), fs, "hann")
         m_full = np.asarray(m_full)
         lines = residual_lines(freqs_full, np.asarray(a_full), m_full, kin,
                                threshold_db=settings.threshold_db, excess_db=settings.excess_db,
                                tolerance_bins=settings.tolerance_bins, f_max=f_max)
-        return (Z0, lg0, gap_now, m_full) + _labelled(lines, kin, tol_full, f_max, added_fx)
+        return (Z0, lg0, gap_now, held_now, m_full) + _labelled(lines, kin, tol_full, f_max,
+                                                                added_fx)
 
     for step_no in range(1, settings.max_steps + 2):
-        Z0, lg0, gap_now, m_full, lines, combs, modulation = current(m_sig)
+        Z0, lg0, gap_now, held_now, m_full, lines, combs, modulation = current(m_sig)
         if steps and settings.respecialise and step_no <= settings.max_steps:
             # 2b. the candidates specialised again from the current model's residual: where
             # that offers one the earlier residual withdrew and it covers the residual lines
@@ -305,15 +316,16 @@ def discover(
                         "specialised again and linearised about the current model")
                     candidates, model, m_sig = again, rebuilt, sig_new
                     theta_units = np.zeros(model.size)
-                    Z0, lg0, gap_now, m_full, lines, combs, modulation = current(m_sig)
+                    Z0, lg0, gap_now, held_now, m_full, lines, combs, modulation = current(m_sig)
                     respecialised.append(step_no)
         if initial_gap is None:
-            initial_gap = gap_now
+            initial_gap = held_now
         models.append(m_full)
         residual_sets.append(lines)
         if step_no > settings.max_steps:
             break
-        say(f"step {step_no}: held-out gap {gap_now.total:.2f} dB, "
+        say(f"step {step_no}: held-out gap {held_now.total:.2f} dB (the search's, over "
+            f"{settings.threshold_db:g} dB: {gap_now.total:.2f} dB), "
             f"{sum(r.side == 'measured' for r in lines)} residual lines")
         # 3. candidates covering the residual lines, ranked by coverage
         covering = []
@@ -401,7 +413,7 @@ def discover(
                     th = theta_of(pf, nonneg, active)[:p]
                     a_f = np.exp(pf[-1]) * np.abs(Z0[f] + Jc[f] @ th)
                     a_lin[f] = a_f
-                cr.gap_after = heldout_gap(a_lin).total
+                cr.gap_after = search_gap(a_lin).total
                 cr.statistic = T
                 # bootstrap null
                 # the draws stop once the decision p > level is certain; each candidate has
@@ -477,9 +489,10 @@ def discover(
             theta_c[model.slice(i_c)] = cand.theta / model.scales[model.slice(i_c)]
             sig_c = model.signal(theta_c)
             _, Z1 = segment_spectra(sig_c, fs, settings.n_folds)
-            gap_c = heldout_gap(np.exp(swap(fold_gains(Z1)))[:, None] * np.abs(Z1))
+            gap_c = search_gap(heldout_spectra(Z1))
             if gap_c.total < gap_now.total:
                 best, i_best, theta_units, m_sig, gap_conf = cand, i_c, theta_c, sig_c, gap_c
+                held_after = reported_gap(heldout_spectra(Z1))
                 break
             cand.significant = False
             cand.rejected = (f"not kept: simulated in full, the held-out gap went "
@@ -513,18 +526,19 @@ def discover(
         steps.append(Step(step_no, best.name, best.group, named, ties, best.matched, params, main,
                           best.p_value, level, gap_now, gap_after, gap_conf, results,
                           signature_labels(e_best, kin, best.matched, tol_full, f_max),
-                          getattr(e_best, "summary", e_best.description)))
+                          getattr(e_best, "summary", e_best.description), held_now,
+                          held_after))
         added.add(best.name)
         if getattr(e_best, "f_x", None) is not None:
             added_fx.append((float(e_best.f_x), step_no))
-        say(f"  added {best.name} (named {named}); gap {gap_now.total:.2f} → {gap_lin:.2f} dB "
+        say(f"  added {best.name} (named {named}); held-out gap {held_now.total:.2f} → "
+            f"{held_after.total:.2f} dB; the search's {gap_now.total:.2f} → {gap_lin:.2f} dB "
             f"(confirmed {gap_conf.total:.2f})")
     final_lines = residual_sets[-1]
     unexplained = [r for r in final_lines if r.side == "measured"]
     extra = [r for r in final_lines if r.side == "model"]
     _, Zf = segment_spectra(m_sig, fs, settings.n_folds)
-    lgf = fold_gains(Zf)
-    final_gap = heldout_gap(np.exp(swap(lgf))[:, None] * np.abs(Zf))
+    final_gap = reported_gap(heldout_spectra(Zf))
     return DiscoveryResult(kin, f_sun, fs, settings, steps, initial_gap, final_gap, unexplained,
                            extra, chance, stop, last_cands, freqs_full, np.asarray(a_full), models,
                            residual_sets, time.perf_counter() - t_start, combs, modulation,

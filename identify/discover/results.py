@@ -57,7 +57,15 @@ class CandidateResult:
 
 @dataclasses.dataclass
 class Step:
-    """One accepted effect: what was added, why, with which values, and the gaps."""
+    """One accepted effect: what was added, why, with which values, and the gaps.
+
+    `gap_before`, `gap_after` (the linearised model at the joint fit) and `gap_confirmed` (the
+    twin with the effect simulated in full) are the search's gaps, over the bins
+    `DiscoverySettings.threshold_db` over the floor, which its decisions compare.
+    `heldout_before` and `heldout_after` are the held-out gaps as reported
+    (`DiscoverySettings.gap_threshold_db`; by default the family-wise definition of
+    :func:`dtwin.identify.gap.gap`, as calibration's) of the twin before the step and of the
+    twin with the effect, simulated in full."""
 
     number: int
     effect: str
@@ -77,6 +85,9 @@ class Step:
     matched_labels: list[str] = dataclasses.field(default_factory=list)
     #: what was added, in words ("load/speed fluctuation at 2.10 Hz")
     summary: str = ""
+    #: held-out gaps as reported, before the step and with the effect (class docstring)
+    heldout_before: GapResult | None = None
+    heldout_after: GapResult | None = None
 
     def to_dict(self) -> dict:
         return dict(
@@ -89,12 +100,18 @@ class Step:
             parameters=self.parameters, main=self.main, p_value=self.p_value, level=self.level,
             gap_before=self.gap_before.to_dict(), gap_after=self.gap_after.to_dict(),
             gap_confirmed=self.gap_confirmed.to_dict(),
+            heldout_before=None if self.heldout_before is None else self.heldout_before.to_dict(),
+            heldout_after=None if self.heldout_after is None else self.heldout_after.to_dict(),
             candidates=[c.to_dict() for c in self.candidates])
 
 
 @dataclasses.dataclass
 class DiscoveryResult:
-    """Outcome of :func:`discover` (``to_dict`` for JSON; spectra kept for the figures)."""
+    """Outcome of :func:`discover` (``to_dict`` for JSON; spectra kept for the figures).
+
+    `initial_gap` and `final_gap` are the held-out gaps of the base twin and of the final one as
+    reported (`DiscoverySettings.gap_threshold_db`: by default the family-wise definition of
+    :func:`dtwin.identify.gap.gap`, as calibration's)."""
 
     kinematics: Kinematics
     f_sun: float

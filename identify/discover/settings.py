@@ -17,6 +17,16 @@ class DiscoverySettings:
     - `n_boot`: bootstrap draws of the null statistic per candidate (raised to K / alpha so that
       the smallest attainable p-value lies below the level).
     - `threshold_db`, `excess_db`, `tolerance_bins`: residual-line detection (dtwin.identify.lines).
+      `threshold_db` also sets the bins of the search's own gaps, which its decisions compare
+      (:attr:`Step.gap_before`, `gap_after`, `gap_confirmed`): every bin where the record or
+      the model stands that high over the floor, so that lines as weak as those the search
+      looks for can show a candidate's worth.
+    - `gap_threshold_db`: height over the floor (dB) of the bins of the **reported** held-out
+      gap (:attr:`DiscoveryResult.initial_gap`, `final_gap`, :attr:`Step.heldout_before`,
+      `heldout_after`). None (default): the family-wise threshold of
+      :func:`dtwin.identify.gap.gap`, the one calibration reports, which noise alone reaches
+      anywhere in the band with probability 1 % (about 15 dB on a 4 s, 5 kHz record), where at
+      12 dB a noise bin enters the gap of a healthy record about once in six.
     - `max_steps`: budget of effects added; `max_refit`: candidates refit per step.
     - `screen`: how the candidates to refit are chosen among those covering `min_coverage`:
       ``"score"`` (default) ranks every one of them by its score statistic at zero amplitude
@@ -48,6 +58,7 @@ class DiscoverySettings:
     alpha: float = 0.01
     n_boot: int = 400
     threshold_db: float = 12.0
+    gap_threshold_db: float | None = None
     excess_db: float = 6.0
     tolerance_bins: float = 0.25
     max_steps: int = 3
@@ -66,6 +77,9 @@ class DiscoverySettings:
     def __post_init__(self):
         if self.screen not in ("score", "coverage"):
             raise SettingsError(f"screen must be 'score' or 'coverage', got {self.screen!r}")
+        if self.gap_threshold_db is not None and not self.gap_threshold_db > 0.0:
+            raise SettingsError("gap_threshold_db must be a height over the noise floor above "
+                                f"0 dB, or None (family-wise), got {self.gap_threshold_db!r}")
         if self.max_refit < 1:
             raise SettingsError(f"max_refit must be at least 1, got {self.max_refit!r}")
 
