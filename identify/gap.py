@@ -16,9 +16,10 @@ each worth ~14 dB in the gap. :func:`gap` therefore takes by default the **famil
 threshold :func:`family_threshold_db`. It is the height that noise alone reaches anywhere in
 the band with probability at most ``alpha = 1 %``, found by Monte Carlo of this very estimator
 (about 15 dB for 2 × 4500 bins), and never below 12 dB. Bins 0–2 (a segment's mean and its Hann
-main lobe) never count. Discovery passes its own `threshold_db` (12 dB, with its bootstrap calibrating the
-rest). Cross-validation over segments (:func:`fold_segments`): the record
-is cut into two halves, parameters fitted on one half are scored on the other and vice versa;
+main lobe) never count. Discovery reports this gap too; its search decides on the gap over
+12 dB bins (``threshold_db``), with a bootstrap controlling what noise does there.
+Cross-validation over segments (:func:`fold_segments`): the record is cut into two halves,
+parameters fitted on one half are scored on the other and vice versa;
 the reported gap pools the squared differences of both folds. Adding parameters cannot shrink
 this by fitting the noise of the scored half.
 
