@@ -25,7 +25,7 @@ class DiscoverySettings:
       gap (:attr:`DiscoveryResult.initial_gap`, `final_gap`, :attr:`Step.heldout_before`,
       `heldout_after`). None (default): the family-wise threshold of
       :func:`dtwin.identify.gap.gap`, the one calibration reports, which noise alone reaches
-      anywhere in the band with probability 1 % (about 15 dB on a 4 s, 5 kHz record), where at
+      anywhere in the band with probability 1 % (17.1 dB on a 4 s, 5 kHz record), where at
       12 dB a noise bin enters the gap of a healthy record about once in six.
     - `max_steps`: budget of effects added; `max_refit`: candidates refit per step.
     - `screen`: how the candidates to refit are chosen among those covering `min_coverage`:
