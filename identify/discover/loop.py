@@ -273,8 +273,8 @@ def discover(
         _, Z0 = segment_spectra(m_sig, fs, settings.n_folds)
         lg0 = fold_gains(Z0)
         # held-out gap of the current model: gains fitted on the other fold
-        gap_now = search_gap(np.exp(swap(lg0))[:, None] * np.abs(Z0))
-        held_now = reported_gap(np.exp(swap(lg0))[:, None] * np.abs(Z0))
+        a0 = np.exp(swap(lg0))[:, None] * np.abs(Z0)
+        gap_now, held_now = search_gap(a0), reported_gap(a0)
         _, m_full = amplitude_spectrum(m_sig * float(np.exp(np.mean(lg0))), fs, "hann")
         m_full = np.asarray(m_full)
         lines = residual_lines(freqs_full, np.asarray(a_full), m_full, kin,
@@ -489,10 +489,11 @@ def discover(
             theta_c[model.slice(i_c)] = cand.theta / model.scales[model.slice(i_c)]
             sig_c = model.signal(theta_c)
             _, Z1 = segment_spectra(sig_c, fs, settings.n_folds)
-            gap_c = search_gap(heldout_spectra(Z1))
+            a1 = heldout_spectra(Z1)
+            gap_c = search_gap(a1)
             if gap_c.total < gap_now.total:
                 best, i_best, theta_units, m_sig, gap_conf = cand, i_c, theta_c, sig_c, gap_c
-                held_after = reported_gap(heldout_spectra(Z1))
+                held_after = reported_gap(a1)
                 break
             cand.significant = False
             cand.rejected = (f"not kept: simulated in full, the held-out gap went "

@@ -135,7 +135,7 @@ class ExtendedModel:
                     self._base = np.asarray(primal)
                 self._columns[j] = np.asarray(tang)
             else:
-                self.base_signal()
+                self.base_signal()  # first: it records how the base was integrated
                 sig = self.signal(tangent)
                 self._columns[j] = sig - self._difference_base()
             self._save()
