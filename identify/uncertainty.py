@@ -338,7 +338,7 @@ def analyse(
             # a profile point whose loss lies below the optimum's by more than the χ²₁ level:
             # the optimum is a local one (fit refits from it, dtwin.identify.fit)
             if (rss - rss_best) / (widen * s2 * inflation[i]) > CHI2_95 and (
-                    better is None or rss_best < better[1]):
+                    better is None or rss_best < better[2]):
                 better = (n, np.asarray(th_best), rss_best)
     std = np.abs(d) * std_t
 
@@ -377,7 +377,7 @@ def analyse(
                             f"95 % range [{interval[i, 0]:.4g}, {interval[i, 1]:.4g}]")
             elif (f := flag(i, n)):
                 flags[n] = f
-            if (rss - rss_best) / s2_i > CHI2_95 and (better is None or rss_best < better[1]):
+            if (rss - rss_best) / s2_i > CHI2_95 and (better is None or rss_best < better[2]):
                 better = (n, np.asarray(th_best), rss_best)
     return Uncertainty(
         names=tuple(names), values=values, std=std, interval=interval, cov_theta=cov_t, cov=cov,
