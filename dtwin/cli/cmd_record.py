@@ -20,10 +20,12 @@ writes ``record_info.json`` and ``manifest.json``.
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import typer
 
 from ..errors import RecordError, SpecError
@@ -198,7 +200,8 @@ def info(
     rec = _read(file, channels, sample_rate, time_column, units, sensitivity, tacho, tacho_ppr,
                 tacho_shaft, group, fmt)
     problems = check_record(rec, f_mesh=freqs.get("f_mesh"), f_carrier=freqs.get("f_carrier"))
-    report = to_jsonable(record_report(rec, problems, freqs))
+    with np.errstate(over="ignore"):  # an absurd sample (a problem above) overflows the RMS
+        report = to_jsonable(record_report(rec, problems, freqs))
     opts.emit(report, json_out=json_out, table=lambda: _print_report(report), out=out,
               force=force, files={"record_info.json": report}, inputs=[file], gearbox=gb,
               parameters={"preset": preset, **freqs})
@@ -254,6 +257,10 @@ def convert(
         raise opts.OptionError("TARGET", f"name the output *.dtwin.h5, got {target}")
     if target.is_dir():
         raise opts.OptionError("TARGET", f"{target} is a folder; give a file name *.dtwin.h5")
+    if _same_file(file, target):
+        raise opts.OptionError("TARGET", f"{target} is the input file {file} itself (the same "
+                               "file, perhaps through a link); converting would overwrite it: "
+                               "give another output name")
     if target.exists() and not force:
         raise OutputExistsError(f"{target} already exists; pass --force to overwrite")
     opts.check_out(target.parent if str(target.parent) else Path("."), True, option="TARGET")
@@ -264,6 +271,17 @@ def convert(
     note(f"wrote {path}: {len(rec.channels)} channel(s), {rec.n_samples} samples at "
          f"{rec.sample_rate:g} Hz")
 
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether `b` names the file `a` (the same path, another spelling of it, a symbolic or
+    hard link to it, or a dangling link that resolves to it)."""
+    try:
+        if b.exists() and os.path.samefile(a, b):
+            return True
+    except OSError:
+        pass
+    return a.resolve() == b.resolve()
 
 
 def _print_report(report: dict[str, Any]) -> None:

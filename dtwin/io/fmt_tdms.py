@@ -8,6 +8,7 @@ properties); the unit comes from the ``unit_string`` property.
 
 from __future__ import annotations
 
+import logging
 import struct
 from pathlib import Path
 
@@ -23,6 +24,37 @@ _ERRORS = (ValueError, KeyError, EOFError, IndexError, struct.error, NotImplemen
            UnicodeError, OverflowError, RuntimeError, TypeError, MemoryError)
 
 
+class _TruncationWatch(logging.Handler):
+    """Collects npTDMS's log warnings that a segment holds less data than its header states (it
+    logs them and reads what is there; a cut file would pass as a shorter record) and keeps them
+    off the console while the file is read."""
+
+    _LOGGERS = ("nptdms.reader", "nptdms.tdms_segment")
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        msg = record.getMessage()
+        if "less data than expected" in msg or "not a multiple of the chunk size" in msg:
+            self.messages.append(msg)
+
+    def __enter__(self) -> _TruncationWatch:
+        self._saved = []
+        for name in self._LOGGERS:
+            log = logging.getLogger(name)
+            self._saved.append((log, log.propagate))
+            log.addHandler(self)
+            log.propagate = False
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for log, propagate in self._saved:
+            log.removeHandler(self)
+            log.propagate = propagate
+
+
 def read(
     path: Path, *, sample_rate: float | None, time_column: str | int | None, group: str | None
 ) -> Record:
@@ -34,7 +66,13 @@ def read(
         raise RecordError(f"{where}: TDMS waveforms carry their own time base; drop "
                           "time_column= (or pass sample_rate=)")
     try:
-        tdms = TdmsFile.read(path)
+        with _TruncationWatch() as cut:
+            tdms = TdmsFile.read(path)
+        if cut.messages:
+            raise UnreadableFileError(
+                f"{where}: the TDMS file is truncated: its last segment holds less data than its "
+                f"header states (npTDMS: {cut.messages[0]}); the copy or the recording was cut: "
+                "copy the file again from the recorder")
         groups = [g for g in tdms.groups() if len(g.channels()) > 0]
         if group is not None:
             sel = [g for g in groups if g.name == group]

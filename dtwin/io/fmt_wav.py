@@ -62,14 +62,42 @@ def scan_header(path: Path) -> dict:
                         f"{where}: WAV header is corrupt ({nch} channels, block size {align}, "
                         f"{bits} bits per sample)")
                 info.update(format_tag={1: "PCM", 3: "IEEE float"}.get(tag, str(tag)),
-                            bits_per_sample=bits, n_channels=nch)
+                            bits_per_sample=bits, n_channels=nch, block_align=align)
             elif cid == b"data":
                 if "bits_per_sample" not in info:
                     raise UnreadableFileError(f"{where}: WAV 'data' chunk before the 'fmt ' chunk")
                 info["data_bytes"] = size
+                _check_data(where, info, size, size_on_disk - (pos + 8), head[:4] == b"RF64")
                 return info
             pos += 8 + size + (size & 1)
     raise UnreadableFileError(f"{where}: WAV file without a 'data' chunk (truncated or corrupt)")
+
+
+def _check_data(where: str, info: dict, size: int, available: int, rf64: bool) -> None:
+    """The ``data`` chunk against the ``fmt `` chunk and the file: a frame is ``n_channels ×
+    ceil(bits/8)`` bytes (the header's block size must say so), the chunk holds whole frames,
+    and the file holds the bytes the chunk states (a cut file holds fewer). RF64 and streaming
+    writers state ``0xFFFFFFFF``: the size is not checked then."""
+    bits, nch, align = info["bits_per_sample"], info["n_channels"], info["block_align"]
+    frame = nch * ((bits + 7) // 8)
+    if align != frame:
+        raise UnreadableFileError(
+            f"{where}: WAV header is inconsistent: {bits} bits per sample × {nch} channel(s) "
+            f"make {frame}-byte frames, but its block size says {align} bytes; the header's "
+            "bit depth does not match the data: re-export the file from the recorder")
+    if rf64 or size == 0xFFFFFFFF:
+        return
+    if size > available:
+        raise UnreadableFileError(
+            f"{where}: WAV file is truncated: its header states {size} bytes of data "
+            f"({size // align} frames) but the file holds {max(available, 0)} "
+            f"({max(available, 0) // align} frames); the copy or the recording was cut: copy the "
+            "file again from the recorder")
+    if size % align:
+        raise UnreadableFileError(
+            f"{where}: WAV data of {size} bytes is not a whole number of {align}-byte frames "
+            f"({bits} bits × {nch} channel(s)); the header's bit depth or channel count does "
+            "not match the data: re-export the file from the recorder")
 
 
 def read(

@@ -6,6 +6,9 @@
 The checks and their thresholds:
 
 - **non-finite samples** (NaN/inf): the first bad sample index and the count;
+- **absurd values**: samples beyond :data:`ABSURD_LIMIT` (1e20) in any unit, or more than
+  :data:`ABSURD_DYNAMIC_RANGE` (1e12, 240 dB) times the channel's median absolute value (a
+  corrupt file, a wrong data type or unit: no recorder spans that range);
 - **empty** (no samples) or **constant** channels (peak-to-peak exactly 0: a dead sensor or
   a disconnected cable);
 - **clipping**: runs of at least `clip_run` consecutive samples sitting exactly at the
@@ -47,13 +50,19 @@ MIN_CARRIER_PERIODS = 10.0
 RATE_TOLERANCE = 1e-3
 #: Relative deviation of one time step from the mean step tolerated in a time column.
 TIME_JITTER_TOLERANCE = 1e-2
+#: A sample more than this many times the channel's median absolute value is absurd: 240 dB,
+#: far beyond the dynamic range of any recorder (24-bit ADCs: about 145 dB).
+ABSURD_DYNAMIC_RANGE = 1e12
+#: A sample beyond this magnitude is absurd in any unit (no vibration, sound, voltage or force
+#: measurement in SI comes near; squares of such values overflow float64 sums at 1e154).
+ABSURD_LIMIT = 1e20
 
 
 @dataclasses.dataclass(frozen=True)
 class Problem:
     """One defect of a record.
 
-    **Fields:** `kind` (``nan``, ``empty``, ``constant``, ``clipping``, ``sample_rate``,
+    **Fields:** `kind` (``nan``, ``absurd``, ``empty``, ``constant``, ``clipping``, ``sample_rate``,
     ``too_short``, ``time_column``, ``unknown_channel``, ``tacho``); `message` (what is wrong
     and what to change); `channel` (name, or None for the whole record); `sample` (first
     sample index concerned, or None); `value` (a number characterising it: count, fraction,
@@ -68,6 +77,24 @@ class Problem:
 
     def __str__(self) -> str:
         return self.message
+
+
+def _absurd_samples(x: np.ndarray) -> tuple[int, int, float, str] | None:
+    """Samples no measurement can hold (module docstring, "absurd values"): beyond
+    :data:`ABSURD_LIMIT` in any unit, or more than :data:`ABSURD_DYNAMIC_RANGE` times the
+    channel's median absolute value. **Returns:** ``(count, first index, bound, which bound)``
+    or None."""
+    a = np.abs(x)
+    med = float(np.median(a))
+    bound, why = ABSURD_LIMIT, f"{ABSURD_LIMIT:.0e} in any unit"
+    if med > 0 and ABSURD_DYNAMIC_RANGE * med < bound:
+        bound = ABSURD_DYNAMIC_RANGE * med
+        why = (f"{ABSURD_DYNAMIC_RANGE:.0e} × the channel's median absolute value "
+               f"{med:.3g}")
+    bad = a > bound
+    if not np.any(bad):
+        return None
+    return int(bad.sum()), int(np.flatnonzero(bad)[0]), bound, why
 
 
 def _clip_runs(x: np.ndarray, level: float, min_run: int) -> tuple[int, int | None]:
@@ -141,6 +168,17 @@ def check_record(
                 f"{first} (t = {first / fs:.6g} s); cut the record before it or repair the "
                 "channel (interpolating over a few samples is acceptable, over many is not)",
                 channel=name, sample=first, value=float(bad.sum())))
+            continue
+        absurd = _absurd_samples(x)
+        if absurd is not None:
+            count, first, bound, why = absurd
+            problems.append(Problem(
+                "absurd",
+                f"channel {name!r} holds {count} absurd sample(s), the first "
+                f"{f'{x[first]:.4g} {record.units[i]}'.strip()} at sample {first} (t = {first / fs:.6g} s): beyond {why} "
+                f"({bound:.3g}); no sensor measures that: a corrupt file, a wrong data type or "
+                "a wrong unit/sensitivity; repair the file or cut the record before it",
+                channel=name, sample=first, value=float(x[first])))
             continue
         span = float(np.ptp(x))
         if n > 1 and span == 0.0:
@@ -233,7 +271,7 @@ def validate_record(record: Record, **kwargs) -> Record:
 
 
 #: Problems no analysis can use: the record is refused whatever the command.
-UNUSABLE = ("empty", "nan", "constant", "time_column", "unknown_channel", "truncated")
+UNUSABLE = ("empty", "nan", "absurd", "constant", "time_column", "unknown_channel", "truncated")
 
 
 def usable_record(
