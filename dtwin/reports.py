@@ -10,11 +10,13 @@ the demo and the notebooks call them directly.
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import numpy as np
 
 from .errors import RecordError, SpecError
+from .speed_range import check_input_speed
 
 
 def freqs_report(spec: Any, f_sun: float | None, planet_fault: str, source: str) -> dict:
@@ -34,10 +36,8 @@ def freqs_report(spec: Any, f_sun: float | None, planet_fault: str, source: str)
         if f_sun is None:
             raise SpecError([("--f-sun", f"{source} gives no operating.f_sun; pass --f-sun HZ "
                               "(input speed in Hz, e.g. 30 for 1800 rpm)")])
-    elif not (0.0 < f_sun <= 500.0):
-        hint = f" (did you mean {f_sun:g} rpm = {f_sun / 60:g} Hz?)" if f_sun > 500 else ""
-        raise SpecError([("--f-sun", f"must be an input speed in Hz in (0, 500], got "
-                          f"{f_sun:g}{hint}")])
+    else:
+        f_sun = check_input_speed(f_sun)
     gs = spec.gear_set()
     f = characteristic_frequencies(gs, f_sun, planet_fault=planet_fault)
     both = characteristic_frequencies(gs, f_sun, planet_fault="both_flanks")["f_planet_fault"]
@@ -176,36 +176,34 @@ def stiffness_report(lp: Any, faults: Any, curves: dict[str, Any]) -> dict[str, 
     }
 
 
-def _tacho_speed(record) -> tuple[float, str] | None:
-    if record.tacho is None or not record.tacho_ppr:
-        return None
-    from .order import tacho_angle
+def input_speed(record, spec, f_sun: float | None, *,
+                channel: int | str = 0) -> tuple[float | None, str | None]:
+    """Input (sun) speed (Hz) of `record` and where it came from, by the one rule of
+    :func:`dtwin.identify.operating_point.resolve_speed`: `f_sun` (``--f-sun``) → the record's
+    tachometer → its metadata ``f_sun`` → its mesh lines (`channel`; needs `spec`) → the
+    spec's ``operating.f_sun``. A speed the lines contradict is used with a warning naming the
+    lines; when the mesh harmonics disagree with each other, the spec's speed is used with a
+    warning. ``(None, None)`` when nothing gives a speed."""
+    # dtwin.identify (fits, JAX programs) is imported when a record's speed is resolved only
+    from dtwin.identify.operating_point import (
+        SpeedDisagreementError,
+        SpeedWarning,
+        nominal_speed,
+        resolve_speed,
+    )
 
-    ang = tacho_angle(record.tacho, record.sample_rate, int(record.tacho_ppr))
-    return (ang[-1] - ang[0]) / (2 * np.pi * record.duration), record.tacho_shaft or "sun"
-
-
-def input_speed(record, spec, f_sun: float | None) -> tuple[float | None, str | None]:
-    """Input (sun) speed in Hz and where it came from (module docstring); (None, None) if none."""
-    if f_sun is not None:
-        if not 0 < f_sun <= 500:
-            hint = f" (did you mean {f_sun / 60:g} Hz = {f_sun:g} rpm?)" if f_sun > 500 else ""
-            raise SpecError([("--f-sun", f"must be the input speed in Hz in (0, 500]{hint}")])
-        return float(f_sun), "--f-sun"
-    tacho = _tacho_speed(record)
-    if tacho is not None:
-        speed, shaft = tacho
-        if shaft == "sun":
-            return float(speed), "tachometer (sun)"
-        if spec is not None:
-            gs = spec.gear_set()
-            return float(speed * (gs.z_sun + gs.z_ring) / gs.z_sun), "tachometer (carrier)"
-    meta = record.metadata.get("f_sun") if isinstance(record.metadata, dict) else None
-    if isinstance(meta, (int, float)) and meta > 0:
-        return float(meta), "record metadata f_sun"
-    if spec is not None and spec["operating"].get("f_sun"):
-        return float(spec["operating"]["f_sun"]), "spec operating.f_sun"
-    return None, None
+    try:
+        op = resolve_speed(record, spec, f_sun, channel=channel, required=False)
+    except SpeedDisagreementError as e:
+        nominal = nominal_speed(spec)
+        if not nominal:
+            raise
+        warnings.warn(f"{e}; the spec's operating.f_sun ({nominal:g} Hz) is used", SpeedWarning,
+                      stacklevel=2)
+        return check_input_speed(nominal, "operating.f_sun"), "spec operating.f_sun"
+    if op is None:
+        return None, None
+    return op.f_sun, op.source
 
 
 def gear_frequencies(spec, f_sun: float | None, planet_fault: str = "paper") -> dict | None:
@@ -357,9 +355,7 @@ def run_simulation(
     from .parts.speed_source import IdealSpeedSource, SpeedProfile
     from .simulate import simulate
 
-    f = operating_speed(spec) if f_sun is None else float(f_sun)
-    if not 0 < f <= 500:
-        raise SpecError([("--f-sun", f"must be the input speed in Hz in (0, 500], got {f}")])
+    f = check_input_speed(operating_speed(spec) if f_sun is None else f_sun)
     flts = None if not faults else tuple(parse_fault(s) for s in faults)
     tw = build_twin(spec, kind=kind, faults=flts, start=start, f_sun=f)
     if ramp_to is not None:

@@ -127,7 +127,8 @@ from dtwin.spectrum import noise_floor
 from dtwin.units import quantity as unit_quantity
 
 from .gap import FLOOR_BINS, PASSBAND, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
-from .lines import Kinematics, estimate_speed
+from .lines import Kinematics
+from .operating_point import resolve_speed
 from .stopping import StallStopping
 
 __all__ = ["CalibratedParameter", "CalibrationResult", "CalibrationSettings", "adoption",
@@ -771,6 +772,7 @@ def calibrate(
     channel: int = 0,
     settings: CalibrationSettings | None = None,
     progress: Callable[[str], None] | None = None,
+    f_sun: float | None = None,
 ) -> CalibrationResult:
     """Calibrate the twin of `spec` on healthy `records` of the machine (module docstring).
 
@@ -782,6 +784,9 @@ def calibrate(
     - `channel`: the channel of each record to use.
     - `settings`: :class:`CalibrationSettings`.
     - `progress`: called with a line of text at each stage.
+    - `f_sun`: the records' input speed (Hz), if known; otherwise each record's tachometer,
+      metadata or lines give it (:func:`dtwin.identify.operating_point.resolve_speed`), and
+      the mean is used.
 
     **Returns:** :class:`CalibrationResult` (the calibrated spec, parameters, gaps, spectra).
 
@@ -808,15 +813,11 @@ def calibrate(
         raise RecordError(f"{n / fs:.3g} s is shorter than 10 carrier periods "
                           f"({10.0 / kin0.f_carrier:.3g} s): the sidebands at f_c cannot be "
                           "resolved; calibrate on longer records")
-    # speed from the records' spectra (the mean over records)
-    speeds = []
-    for x in X:
-        w = np.hanning(n + 1)[:-1]
-        a = 2.0 * np.abs(np.fft.rfft(x * w)) / w.sum()
-        speeds.append(estimate_speed(np.fft.rfftfreq(n, 1.0 / fs), a, kin0))
-    f_sun = float(np.mean(speeds))
+    # the speed: given, or each record's (tachometer, metadata, lines), the mean over records
+    ops = [resolve_speed(r, spec, f_sun, channel=channel) for r in recs]
+    f_sun = float(np.mean([op.f_sun for op in ops]))
     kin = Kinematics.from_gears(g["z_sun"], g["z_planet"], g["z_ring"], g["n_planets"], f_sun)
-    say(f"speed {f_sun:.4f} Hz from {n_rec} record(s)")
+    say(f"speed {f_sun:.4f} Hz from {n_rec} record(s) ({ops[0].source})")
     stamp = _Stamp(f_sun, fs, measured, tuple(names), kind)  # what a calibrated spec records
     n_harm = mesh_harmonics(settings, fs, kin.f_mesh)
     # spectra of each half of each record
@@ -1260,10 +1261,8 @@ def heldout_gap(
     g = spec["gears"]
     daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=_quantity(spec, unit))
     a_meas, a_model, kin = [], [], kin0
-    for x in X:
-        w = np.hanning(n + 1)[:-1]
-        a = 2.0 * np.abs(np.fft.rfft(x * w)) / w.sum()
-        f_sun = estimate_speed(np.fft.rfftfreq(n, 1.0 / fs), a, kin0)
+    for rec, x in zip(recs, X, strict=True):
+        f_sun = resolve_speed(rec, spec, channel=channel).f_sun
         kin = Kinematics.from_gears(g["z_sun"], g["z_planet"], g["z_ring"], g["n_planets"],
                                     f_sun)
         tw = build_twin(spec, kind=kind, f_sun=f_sun)

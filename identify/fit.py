@@ -52,7 +52,7 @@ from dtwin.spec import Spec, load_spec
 from dtwin.twin import Twin
 
 from .confounding import calibrated_excitation, calibration_confounding, needs_check
-from .operating_point import estimate_speed, estimate_speed_profile
+from .operating_point import estimate_speed_profile, nominal_speed, resolve_speed
 from .params import ParameterSet
 from .residuals import (
     FAILED_RESIDUAL,
@@ -742,17 +742,6 @@ def _calibrated_spec(spec_or_twin) -> Spec | None:
     return spec if is_calibrated(spec) else None
 
 
-def _nominal_speed(spec_or_twin, twin) -> float | None:
-    if not isinstance(spec_or_twin, Twin):
-        spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
-        f = spec["operating"]["f_sun"]
-        return None if f is None else float(f)
-    for p in twin.parts:
-        if isinstance(p, DrivePart):
-            return float(p.drive.speed.final) / (2 * np.pi)
-    return None
-
-
 def make_problem(
     records,
     spec_or_twin,
@@ -811,7 +800,7 @@ def make_problem(
     w_list = list(weights) if weights is not None else [1.0] * n
     if not (len(f_list) == len(r_list) == len(feat_list) == len(w_list) == n):
         raise FitError("f_sun, runup, features and weights need one entry per record")
-    nominal = _nominal_speed(spec_or_twin, twin)
+    nominal = nominal_speed(spec_or_twin)
     frf = _sensor_response(spec_or_twin)
     obs, ops = [], []
     for i, rec in enumerate(records):
@@ -826,16 +815,16 @@ def make_problem(
             f0, f1 = prof.f_start, prof.f_end
             ops.append({"f_sun_start": f0, "f_sun_end": f1, "method": prof.method})
         else:
-            f0 = f_list[i]
-            if f0 is None:
-                if nominal is None:
-                    raise FitError("no input speed: pass f_sun or a spec with operating.f_sun")
-                _check(rec, twin, nominal, channel)
-                op = estimate_speed(rec, twin, nominal, channel=channel)
-                f0 = op.f_sun
-                ops.append({"f_sun": f0, "std_f_sun": op.std_f_sun, "method": op.method})
-            else:
-                ops.append({"f_sun": float(f0), "method": "given"})
+            if f_list[i] is None and nominal is not None:
+                _check(rec, twin, nominal, channel)  # rate and length, before the estimate
+            op = resolve_speed(rec, spec_or_twin, f_list[i], channel=channel, check=False,
+                               fallback=False, required=False)
+            if op is None:
+                raise FitError("no input speed: pass f_sun, a record with a tachometer, or a "
+                               "spec with operating.f_sun")
+            f0 = op.f_sun
+            ops.append({"f_sun": f0, "method": "given"} if op.method == "given" else
+                       {"f_sun": f0, "std_f_sun": op.std_f_sun, "method": op.method})
             f1 = None
         ob = observe(rec, twin, f_sun=f0, f_end=f1, features=feat_list[i], channel=channel,
                      weight=w_list[i], discard=discard, oversample=oversample)

@@ -2,7 +2,7 @@
 reverse), each described by the kinematic combinations that explain it.
 
 **Kinematic basis** (:class:`dtwin.kinematics.Kinematics`, Hz, speed taken from the data first with
-:func:`estimate_speed`): ``fm`` (mesh), ``fc`` (carrier), ``fsr`` (absolute sun rotation),
+:func:`dtwin.identify.operating_point.resolve_speed`): ``fm`` (mesh), ``fc`` (carrier), ``fsr`` (absolute sun rotation),
 ``fs/N`` (sun-fault repetition over the number of planets, = fsr − fc), ``fp`` (planet fault,
 fm/Zp), ``fr`` (ring fault, fm N/Zr = N fc), ``fe`` (the motor's electrical frequency, pole pairs
 × sun speed).
@@ -43,6 +43,8 @@ import numpy as np
 
 from dtwin.kinematics import Kinematics, OrderBounds, combination_text
 from dtwin.spectrum import noise_floor
+
+from .operating_point import speed_from_spectrum
 
 __all__ = [
     "Comb", "Description", "Kinematics", "LineBounds", "Modulation", "ResidualLine",
@@ -199,38 +201,13 @@ def interpolated_peak(freqs: np.ndarray, amp: np.ndarray, k: int) -> float:
 
 
 def estimate_speed(freqs: np.ndarray, amp: np.ndarray, kin: Kinematics,
-                   search: float | None = None, bounds: LineBounds = LineBounds()) -> float:
-    """Sun speed (Hz) from the measured spectrum: the speed within ±`search` (relative; default
-    ``1 / (2 Zr)``, the range in which the carrier grid is unambiguous — a speed ratio of
-    ``1 + 1/Zr`` maps fm onto fm + fc — beyond it use a tachometer) of the nominal one whose
-    carrier grid ``m fm + n fc`` (0 ≤ m ≤ 4, |n| ≤ 8, below 0.8 × the top
-    frequency) collects the most line height over the noise floor (sum of positive dB at the
-    grid's bins; step 0.05 bin at the highest line), refined by interpolating the strongest
-    grid line around a mesh harmonic. Every gear line lies on this grid whatever the imperfections, so a weak mesh
-    line does not mislead it."""
-    if search is None:
-        search = 0.5 / kin.z_ring
-    amp = np.asarray(amp, dtype=np.float64)
-    floor = noise_floor(amp, 31)
-    height = np.maximum(20 * np.log10(np.maximum(amp, 1e-300) / floor), 0.0)
-    df = float(freqs[1] - freqs[0])
-    m, n = np.meshgrid(np.arange(bounds.mesh + 1), np.arange(-bounds.carrier, bounds.carrier + 1))
-    m, n = m.ravel(), n.ravel()
-    order = (m * kin.f_mesh + n * kin.f_carrier) / kin.f_sun  # line / f_sun
-    keep = (order > 0) & (order * kin.f_sun * (1 + search) < 0.8 * freqs[-1])
-    order = order[keep]
-    step = 0.05 * df / (order.max() * kin.f_sun)
-    ratios = np.arange(1 - search, 1 + search + step / 2, step)
-    f_lines = ratios[:, None] * kin.f_sun * order[None, :]
-    k = np.clip(np.rint(f_lines / df).astype(int), 0, len(amp) - 1)
-    score = height[k].sum(axis=1)
-    best = ratios[int(np.argmax(score))] * kin.f_sun
-    # refine on the strongest grid line
-    kk = np.clip(np.rint(best * order / df).astype(int), 1, len(amp) - 2)
-    j = int(np.argmax(np.where(order * kin.f_sun > 0.5 * kin.f_mesh, amp[kk], -1.0)))
-    f_line = interpolated_peak(freqs, amp, int(kk[j]))
-    refined = f_line / order[j]
-    return float(refined if abs(refined / best - 1) < df / (best * order[j]) else best)
+                   search: float | None = None) -> float:
+    """Sun speed (Hz) from a measured Hann amplitude spectrum, within ±`search` (relative,
+    default 5 %) of the speed of `kin` (which gives the tooth numbers):
+    :func:`dtwin.identify.operating_point.speed_from_spectrum`, every mesh harmonic and its
+    carrier sidebands scored jointly, the harmonics checked against each other."""
+    return speed_from_spectrum(freqs, amp, kin, float(kin.f_sun),
+                               search=0.05 if search is None else search).f_sun
 
 
 @dataclasses.dataclass(frozen=True)

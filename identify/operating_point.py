@@ -45,7 +45,8 @@ from dtwin.speed_range import check_input_speed
 
 __all__ = ["OperatingPoint", "SpeedCheck", "SpeedDisagreementError", "SpeedLine", "SpeedProfileEstimate",
            "SpeedWarning", "check_speed", "estimate_speed", "estimate_speed_profile",
-           "gear_orders", "nominal_speed", "resolve_speed", "spectrum_speed"]
+           "gear_orders", "nominal_speed", "resolve_speed", "spectrum_speed",
+           "speed_from_spectrum"]
 
 
 def gear_orders(twin) -> dict[str, float]:
@@ -380,7 +381,35 @@ def spectrum_speed(x: np.ndarray, sample_rate: float, gears, f_centre: float, *,
     full = _hann_spectrum(x, fs, n, pad)
     seg_n = int(round(fs * max(SEGMENT_S, 16.0 / (comb.co * f_centre))))
     coarse = full if n <= 2 * seg_n else _hann_spectrum(x, fs, seg_n, 4)
-    height = _heights(coarse, 4 if coarse is not full else pad)
+    return _comb_speed(full, coarse, 4 if coarse is not full else pad, comb, lo, hi, f_top,
+                       min_level_db, f_centre, search)
+
+
+def speed_from_spectrum(freqs: np.ndarray, amp: np.ndarray, gears, f_centre: float, *,
+                        search: float = 0.05, f_top: float | None = None,
+                        min_level_db: float = MIN_LEVEL_DB) -> OperatingPoint:
+    """:func:`spectrum_speed` on a one-sided Hann amplitude spectrum `amp` at `freqs` (Hz,
+    uniform, from 0; resolution ``1 / T``) rather than on the samples; the band searched ends
+    at `f_top` (Hz; default ``BAND_FRACTION / 0.5`` × the top frequency)."""
+    teeth = _teeth(gears)
+    if teeth is None:
+        raise RecordError("the speed estimate needs the gearbox's tooth numbers (a spec)")
+    freqs = np.asarray(freqs, dtype=np.float64)
+    sp = _Spectrum(freqs, np.asarray(amp, dtype=np.float64), 1.0 / float(freqs[1] - freqs[0]))
+    f_top = 2 * BAND_FRACTION * float(freqs[-1]) if f_top is None else float(f_top)
+    lo, hi = f_centre * (1 - search), f_centre * (1 + search)
+    comb = _Comb(teeth, hi, f_top, None)
+    if comb.m.size == 0:
+        raise RecordError(f"no mesh harmonic lies below {f_top:.0f} Hz at {f_centre:.4g} Hz "
+                          "input speed")
+    return _comb_speed(sp, sp, 1, comb, lo, hi, f_top, min_level_db, f_centre, search)
+
+
+def _comb_speed(full: _Spectrum, coarse: _Spectrum, pad: int, comb: _Comb, lo: float,
+                hi: float, f_top: float, min_level_db: float, f_centre: float,
+                search: float) -> OperatingPoint:
+    """The comb estimate on `coarse` (the search) and `full` (the lines), module docstring."""
+    height = _heights(coarse, pad)
     # the joint comb: heights capped at MAX_HEIGHT_DB, so that no single line outweighs a comb
     f_joint = _comb_search(coarse, np.minimum(height, MAX_HEIGHT_DB), comb.order, comb.weight,
                            lo, hi, 0.25)

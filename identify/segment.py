@@ -40,6 +40,7 @@ from dtwin.kinematics import Kinematics
 from dtwin.order import tacho_times
 from dtwin.simulate import daq_filter
 
+from .operating_point import resolve_speed
 from .residuals import MIN_SIDEBAND_BINS
 
 __all__ = ["DEFAULT_HARMONICS", "FitWindow", "Segment", "default_length", "decimation_for_fit",
@@ -171,14 +172,6 @@ def _gear_set(spec_or_twin):
     return spec_or_twin
 
 
-def _nominal(spec_or_twin) -> float | None:
-    try:
-        f = spec_or_twin["operating"].get("f_sun")
-    except (TypeError, KeyError, AttributeError):
-        return None
-    return float(f) if f else None
-
-
 def _tacho_block_speeds(record, kin_orders: dict[str, float], block: int) -> np.ndarray | None:
     """Input speed (Hz) per block of `block` samples from the tachometer's pulses (None without
     one, or with too few pulses)."""
@@ -261,7 +254,8 @@ def segment_for_fit(record, spec_or_twin, f_sun: float | None = None,
 
     **Arguments:** `record` (`dtwin.io.Record`); `spec_or_twin`: the gearbox (a spec, its
     path, a twin or a gear set: tooth numbers); `f_sun` (Hz): the input speed if known (else
-    the tachometer's, the record's ``metadata["f_sun"]`` or the spec's ``operating.f_sun``);
+    the tachometer's, the record's ``metadata["f_sun"]`` or the spec's ``operating.f_sun``:
+    :func:`dtwin.identify.operating_point.resolve_speed` without the spectrum estimate);
     `window`: a :class:`FitWindow` or its text (``auto``, ``full``, ``START:LENGTH``);
     `channel`: the fitted channel (speeds without a tachometer); `harmonics`: mesh harmonics
     the decimated rate keeps.
@@ -280,14 +274,11 @@ def segment_for_fit(record, spec_or_twin, f_sun: float | None = None,
     block = max(1, int(round(_BLOCK_S * fs)))
     tacho_speeds = _tacho_block_speeds(record, orders, block) if record.n_samples >= 2 * block \
         else None
-    hint = f_sun
-    if hint is None and tacho_speeds is not None and np.all(np.isfinite(tacho_speeds)):
-        hint = float(np.mean(tacho_speeds))
-    if hint is None and record.metadata.get("f_sun"):
-        hint = float(record.metadata["f_sun"])
-    if hint is None:
-        hint = _nominal(spec_or_twin)
-    kin = Kinematics.from_gear_set(gs, float(hint)) if hint else None
+    # the speed the window's length and rate follow: given, tachometer, metadata or nominal
+    # (no spectrum estimate: the record may be steady only in part)
+    op = resolve_speed(record, spec_or_twin, f_sun, channel=channel, estimate=False,
+                       check=False, required=False)
+    kin = Kinematics.from_gear_set(gs, op.f_sun) if op is not None else None
     f_c = kin.f_carrier if kin is not None else None
     length = win.length if win.length is not None else default_length(f_c)
     if f_c is not None and length < MIN_SIDEBAND_BINS / f_c:

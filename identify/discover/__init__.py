@@ -1,7 +1,7 @@
 """Discrepancy discovery: where the twin and the measurement disagree, which effect explains it,
 add it, refit, and show the held-out gap shrink (docs/discovery.md).
 
-**Loop** (:func:`discover`): speed from the data (:func:`dtwin.identify.lines.estimate_speed`); the
+**Loop** (:func:`discover`): speed given or from the data (:func:`dtwin.identify.operating_point.resolve_speed`); the
 base twin simulated over the record; then per step
 
 1. residual lines over 0 … Nyquist (:func:`dtwin.identify.lines.residual_lines`), each with its

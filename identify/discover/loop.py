@@ -24,13 +24,13 @@ from ..lines import (
     Kinematics,
     band_bounds,
     chance_match_probability,
-    estimate_speed,
     find_combs,
     find_modulation,
     label_combs,
     modulation_lines,
     residual_lines,
 )
+from ..operating_point import resolve_speed
 from .candidates import _adapted, _bins_of, _dilate, coverage, signature_labels
 from .model import extended_model
 from .results import CandidateResult, DiscoveryResult, Step
@@ -135,6 +135,7 @@ def discover(
     spec,
     *,
     sample_rate: float | None = None,
+    f_sun: float | None = None,
     base_twin=None,
     kind: str | None = None,
     candidates: Sequence | None = None,
@@ -146,6 +147,8 @@ def discover(
     **Arguments:**
 
     - `record`: a :class:`dtwin.io.Record` (first channel) or a 1-D signal with `sample_rate`.
+    - `f_sun`: the input speed (Hz), if known; otherwise the record's tachometer, metadata or
+      lines give it (:func:`dtwin.identify.operating_point.resolve_speed`).
     - `spec`: the gearbox spec (`dtwin.spec.Spec`, path or mapping): kinematics, DAQ and the
       base twin (``build_twin(spec, kind=kind)``) unless `base_twin` is given (e.g. the twin
       fitted by :func:`dtwin.identify.fit.fit`).
@@ -164,21 +167,23 @@ def discover(
     x = x[:n] - np.mean(x[:n])
     candidates = list(candidates) if candidates is not None else registered_effects()
 
-    # 1. speed from the data, kinematics
+    # 1. speed (given, tachometer, metadata or the record's lines), kinematics
     kin0 = Kinematics.from_spec(spec)
     freqs_full, a_full = amplitude_spectrum(x, fs, "hann")
-    f_est = estimate_speed(freqs_full, np.asarray(a_full), kin0)
+    op = resolve_speed(record if isinstance(record, Record)
+                       else Record(x[None, :], fs, ("signal",), ("",)), spec, f_sun)
+    f_est = op.f_sun
     # the spec's speed unless the estimate moves the top of the band by more than half the
     # line tolerance (a calibrated spec carries its baseline's speed: 30.0011 Hz against
     # 30.0002 Hz on the independent load-fluctuation record, 0.07 Hz at 4 fm — more than the
     # 0.06 Hz tolerance of a 4 s record)
     rel = abs(f_est / kin0.f_sun - 1)
     df_full = float(freqs_full[1] - freqs_full[0])
-    f_sun = (kin0.f_sun if rel < 2e-4 and rel * fs / 2 < 0.5 * settings.tolerance_bins * df_full
-             else f_est)
+    f_sun = (kin0.f_sun if op.method == "spectrum" and rel < 2e-4
+             and rel * fs / 2 < 0.5 * settings.tolerance_bins * df_full else f_est)
     kin = Kinematics.from_spec(spec, f_sun)
     f_max = fs / 2
-    say(f"speed {f_sun:.4f} Hz (estimated {f_est:.4f}); fm {kin.f_mesh:.2f} Hz")
+    say(f"speed {f_sun:.4f} Hz ({op.source}: {f_est:.4f}); fm {kin.f_mesh:.2f} Hz")
 
     # 2. the extended model
     if base_twin is None:
