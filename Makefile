@@ -5,8 +5,12 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 export JAX_ENABLE_X64 := 1
 export MPLBACKEND := Agg
-# Persistent JAX compilation cache lives inside the venv (see dtwin/_config.py).
-export DTWIN_JAX_CACHE := $(abspath $(VENV))/jax-cache
+# JAX's persistent compilation cache: the user's cache folder (~/.cache/dtwin/jax, see
+# dtwin/_config.py) for the demo and every command, so a second run does not compile again;
+# the tests keep theirs in the venv (TEST_JAX_CACHE), away from the user's and removed by
+# `make clean`. DTWIN_JAX_CACHE=off (or a folder) given to make overrides both.
+TEST_JAX_CACHE := $(abspath $(VENV))/jax-cache
+test test-all: export DTWIN_JAX_CACHE ?= $(TEST_JAX_CACHE)
 
 # Two pytest-xdist workers. XLA's CPU compiler (jaxlib 0.10.2) now and then kills the process
 # compiling a program (`Fatal Python error: Aborted` or a segfault); xdist then starts a new
@@ -22,7 +26,7 @@ export DTWIN_JAX_CACHE := $(abspath $(VENV))/jax-cache
 # test passed on its rerun).
 XDIST := -n 2 --dist worksteal --reruns 1 --only-rerun "pytest-xdist worker crashed" --max-suite-reruns 5
 
-.PHONY: venv demo test test-all lint bench notebooks clean
+.PHONY: venv demo test test-all lint bench bench-family notebooks clean
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
@@ -46,6 +50,11 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
+
+# The family benchmark: calibrate, discover and severity on every gearbox of
+# ../shared/independent/ (benchmarks/family.py; table in benchmarks/out/family/family.md).
+bench-family: $(STAMP)
+	$(PY) benchmarks/family.py
 
 notebooks: $(STAMP)
 	$(PY) notebooks/render.py notebooks demo-output/notebooks
