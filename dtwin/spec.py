@@ -222,6 +222,13 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
         "heldout_gap_db": FieldSpec("float", "dB", None, 0.0, 500.0,
                                     doc="held-out gap of the calibrated twin on its records"),
         "created_by": FieldSpec("str", "", None, doc="dtwin version that calibrated the spec"),
+        "shortfall_orders": FieldSpec("floats", "1", None, 0.0, 1e4,
+                                      doc="lines the calibrated twin left unexplained on its "
+                                          "records, as orders of the input speed (written by "
+                                          "dtwin calibrate; discovery refuses a candidate whose "
+                                          "evidence lies there)"),
+        "shortfall_db": FieldSpec("floats", "dB", None, 0.0, 500.0,
+                                  doc="each shortfall line's excess over the other spectrum"),
         "kept_spec": FieldSpec("str", "", None,
                                doc="present when the calibrated values were not adopted "
                                    "(dtwin.identify.calibrate.adoption): the spec's own values "

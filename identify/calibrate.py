@@ -129,6 +129,7 @@ from dtwin.units import quantity as unit_quantity
 from .gap import FLOOR_BINS, PASSBAND, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
 from .lines import Kinematics
 from .operating_point import resolve_speed
+from .shortfall import shortfall_lines
 from .stopping import StallStopping
 
 __all__ = ["CalibratedParameter", "CalibrationResult", "CalibrationSettings", "adoption",
@@ -1012,6 +1013,11 @@ def calibrate(
         a_after, gap_conf = confirmed(data)
         say(f"confirmed gap of the spec as written {gap_conf.total:.2f} dB")
     data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
+    # what the calibrated twin still leaves unexplained on the healthy records: discovery
+    # refuses a candidate whose evidence lies there (dtwin.identify.shortfall)
+    orders, excess = shortfall_lines(freqs, a_meas, a_after, kin, PASSBAND * fs)
+    data["calibration"]["shortfall_orders"] = [round(o, 6) for o in orders]
+    data["calibration"]["shortfall_db"] = [round(e, 2) for e in excess]
     return CalibrationResult(data, params, f_sun, gap_before, gap_held, gap_conf, freqs,
                              a_meas, a_before, a_after, noise_rms, list(names),
                              chosen.steps, chosen.converged, best + 1, float(chosen.departure),

@@ -31,7 +31,9 @@ from ..lines import (
     residual_lines,
 )
 from ..operating_point import resolve_speed
+from ..shortfall import SHORTFALL_SHARE, shortfall_share
 from .candidates import _adapted, _bins_of, _dilate, coverage, signature_labels
+from .in_range import in_range_trials, refit_in_range
 from .model import extended_model
 from .results import CandidateResult, DiscoveryResult, Step
 from .settings import DiscoverySettings
@@ -242,6 +244,8 @@ def discover(
     z = normal_quantile(settings.confidence)
     chi2 = chi2_quantile(settings.confidence)
     seg_len = n // settings.n_folds
+    # lines the calibration left unexplained on the healthy records (dtwin.identify.shortfall)
+    shortfall_orders = list(spec["calibration"].get("shortfall_orders") or [])
 
     def fold_gains(Z0):
         return np.array([_log_gain(Y[f], Z0[f], floor[f], settings.threshold_db)
@@ -398,6 +402,16 @@ def discover(
             e = candidates[i]
             cr = CandidateResult(e.name, e.group, cov, matched)
             _set_score(cr, scores, i, covering)
+            share, on = shortfall_share(matched, shortfall_orders, f_sun, df)
+            if share >= SHORTFALL_SHARE:  # the healthy machine shows the same lines
+                cr.rejected = (f"calibration shortfall: {100 * share:.0f} % of its lines' excess "
+                               f"lies on lines the calibrated twin left unexplained on the "
+                               f"healthy calibration record(s) ({', '.join(f'{f:.2f}' for f in on[:6])}"
+                               f" Hz{', …' if len(on) > 6 else ''}): not a finding")
+                cr.significant = cr.identified = False
+                say(f"  {e.name} set aside: {cr.rejected}")
+                results.append(cr)
+                continue
             try:  # one candidate never ends the run: a failure sets it aside
                 say(f"  refit {e.name} (coverage {cov:.2f})")
                 Jc = response_spectra(i)  # (F, K, p)
@@ -463,8 +477,9 @@ def discover(
                        f"[{q.bounds[0]:g}, {q.bounds[1]:g}]"
                        for q, v in zip(ps, cr.theta, strict=True)
                        if not q.bounds[0] <= v <= q.bounds[1]]
-                if out:
-                    cr.rejected = "; ".join(out)
+                if out:  # the linearised model extrapolated: refit inside the range in full
+                    cr.out_of_range = "; ".join(out)
+                    say(f"    {cr.out_of_range}: refit inside its range if it is kept")
             except (DtwinError, FloatingPointError, np.linalg.LinAlgError, ValueError) as err:
                 cr.rejected = f"refit failed: {type(err).__name__}: {err}"
             if cr.rejected:
@@ -490,12 +505,20 @@ def discover(
         best = None
         for cand in sorted(ok, key=lambda c: c.gap_after):
             i_c = next(i for i, e in enumerate(candidates) if e.name == cand.name)
-            theta_c = theta_units.copy()
-            theta_c[model.slice(i_c)] = cand.theta / model.scales[model.slice(i_c)]
-            sig_c = model.signal(theta_c)
-            _, Z1 = segment_spectra(sig_c, fs, settings.n_folds)
-            a1 = heldout_spectra(Z1)
+            trials = [cand.theta] if cand.out_of_range is None else \
+                in_range_trials(cand.theta, [q.bounds for q in model.parameters[i_c]])
+            tried_c = []
+            for th in trials:
+                theta_c = theta_units.copy()
+                theta_c[model.slice(i_c)] = th / model.scales[model.slice(i_c)]
+                sig_c = model.signal(theta_c)
+                _, Z1 = segment_spectra(sig_c, fs, settings.n_folds)
+                a1 = heldout_spectra(Z1)
+                tried_c.append((search_gap(a1).total, th, theta_c, sig_c, a1))
+            g_best, th, theta_c, sig_c, a1 = min(tried_c, key=lambda t: t[0])
             gap_c = search_gap(a1)
+            if cand.out_of_range is not None:
+                refit_in_range(cand, th, candidates[i_c], [t[0] for t in tried_c], say)
             if gap_c.total < gap_now.total:
                 best, i_best, theta_units, m_sig, gap_conf = cand, i_c, theta_c, sig_c, gap_c
                 held_after = reported_gap(a1)
@@ -524,7 +547,9 @@ def discover(
         main = dict(name=e_best.main_name, unit=e_best.main_unit, value=best.main,
                     sigma=best.main_sigma,
                     interval=list(best.main_interval),
-                    interval_kind=f"profile of the overall amplitude, {100 * settings.confidence:g} %",
+                    interval_kind=(f"profile of the overall amplitude, {100 * settings.confidence:g} %"
+                                   if best.out_of_range is None else
+                                   f"none: {best.out_of_range}"),
                     delta_method_sigma=best.main_sigma,
                     typical_range=list(e_best.typical_range), typical_note=e_best.typical_note)
         gap_after = dataclasses.replace(gap_now, total=gap_lin,

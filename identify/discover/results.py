@@ -34,6 +34,9 @@ class CandidateResult:
     #: why the candidate was set aside (a fitted value outside its physical range, a refit that
     #: failed); None when it was judged on its statistics
     rejected: str | None = None
+    #: a linearised fit outside the parameters' physical range, and how it was refitted inside
+    #: it in full simulation (:mod:`dtwin.identify.discover.in_range`); None when it was inside
+    out_of_range: str | None = None
     #: score statistic at zero amplitude (screening), its degrees of freedom, log10 of its χ²
     #: tail and its rank among the candidates scored in the step (1 = most significant)
     score: float = float("nan")
@@ -49,7 +52,7 @@ class CandidateResult:
                     identified=self.identified, significant=self.significant,
                     main=self.main, main_sigma=self.main_sigma,
                     main_interval=list(self.main_interval), evidence=self.evidence,
-                    rejected=self.rejected, score=self.score, score_df=self.score_df,
+                    rejected=self.rejected, out_of_range=self.out_of_range, score=self.score, score_df=self.score_df,
                     score_log10p=self.score_log10p, score_rank=self.score_rank,
                     screened=self.screened)
 
