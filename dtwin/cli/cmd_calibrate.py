@@ -43,6 +43,8 @@ def calibrate(
                                      help="Fit the planets' load shares: auto (when the records "
                                           "show carrier orders equal sharing cannot make), on, "
                                           "off."),
+    f_sun: float | None = opts.f_sun_option("Input (sun) speed of the records in Hz; "),
+    tacho: str | None = opts.tacho_option(),
     channel: str = opts.channel_option(),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
@@ -67,14 +69,16 @@ def calibrate(
                                f"excitation harmonics with a registry name), got "
                                f"{mesh_harmonics}")
     opts.choice("--load-sharing", load_sharing, ("auto", "on", "off"))
+    opts.input_speed_option("--f-sun", f_sun)
+    opts.tacho_reading(tacho)
     opts.check_out(out, force)
     gb = opts.load_gearbox(preset, spec)
     ch = opts.channel_token(channel)
     recs = []
     for p in records:
-        r = opts.read_record(p, sample_rate)
+        r = opts.read_record(p, sample_rate, tacho)
         opts.check_channel(r, ch)
-        opts.checked_record(r, ch, gb.spec, None, fit=True)
+        opts.checked_record(r, ch, gb.spec, f_sun, fit=True)
         r.metadata["source"] = p.name
         recs.append(r)
     settings = CalibrationSettings(window_terms=window_terms, n_knots=knots,
@@ -82,7 +86,7 @@ def calibrate(
     import logging
 
     log = logging.getLogger("dtwin")
-    result = run(recs, gb.spec, kind=model, channel=_channel_index(recs[0], ch),
+    result = run(recs, gb.spec, kind=model, f_sun=f_sun, channel=_channel_index(recs[0], ch),
                  settings=settings, progress=lambda m: log.info("calibrate: %s", m))
     report = result.to_dict()
     report["spec"] = gb.source
@@ -104,7 +108,8 @@ def calibrate(
               force=force, files=_files(result, report, unit), inputs=[spec, *records],
               gearbox=gb, parameters={"records": [str(p) for p in records], "knots": knots,
                                       "window_terms": window_terms,
-                                      "mesh_harmonics": mesh_harmonics, "model": model})
+                                      "mesh_harmonics": mesh_harmonics, "model": model,
+                                      "f_sun": f_sun, "tacho": tacho})
 
 
 def _files(result, report, unit: str):

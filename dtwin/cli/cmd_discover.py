@@ -1,7 +1,8 @@
 """``dtwin discover``: find what the twin is missing, name it, add it, show the gap shrink.
 
     dtwin discover RECORD (--spec FILE | --preset NAME) [--kind torsional|translational]
-                   [--channel C] [--sample-rate HZ] [--max-steps 3] [--alpha 0.01]
+                   [--channel C] [--f-sun HZ] [--tacho CHANNEL[:PPR[:SHAFT]]]
+                   [--sample-rate HZ] [--max-steps 3] [--alpha 0.01]
                    [--n-boot 400] [--seed 0] [--json] [--out DIR] [--force]
 
 Runs :func:`dtwin.identify.discover.discover` (docs/discovery.md) on one channel of the record with
@@ -136,6 +137,8 @@ def discover(
     kind: str | None = typer.Option(None, "--kind", help="Base model: torsional/translational "
                                                          "(default: the spec's model.kind)."),
     channel: str = typer.Option("0", "--channel", help="Channel name or index."),
+    f_sun: float | None = opts.f_sun_option(),
+    tacho: str | None = opts.tacho_option(),
     sample_rate: float | None = typer.Option(None, "--sample-rate",
                                              help="Sampling rate (Hz) for formats without one."),
     max_steps: int = typer.Option(3, "--max-steps", help="Budget of effects added."),
@@ -160,18 +163,25 @@ def discover(
         raise opts.OptionError("--alpha", f"must lie in (0, 0.01], got {alpha:g}")
     opts.at_least("--n-boot", n_boot, 20)
     opts.at_least("--seed", seed, 0)
+    opts.input_speed_option("--f-sun", f_sun)
+    opts.tacho_reading(tacho)
     opts.check_out(out, force)
     gb = opts.load_gearbox(preset, spec, why="discover needs the gearbox")
     gearbox = gb.spec
-    record = opts.read_record(record_file, sample_rate)
+    record = opts.read_record(record_file, sample_rate, tacho)
     ch = opts.channel_token(channel)
     opts.check_channel(record, ch)
-    opts.checked_record(record, ch, gearbox, input_speed(record, gearbox, None)[0], fit=True)
+    speed, source = input_speed(record, gearbox, f_sun, channel=ch)
+    opts.checked_record(record, ch, gearbox, speed, fit=True)
+    # a speed given, from the tachometer or the metadata is discovery's; from the lines or the
+    # spec, discovery weighs its own estimate against the (calibrated) spec's speed
+    given = speed if source not in ("mesh lines", "spec operating.f_sun") else None
 
     settings = DiscoverySettings(alpha=alpha, n_boot=n_boot, max_steps=max_steps, seed=seed)
     log = None if json_out or is_quiet() else note
 
-    result = run(record.channel(ch), gearbox, sample_rate=record.sample_rate, kind=kind,
+    result = run(record.channel(ch), gearbox, sample_rate=record.sample_rate, f_sun=given,
+                 kind=kind,
                  settings=settings, log=log)
     report = {"record": str(record_file), "channel": str(channel), **result.to_dict()}
 

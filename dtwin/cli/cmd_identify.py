@@ -2,13 +2,15 @@
 
     dtwin identify RECORD... (--spec FILE | --preset NAME)
                    --free k_sun_planet,k_ring_planet,zeta_mesh,sun_fault
-                   [--model torsional|translational] [--f-sun HZ] [--runup LOW HIGH]
+                   [--model torsional|translational] [--f-sun HZ] [--tacho CHANNEL[:PPR]]
+                   [--runup LOW HIGH]
                    [--solver lm|gauss-newton|dogleg] [--starts N] [--refine K] [--jac fwd|rev]
                    [--max-steps N] [--channel C] [--fit-window auto|full|START:LENGTH]
                    [--splits/--no-splits] [--json] [--out DIR] [--force]
 
     dtwin severity RECORD (--spec FILE | --preset NAME) [--location sun|planet|ring]
-                   [--free extra,names] [--f-sun HZ] [--fit-window auto|full|START:LENGTH]
+                   [--free extra,names] [--f-sun HZ] [--tacho CHANNEL[:PPR]]
+                   [--fit-window auto|full|START:LENGTH]
                    [--low-band/--no-low-band] [--jackknife] [--shapes]
                    [--splits/--no-splits] [--flanks/--no-flanks]
                    [--json] [--out DIR] [--force]
@@ -16,7 +18,10 @@
 Free names come from the parameter registry (``dtwin.registry``); an unknown name, an
 unreadable record, NaN samples, a rate under 2.5 × f_mesh or a record too short for the carrier
 sidebands fail with a clear message (exit code 2) before anything is simulated. The input speed
-is estimated from each record (mesh harmonics, or its tachometer) unless ``--f-sun`` is given;
+is ``--f-sun``, else each record's tachometer (``--tacho``), metadata or mesh lines
+(:func:`dtwin.identify.operating_point.resolve_speed`); a ``--f-sun`` more than 1 % off the
+record's lines (or where it shows none) is refused before the fit, a smaller disagreement and a
+tachometer or metadata speed the lines contradict are warned about, naming the lines;
 ``--runup LOW HIGH`` (Hz) marks the records as run-ups/coast-downs within that speed range
 (speed profile by order tracking, spectrogram residuals).
 
@@ -53,9 +58,9 @@ def _check_common(model: str | None, f_sun: float | None, out: Path | None, forc
 
 
 def _records(paths: list[Path], sample_rate: float | None, channel: str | int, spec,
-             f_sun: float | None):
+             f_sun: float | None, tacho: str | None = None):
     """Read and check the records of a fit (refused if unusable or degraded)."""
-    recs = [opts.read_record(p, sample_rate) for p in paths]
+    recs = [opts.read_record(p, sample_rate, tacho) for p in paths]
     for r in recs:
         opts.check_channel(r, channel)
         opts.checked_record(r, channel, spec, f_sun or _speed_hint(r, spec), fit=True)
@@ -99,15 +104,15 @@ def _windows(recs: list, spec, f_sun: float | None, window, channel) -> list:
 
 
 def _segments(paths: list[Path], sample_rate: float | None, channel: str | int, spec,
-              f_sun: float | None, window) -> list:
+              f_sun: float | None, window, tacho: str | None = None) -> list:
     """Read and check the records of a fit and cut the segment each fit uses
     (:func:`_records`, :func:`_windows`). The whole records are let go before the fit and
     their memory handed back to the system (:func:`dtwin._heap.release`): a 60 s, 25.6 kHz
     record holds ~60 MB that its 4 s window does not need."""
     from dtwin import _heap
 
-    segs = _windows(_records(paths, sample_rate, channel, spec, f_sun), spec, f_sun, window,
-                    channel)
+    segs = _windows(_records(paths, sample_rate, channel, spec, f_sun, tacho), spec, f_sun,
+                    window, channel)
     _heap.release()
     return segs
 
@@ -208,8 +213,8 @@ def identify(
     model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
                                      "(default: the kind a calibrated spec was calibrated "
                                      "with, otherwise torsional)."),
-    f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz); default: "
-                                       "estimated from each record."),
+    f_sun: float | None = opts.f_sun_option("Input speed (Hz) of every record; "),
+    tacho: str | None = opts.tacho_option(),
     runup: tuple[float, float] | None = typer.Option(None, "--runup", help="Run-up records: "
                                                      "speed range LOW HIGH (Hz)."),
     solver: str = typer.Option("lm", "--solver", help="lm, gauss-newton or dogleg."),
@@ -243,6 +248,7 @@ def identify(
                                f"got {refine}")
     opts.at_least("--max-steps", max_steps, 1)
     window = _parse_window(fit_window)
+    opts.tacho_reading(tacho)
     if runup is not None and window.start is None:
         window = dataclasses.replace(window, whole=True)  # a run-up is fitted whole by default
     if runup is not None:
@@ -254,9 +260,9 @@ def identify(
     model = twin_kind(gb.spec, model)
     warn_torsional_tooth_fault(model, names)
     ch = opts.channel_token(channel)
-    segs = _segments(records, sample_rate, ch, gb.spec, f_sun, window)
+    segs = _segments(records, sample_rate, ch, gb.spec, f_sun, window, tacho)
     recs = [sg.record for sg in segs]
-    if f_sun is not None and runup is None:
+    if runup is None:
         for p, r in zip(records, recs, strict=True):
             _check_given_speed(r, gb.spec, f_sun, ch, p)
     with opts.working("fitting", enabled=not progress):
@@ -285,36 +291,36 @@ def _quiet() -> bool:
     return is_quiet()
 
 
-def _check_given_speed(record, spec, f_sun: float, channel, path) -> None:
-    """Refuse a ``--f-sun`` that the record's mesh lines (or tacho) contradict."""
-    from dtwin.identify.operating_point import estimate_speed
+#: A ``--f-sun`` further than this (relative) from the speed of the record's lines is refused.
+GIVEN_SPEED_TOLERANCE = 0.01
 
-    from ..build import build_twin
+
+def _check_given_speed(record, spec, f_sun: float | None, channel, path) -> None:
+    """Check the speed a fit uses (``--f-sun``, the tachometer or the record's metadata)
+    against the record's mesh lines (:func:`dtwin.identify.operating_point.check_speed`): a
+    ``--f-sun`` more than ``GIVEN_SPEED_TOLERANCE`` off the lines' speed, or where the record
+    shows no mesh line, is refused (a fit at a wrong speed runs for minutes and ends at a
+    bound); a smaller disagreement, or a tachometer or metadata speed the lines contradict, is
+    a warning naming the lines."""
+    from dtwin.identify.operating_point import check_speed, resolve_speed
+
     from ..errors import RecordError
+    from .logs import warn
 
-    twin = build_twin(spec, kind="torsional")
-    try:
-        op = estimate_speed(record, twin, f_sun, channel=channel, search=0.05)
-    except RecordError:
-        op = None
-    if op is not None and (op.method == "tacho" or op.harmonics) \
-            and abs(op.f_sun - f_sun) <= 0.01 * f_sun:
+    op = resolve_speed(record, spec, f_sun, channel=channel, estimate=False, check=False,
+                       required=False)
+    if op is None or op.method == "spec":
+        return  # the fit takes the speed from the record's lines
+    what = {"given": "--f-sun", "tacho": "the tachometer's speed",
+            "metadata": "the record's metadata f_sun"}[op.method]
+    res = check_speed(record, spec, op.f_sun, channel=channel, what=what)
+    if res.agrees:
         return
-    nominal = spec["operating"].get("f_sun")
-    seen = None
-    if nominal and abs(float(nominal) - f_sun) > 0.05 * f_sun:
-        try:
-            alt = estimate_speed(record, twin, float(nominal), channel=channel)
-            seen = alt.f_sun if (alt.harmonics or alt.method == "tacho") else None
-        except RecordError:
-            seen = None
-    if op is not None and op.method == "tacho":
-        seen = op.f_sun
-    where = (f"the record's {'tachometer' if op is not None and op.method == 'tacho' else 'mesh lines'}"
-             f" put the input speed at {seen:.2f} Hz" if seen is not None else
-             f"the record shows no mesh line near {f_sun:g} Hz × the mesh order")
-    raise RecordError(f"--f-sun {f_sun:g} Hz disagrees with {path}: {where}; drop --f-sun (the "
-                      "speed is then estimated from the record) or correct it")
+    if op.method == "given" and (res.f_record is None or abs(res.f_record / op.f_sun - 1)
+                                 > GIVEN_SPEED_TOLERANCE):
+        raise RecordError(f"{path}: {res.message}; drop --f-sun (the speed is then taken from "
+                          "the record) or correct it")
+    warn(f"{path}: {res.message}")
 
 
 @app.command()
@@ -329,7 +335,8 @@ def severity(
                                      "torsional twin's sun and planets cannot move sideways "
                                      "under a tooth fault, and it reads sun and planet faults "
                                      "4–10× small)."),
-    f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz)."),
+    f_sun: float | None = opts.f_sun_option(),
+    tacho: str | None = opts.tacho_option(),
     channel: str = opts.channel_option(),
     fit_window: str = fit_window_option(),
     low_band: bool | None = typer.Option(
@@ -371,14 +378,14 @@ def severity(
     check_free([f"{location}_fault"])
     _check_common(model, f_sun, out, force)
     window = _parse_window(fit_window)
+    opts.tacho_reading(tacho)
     gb = opts.load_gearbox(preset, spec, why="severity estimation needs the gearbox")
     if model is not None:  # asked for: checked against a calibrated spec's (a warning)
         model = twin_kind(gb.spec, model)
     ch = opts.channel_token(channel)
-    segs = _segments([record], sample_rate, ch, gb.spec, f_sun, window)
+    segs = _segments([record], sample_rate, ch, gb.spec, f_sun, window, tacho)
     rec = segs[0].record
-    if f_sun is not None:
-        _check_given_speed(rec, gb.spec, f_sun, ch, record)
+    _check_given_speed(rec, gb.spec, f_sun, ch, record)
     with opts.working("fitting the severity"):
         est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
                                 channel=ch, low_band=low_band, jackknife=jackknife,

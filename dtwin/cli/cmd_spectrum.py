@@ -4,6 +4,7 @@
                    [--scale db|linear] [--units m/s^2|g|mm/s|um] [--highpass 10]
                    [--welch --segment 4096 --overlap 0.5] [--iso-group 2 --iso-support rigid]
                    [--preset paper-sim|paper-bench | --spec FILE] [--f-sun HZ]
+                   [--tacho CHANNEL[:PPR[:SHAFT]]]
                    [--planet-fault paper|both_flanks] [--threshold-db 10] [--min-spacing HZ]
                    [--max-peaks 15] [--floor-width 31] [--sample-rate HZ]
                    [--json] [--out DIR] [--force]
@@ -12,8 +13,11 @@ The record is read with :func:`dtwin.io.readers.read_record` (any supported form
 ``*.dtwin.h5``). Peaks in the band standing ``--threshold-db`` above the running-median noise
 floor are numbered 1, 2, … by frequency and, with a gearbox (``--preset``/``--spec``), labelled
 as ``m fm + a fc + b fs/N + c fp`` within one frequency bin (:mod:`dtwin.spectrum`). The input
-speed is ``--f-sun``, else the record's tachometer (mean speed), else the record's
-``metadata["f_sun"]``, else the spec's ``operating.f_sun``; the report names the source.
+speed follows :func:`dtwin.identify.operating_point.resolve_speed`: ``--f-sun``, else the
+tachometer (``--tacho`` or the record's own; mean speed), else the record's
+``metadata["f_sun"]``, else (with a gearbox) the speed the record's mesh lines give, else the
+spec's ``operating.f_sun``; the report names the source, and a speed the record's lines
+contradict is warned about, naming the lines (expected and seen frequencies).
 
 The band defaults to the gearbox's mesh harmonics (``fm − 12 fc … 3 fm + 12 fc``, capped at
 Nyquist), or the whole spectrum without a gearbox. ``--units`` converts (g: 9.80665 m/s²;
@@ -94,7 +98,8 @@ def spectrum(
                                help="rect, hann, hamming, blackman, blackmanharris, flattop."),
     preset: str | None = opts.preset_option(_PRESET_HELP),
     spec: Path | None = opts.spec_option(),
-    f_sun: float | None = typer.Option(None, "--f-sun", help="Input (sun) speed in Hz."),
+    f_sun: float | None = opts.f_sun_option(),
+    tacho: str | None = opts.tacho_option(),
     planet_fault: str = typer.Option("paper", "--planet-fault",
                                      help="paper (f_mesh/Zp) or both_flanks (2 f_mesh/Zp)."),
     threshold_db: float = typer.Option(10.0, "--threshold-db",
@@ -134,13 +139,13 @@ def spectrum(
     opts.check_out(out, force)
     gb = opts.load_gearbox(preset, spec, required=False)
     gearbox = gb.spec if gb is not None else None
-    record = opts.read_record(record_file, sample_rate)
+    record = opts.read_record(record_file, sample_rate, tacho)
     try:
         rows = record.channel_list(opts.channel_token(channel))
     except Exception:  # noqa: BLE001 - one message listing the channels
         opts.check_channel(record, opts.channel_token(channel))
         raise
-    fsun, fsun_source = input_speed(record, gearbox, f_sun)
+    fsun, fsun_source = input_speed(record, gearbox, f_sun, channel=rows[0])
     opts.checked_record(record, rows, gearbox, fsun)
     nyq = record.sample_rate / 2
     opts.band("--band", band, nyquist=nyq)

@@ -22,6 +22,7 @@ from typing import Any
 import typer
 
 from ..errors import RecordError, SpecError
+from ..speed_range import check_input_speed
 
 PRESETS = ("paper-sim", "paper-bench", "paper-like", "lin-parker")
 """The bundled presets (``dtwin/presets``); kept equal to :data:`dtwin.spec.PRESETS` by a test."""
@@ -85,6 +86,50 @@ def splits_option(default_when: str, cost: str = "One more fit.") -> Any:
 
 def sample_rate_option() -> Any:
     return typer.Option(None, "--sample-rate", help="Sampling rate (Hz) if the file states none.")
+
+
+_SPEED_RULE = ("otherwise the --tacho channel's (or the record's own tachometer), the record's "
+               "metadata f_sun, the speed its mesh lines give (every mesh harmonic and its "
+               "carrier sidebands jointly, within 5 % of the spec's speed), or the spec's "
+               "operating.f_sun, in that order; a speed the record's lines contradict is "
+               "warned about, naming the lines (docs/records.md, 'The input speed').")
+
+
+def f_sun_option(help: str = "Input (sun) speed in Hz (1800 rpm = 30 Hz); ") -> Any:
+    """``--f-sun HZ``: the input speed; without it, the one rule of
+    :func:`dtwin.identify.operating_point.resolve_speed` (``_SPEED_RULE``)."""
+    return typer.Option(None, "--f-sun", help=help + _SPEED_RULE)
+
+
+def tacho_option() -> Any:
+    """``--tacho CHANNEL[:PPR[:SHAFT]]``: a channel of the record holding tachometer pulses."""
+    return typer.Option(
+        None, "--tacho",
+        help="Tachometer channel of the record (name or index), taken out of its channels: "
+             "CHANNEL, CHANNEL:PPR (pulses per revolution, default 1) or CHANNEL:PPR:SHAFT "
+             "(sun, the default, or carrier). Its mean speed is the input speed unless "
+             "--f-sun is given.")
+
+
+def tacho_reading(text: str | None) -> dict[str, Any]:
+    """``--tacho CHANNEL[:PPR[:SHAFT]]`` as the tachometer arguments of
+    :func:`dtwin.io.readers.read_record` (empty without one)."""
+    if text is None:
+        return {}
+    parts = [p.strip() for p in str(text).split(":")]
+    if not parts[0] or len(parts) > 3:
+        raise OptionError("--tacho", f"use CHANNEL, CHANNEL:PPR or CHANNEL:PPR:SHAFT (e.g. "
+                          f"tacho:1:sun), got {text!r}")
+    ppr = 1
+    if len(parts) > 1:
+        if not parts[1].isdigit() or int(parts[1]) < 1:
+            raise OptionError("--tacho", f"PPR (pulses per revolution) must be a whole number "
+                              f"≥ 1, got {parts[1]!r}")
+        ppr = int(parts[1])
+    shaft = parts[2] if len(parts) > 2 else "sun"
+    choice("--tacho", shaft, ("sun", "carrier"))
+    ch: str | int = int(parts[0]) if parts[0].lstrip("-").isdigit() else parts[0]
+    return {"tacho": ch, "tacho_ppr": ppr, "tacho_shaft": shaft}
 
 
 # --- checks of values ---------------------------------------------------------------------------
@@ -157,15 +202,14 @@ def band(option: str, value: tuple[float, float] | None,
 
 
 def input_speed_option(option: str, value: float | None) -> float | None:
-    """An input (sun) speed in Hz in (0, 500]; a value that looks like rpm gets a hint."""
+    """An input (sun) speed in Hz within :data:`dtwin.speed_range.F_SUN_MAX`
+    (:func:`dtwin.speed_range.check_input_speed`); a value that looks like rpm gets a hint."""
     if value is None:
         return None
-    finite(option, value)
-    if not 0 < value <= 500:
-        hint = (f" (did you mean {value:g} rpm = {value / 60:g} Hz?)" if value > 500 else "")
-        raise OptionError(option, f"must be the input speed in Hz in (0, 500], got "
-                          f"{value:g}{hint}")
-    return float(value)
+    try:
+        return check_input_speed(value, option)
+    except SpecError as e:
+        raise OptionError(option, e.problems[0][1]) from None
 
 
 def existing_file(option: str, path: Path | None) -> Path | None:
@@ -312,13 +356,22 @@ def channel_token(channel: str) -> str | int:
 
 
 
-def read_record(path: Path, sample_rate: float | None = None, **kwargs: Any) -> Any:
-    """Read a record file (read-only) with :func:`dtwin.io.readers.read_record`."""
+def read_record(path: Path, sample_rate: float | None = None, tacho: str | None = None,
+                **kwargs: Any) -> Any:
+    """Read a record file (read-only) with :func:`dtwin.io.readers.read_record`; `tacho`: the
+    ``--tacho`` text (:func:`tacho_reading`)."""
+    from ..errors import ChannelError
     from ..io.readers import read_record as _read
 
     existing_file("RECORD", Path(path))
     positive("--sample-rate", sample_rate, unit="Hz")
-    return _read(path, sample_rate=sample_rate, **kwargs)
+    reading = tacho_reading(tacho)
+    try:
+        return _read(path, sample_rate=sample_rate, **reading, **kwargs)
+    except ChannelError as e:
+        if reading:
+            raise ChannelError(f"--tacho: {e}") from None
+        raise
 
 
 def check_channel(record: Any, channel: str | int) -> None:
@@ -562,7 +615,7 @@ def print_table(table: Any) -> None:
 __all__ = [
     "PRESETS", "Gearbox", "OptionError", "at_least", "band", "channel_option", "channel_token",
     "check_channel", "check_out", "choice", "console", "emit", "existing_file", "finite",
-    "force_option", "in_range", "input_speed_option", "json_option", "load_gearbox",
+    "f_sun_option", "force_option", "in_range", "input_speed_option", "json_option", "load_gearbox",
     "out_option", "positive", "preset_option", "print_table", "read_record",
-    "sample_rate_option", "spec_option", "write_outputs",
+    "sample_rate_option", "spec_option", "tacho_option", "tacho_reading", "write_outputs",
 ]
