@@ -45,7 +45,6 @@ import optimistix as optx
 from dtwin import _heap
 from dtwin.build import build_twin, is_calibrated, twin_kind
 from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
-from dtwin.parts.drive import DrivePart
 from dtwin.registry import REGISTRY, lookup
 from dtwin.simulate import SolverOptions, settling_sequence
 from dtwin.spec import Spec, load_spec
