@@ -5,7 +5,10 @@ Importing dtwin turns on float64 in JAX and the persistent compilation cache
 these (and the submodules' documented functions).
 """
 
-from . import _config  # noqa: F401  (float64 + compilation cache, before anything else)
+from . import (
+    _cli_start,  # noqa: F401  (Ctrl-C while the dtwin command starts: one line, exit 130)
+    _config,  # noqa: F401  (float64 + compilation cache, before anything else)
+)
 from ._version import __version__ as __version__
 from .build import build_twin as build_twin
 from .build import daq_from_spec as daq_from_spec

@@ -84,6 +84,127 @@ def _watch_signals() -> None:
 
 
 
+def _is(e: object, name: str) -> bool:
+    """Whether `e` is a click exception of class `name` (click's, or the copy typer vendors as
+    ``typer._click``: compared by class name)."""
+    return any(c.__name__ == name for c in type(e).__mro__)
+
+
+def _words(tp: object) -> str:
+    """A Python annotation in words: ``float`` → "a number", ``tuple[float, float]`` → "2
+    numbers", ``Path | None`` → "a path"."""
+    import pathlib
+    import typing
+
+    args = [a for a in typing.get_args(tp) if a is not type(None)]
+    origin = typing.get_origin(tp)
+    if origin in (tuple, list) and args:
+        inner = _words(args[0]).replace("a ", "", 1).replace("an ", "", 1)
+        if origin is list:
+            return f"{_words(args[0])}, repeatable"
+        return f"{len(args)} {inner}s"
+    if args:  # Optional / Union
+        return " or ".join(_words(a) for a in args)
+    names = {int: "an integer", float: "a number", str: "text", bool: "a flag, no value"}
+    if tp in names:
+        return names[tp]
+    if isinstance(tp, type) and issubclass(tp, pathlib.PurePath):
+        return "a path"
+    return "a value"
+
+
+def _accepted(param: object) -> str:
+    """What a command-line parameter accepts, in words (for the one-line usage error)."""
+    if param is None:
+        return "see --help"
+    if getattr(param, "is_flag", False):
+        return "a flag, no value"
+    runtime = getattr(param, "get_runtime_param", None)
+    try:
+        annotation = runtime().annotation if callable(runtime) else None
+    except Exception:
+        annotation = None
+    if annotation is not None:
+        return _words(annotation)
+    ptype = getattr(param, "type", None)  # plain click
+    choices = getattr(ptype, "choices", None)
+    if choices:
+        return "one of " + ", ".join(str(c) for c in choices)
+    return {"integer": "an integer", "float": "a number", "path": "a path"}.get(
+        str(getattr(ptype, "name", "")), "a value")
+
+
+def _options_of(ctx: object) -> list[str]:
+    command = getattr(ctx, "command", None)
+    names = [o for p in getattr(command, "params", []) for o in getattr(p, "opts", [])
+             if o.startswith("--")]
+    return names + ["--help"]
+
+
+def _label(param: object, fallback: str) -> str:
+    opts = list(getattr(param, "opts", None) or [])
+    if not opts:
+        return fallback
+    if opts[0].startswith("-"):
+        return max(opts, key=len)
+    return str(getattr(param, "name", opts[0])).upper()
+
+
+def usage_error_line(e: Exception) -> str:
+    """A click usage error as one line ``error: <option>: <what> (accepted: <range>)``, the
+    style of every other bad-input message of the CLI (click prints a usage block, typer with
+    rich a box)."""
+    ctx = getattr(e, "ctx", None)
+    path = str(getattr(ctx, "command_path", "") or "")
+    where = "dtwin" + (" " + path.split(" ", 1)[1] if " " in path else "")
+    message = " ".join(str(getattr(e, "message", e)).split()).rstrip(".")
+    message = message[:1].lower() + message[1:]
+    param = getattr(e, "param", None)
+    if _is(e, "NoSuchOption"):
+        close = list(getattr(e, "possibilities", None) or [])
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        return (f"error: {e.option_name}: no such option of {where} (accepted: "  # type: ignore[attr-defined]
+                f"{', '.join(_options_of(ctx))}{hint})")
+    if _is(e, "NoSuchCommand") or message.startswith("no such command"):
+        cmds = sorted(getattr(getattr(ctx, "command", None), "commands", None) or {})
+        name = message.split("'")[1] if "'" in message else message
+        return (f"error: COMMAND: no such command {name!r} of {where} (accepted: "
+                f"{', '.join(cmds)})")
+    if _is(e, "MissingParameter"):
+        return (f"error: {_label(param, 'ARGUMENT')}: missing (accepted: {_accepted(param)}; "
+                f"see {where} --help)")
+    if _is(e, "BadParameter"):
+        hint = str(getattr(e, "param_hint", None) or "value").strip("'\"")
+        return f"error: {_label(param, hint)}: {message} (accepted: {_accepted(param)})"
+    if _is(e, "BadOptionUsage"):  # raised by the parser, without a context
+        import re
+
+        name = getattr(e, "option_name", "option")
+        message = re.sub(rf"^option '{re.escape(name)}' ", "", message)
+        m = re.search(r"requires (\d+) arguments", message)
+        accepted = (f"{m.group(1)} values" if m else "a value" if "requires an argument"
+                    in message else "a flag, no value" if "does not take a value" in message
+                    else "see --help")
+        return f"error: {name}: {message} (accepted: {accepted})"
+    return f"error: {where}: {message} (see {where} --help)"
+
+
+#: Options that name a file or folder: an empty value would become the current folder.
+PATH_OPTIONS = {"--out": "a folder (created if missing)", "--spec": "a spec file (TOML)",
+                "--manifest": "a manifest.json file"}
+
+
+def _empty_path_option(args: list[str]) -> str | None:
+    """The one-line error for a path option given an empty value (``--out ''``), which the
+    command line would read as the current folder; None when there is none."""
+    for i, a in enumerate(args):
+        name, eq, value = a.partition("=")
+        if name in PATH_OPTIONS and ((eq and not value.strip()) or (
+                not eq and i + 1 < len(args) and not args[i + 1].strip())):
+            return f"error: {name}: is empty (accepted: {PATH_OPTIONS[name]})"
+    return None
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``dtwin`` console script.
 
@@ -103,6 +224,10 @@ def main(argv: list[str] | None = None) -> None:
         _heap.one_shot_process()
     setup_logging()
     _load_commands()
+    empty = _empty_path_option(list(sys.argv[1:] if argv is None else argv))
+    if empty:
+        print(empty, file=sys.stderr)
+        raise SystemExit(2)
 
     _SIGNALS.clear()
     old = {}
@@ -128,9 +253,12 @@ def main(argv: list[str] | None = None) -> None:
     except OSError as e:  # a file system refusal that no check foresaw: say what, no traceback
         print(f"error: {e}; check the path and its permissions", file=sys.stderr)
         raise SystemExit(2) from None
-    except Exception as e:  # usage errors (click's, bundled in typer) print their message
+    except Exception as e:  # usage errors (click's, bundled in typer): one `error:` line
         if isinstance(e.__cause__ or e.__context__, KeyboardInterrupt) or _SIGNALS:
             raise _interrupt_exit(_SIGNALS[0] if _SIGNALS else signal.SIGINT) from None
+        if _is(e, "UsageError") and not _is(e, "NoArgsIsHelpError"):  # (that one: the help)
+            print(usage_error_line(e), file=sys.stderr)
+            raise SystemExit(2) from None
         show = getattr(e, "show", None)
         code = getattr(e, "exit_code", None)
         if callable(show) and isinstance(code, int):

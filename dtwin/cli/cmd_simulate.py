@@ -22,6 +22,22 @@ from ..reports import gear_frequencies, run_simulation, spectrum_report
 from . import options as opts
 from .app import app
 
+#: Longest start-up transient `--discard` accepts (s).
+MAX_DISCARD_S = 60.0
+
+
+def _check_memory(spec, duration: float, rate: float) -> None:
+    """Refuse a record that would not fit in the memory available (:mod:`dtwin.memory`): the
+    state of the translational twin (``3 (N + 3)`` degrees of freedom, the larger model) plus
+    a drive's few, saved at 4 × the DAQ rate."""
+    from ..memory import require, simulation_bytes
+
+    n_dof = 3 * (int(spec["gears"]["n_planets"]) + 3) + 4
+    need = simulation_bytes(duration, rate, n_dof)
+    require(need, what=f"a {duration:g} s record at {rate:g} Hz ({duration * rate:.3g} samples, "
+            f"the solver saving {2 * n_dof} states at 4 × that rate)", option="--sample-rate",
+            fix="lower --sample-rate or --duration")
+
 
 @app.command()
 def simulate(
@@ -57,7 +73,8 @@ def simulate(
     opts.positive("--duration", duration, unit="s")
     if duration > 3600:
         raise opts.OptionError("--duration", f"at most 3600 s, got {duration:g}")
-    opts.positive("--discard", discard, allow_zero=True, unit="s")
+    opts.in_range("--discard", discard, 0.0, MAX_DISCARD_S, "s (the start-up transient the "
+                  "twin simulates and drops; it settles within seconds)")
     opts.choice("--start", start, ("steady", "rest"))
     opts.input_speed_option("--ramp-to", ramp_to)
     opts.choice("--kind", kind, ("translational", "torsional"))
@@ -84,6 +101,7 @@ def simulate(
                 raise opts.OptionError("--sample-rate", f"the mesh frequency {fm:.4g} Hz lies "
                                        f"above Nyquist ({nyq:g} Hz at {rate:g} Hz); raise "
                                        "--sample-rate or give --band LOW HIGH below Nyquist")
+    _check_memory(spec, duration, rate)
     with opts.progress_line("simulating", enabled=not (quiet or as_json)) as shown:
         record, res, settings = run_simulation(
             spec, faults=fault, f_sun=f_sun, duration=duration, discard=discard, start=start,
