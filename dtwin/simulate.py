@@ -34,7 +34,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import scipy.signal
 from jaxtyping import Array, Float
 
 from .errors import SolverError
@@ -336,6 +335,8 @@ def _initial_state_compiled(twin: Twin, f_sun, start: str):
 # --------------------------------------------------------------------------------- solve
 def daq_filter(oversample: int) -> np.ndarray:
     """FIR anti-aliasing filter taps (Kaiser, cut-off 0.4 of the output rate, unit DC gain)."""
+    import scipy.signal  # deferred: scipy.signal takes seconds to import; `import dtwin` stays light
+
     numtaps = 24 * oversample + 1
     taps = scipy.signal.firwin(numtaps, 0.8 / oversample, window=("kaiser", 9.0))
     return taps / taps.sum()
@@ -539,6 +540,8 @@ def _filter_paths(twin: Twin, obs: dict, fs_hi: float, n_pre: int) -> dict:
         src, gain = obs.pop(key), obs.pop(f"gain_{i}")
         n = src.shape[0]
         x = jnp.concatenate([jnp.full((n_pre,), src[0]), src])
+        import scipy.fft  # deferred: a heavy import that `import dtwin` does not need
+
         m = int(scipy.fft.next_fast_len(x.shape[0], real=True))
         X = jnp.fft.rfft(x, m)
         R = twin.parts[i].aux_response(2.0 * jnp.pi * jnp.fft.rfftfreq(m, 1.0 / fs_hi))

@@ -45,8 +45,6 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
-import scipy.ndimage
-import scipy.signal
 from jaxtyping import Array, Float
 
 from .errors import RecordError
@@ -131,6 +129,8 @@ def get_window(name: str, n: int) -> np.ndarray:
         raise RecordError(f"unknown window {name!r}; choose one of {sorted(WINDOWS)}")
     if n < 2:
         raise RecordError(f"a spectrum needs at least 2 samples, got {n}")
+    import scipy.signal  # deferred: scipy.signal takes seconds to import; `import dtwin` stays light
+
     return np.asarray(scipy.signal.get_window(WINDOWS[name], n, fftbins=True), dtype=np.float64)
 
 
@@ -183,6 +183,8 @@ def analytic_signal(x: Float[Array, "... time"]) -> Array:
     """
     x = _as_array(x)
     if not isinstance(x, jax.Array):
+        import scipy.signal  # deferred: a heavy import that `import dtwin` does not need
+
         return scipy.signal.hilbert(x, axis=-1)
     n = x.shape[-1]
     h = np.zeros(n)
@@ -253,6 +255,8 @@ def noise_floor(
     if width < 3:
         raise RecordError(f"noise-floor window must span at least 3 bins, got {width_bins}")
     width += 1 - width % 2
+    import scipy.ndimage  # deferred: a heavy import that `import dtwin` does not need
+
     # one row at a time: SciPy's 1-D rank filter is ~9x faster than its n-D one on (.., 1, w)
     shape = (math.prod(spec.shape[:-1]), spec.shape[-1]) if spec.ndim else (1, 1)
     rows = spec.reshape(shape)
@@ -339,6 +343,8 @@ def find_peaks(
     df = freqs[1] - freqs[0]
     distance = 1 if min_spacing_hz is None else max(1, int(round(min_spacing_hz / df)))
     height = floor * 10.0 ** (threshold_db / 20.0)
+    import scipy.signal  # deferred: a heavy import that `import dtwin` does not need
+
     idx, _ = scipy.signal.find_peaks(spec, height=height, distance=distance)
     if band is not None:
         idx = idx[(freqs[idx] >= band[0]) & (freqs[idx] <= band[1])]

@@ -30,3 +30,31 @@ from .api import severity_series as severity_series
 from .api import stack_problems as stack_problems
 from .discover import DiscoverySettings as DiscoverySettings
 from .discover import discover as discover
+
+__all__ = [
+    "analyse",
+    "discover",
+    "DiscoverySettings",
+    "drive_at",
+    "estimate_severity",
+    "estimate_speed",
+    "estimate_speed_profile",
+    "Features",
+    "fit",
+    "fit_batch",
+    "FitResult",
+    "make_problem",
+    "Observation",
+    "observe",
+    "OperatingPoint",
+    "ParameterSet",
+    "plot_fit",
+    "plot_severity_series",
+    "Problem",
+    "severity_series",
+    "SeverityEstimate",
+    "SeveritySeries",
+    "SpeedProfileEstimate",
+    "stack_problems",
+    "Uncertainty",
+]
