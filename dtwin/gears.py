@@ -197,6 +197,13 @@ class GearSet(eqx.Module):
 
         if centre_distance is None and not shifts_given:
             centre_distance = 0.5 * (a_sp0 + a_rp0)
+            if zr != zs + 2 * zp:  # dtwin chose the centre distance: say so, and how to state it
+                warnings.warn(
+                    f"z_ring = {zr} != z_sun + 2 z_planet = {zs + 2 * zp}: the set needs profile "
+                    f"shift; with neither gears.centre_distance nor the shifts given, dtwin takes "
+                    f"a = {centre_distance * 1e3:.4f} mm (the mean of the standard centre "
+                    "distances) with x_planet = 0; give gears.centre_distance (or x_sun, "
+                    "x_planet, x_ring) to state your gearbox's", stacklevel=2)
         if centre_distance is not None and not (np.isfinite(centre_distance)
                                                 and centre_distance > 0):
             raise GeometryError(
@@ -302,12 +309,6 @@ class GearSet(eqx.Module):
             warnings.warn(
                 f"(z_sun + z_ring)/n_planets = {(self.z_sun + self.z_ring) / n:.3f} is not an "
                 "integer: equally spaced planets cannot be assembled", stacklevel=3)
-        if self.z_ring != self.z_sun + 2 * self.z_planet:
-            warnings.warn(
-                f"z_ring = {self.z_ring} != z_sun + 2 z_planet = "
-                f"{self.z_sun + 2 * self.z_planet}: the set needs profile shift (x_sun = "
-                f"{float(self.x_sun):.4f}, x_planet = {float(self.x_planet):.4f}, x_ring = "
-                f"{float(self.x_ring):.4f}, a = {a * 1e3:.4f} mm)", stacklevel=3)
 
     @property
     def gear_ratio(self) -> float:

@@ -126,6 +126,11 @@ def markdown_report(result, record_name: str) -> str:
     if result.extra_in_model:
         out += ["", "Lines in the model but not in the measurement: "
                 + _fmt_lines(result.extra_in_model, 20)]
+    from ..io.html_report import symbol_legend_markdown
+
+    legend = symbol_legend_markdown(out, result.kinematics.as_dict())
+    if legend:
+        out += ["", "## Symbols of the line labels", "", legend]
     return "\n".join(out) + "\n"
 
 
@@ -235,7 +240,7 @@ def discover_files(result, report: dict, record_file: Path, channel, unit: str |
         out_files[f"spectrum_step{k}.png"] = plot_step_spectra(result, k, unit=unit)
         out_files[f"spectrum_step{k}_mesh.png"] = plot_step_spectra(result, k, band=band,
                                                                     unit=unit)
-    from dtwin.identify.tables import discovery_rows
+    from dtwin.identify.tables import discovery_candidate_rows, discovery_rows
 
     from ..io.export import Columns
     from ..io.html_report import HTMLReport
@@ -257,7 +262,11 @@ def discover_files(result, report: dict, record_file: Path, channel, unit: str |
                  "final held-out gap (dB)": result.final_gap.total,
                  "stopped": result.stop_reason},
         figures=figures,
+        frequencies=result.kinematics.as_dict(),
         tables={"Effects added (99 % intervals)": discovery_rows(result),
+                "Candidates judged in each step (the search's gap, bins "
+                f"{result.settings.threshold_db:g} dB over the floor; p-value against the "
+                "step's family-wise level)": discovery_candidate_rows(result),
                 "Unexplained lines": [{"frequency (Hz)": r.frequency,
                                        "excess (dB)": r.excess_db,
                                        "over floor (dB)": r.above_floor_db,

@@ -113,11 +113,19 @@ def spectrum(
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("spectrum.png, waveform.png, iso20816.png, spectrum.json, "
                                        "spectrum.csv/.npz, waveform.csv/.npz, report.html"),
-    force: bool = opts.force_option(),
+    force: bool = opts.force_option("Overwrite a finished result in --out and the --export "
+                                    "file."),
+    export: Path | None = typer.Option(
+        None, "--export", help="Also write the spectrum (frequency, amplitude, noise floor, "
+        "with units) to this file: .csv, .npz or .h5/.hdf5 (HDF5: one group per channel)."),
 ) -> None:
     """Amplitude spectrum of a record with numbered peaks labelled by gear frequencies."""
     from .. import units as units_mod
+    from ..io.export import check_export_path
     from ..spectrum import WINDOWS
+
+    if export is not None:
+        check_export_path(export, force=force, inputs=[record_file])
 
     opts.band("--band", band)
     opts.choice("--window", window, tuple(WINDOWS))
@@ -234,8 +242,11 @@ def spectrum(
                                           "zone": next(r["iso20816"]["zone"] for r in reports
                                                        if r["channel"] == c)}
                                          for c, v in iso.items()]} if iso else {}),
-            notes=[zones.description] if iso else [])
+            notes=[zones.description] if iso else [], frequencies=freqs)
         return out_files
+
+    if export is not None:
+        _export(export, reports, datas, head)
 
     def table() -> None:
         for rep in reports:
@@ -254,6 +265,31 @@ def spectrum(
                           "window": window, "f_sun": fsun, "threshold_db": threshold_db,
                           "scale": scale, "units": units, "highpass_hz": highpass,
                           "welch": {"segment": segment, "overlap": overlap} if welch else None})
+
+
+def _export(path: Path, reports: list, datas: list, head: dict) -> None:
+    """``--export``: the spectra of every channel to one file (CSV/NPZ: one table, the
+    channels' columns side by side on their shared frequency axis; HDF5: a group each)."""
+    from ..io.export import Columns, export_arrays
+    from .logs import note
+
+    sets = {}
+    for rep, data in zip(reports, datas, strict=True):
+        name = "spectrum" if len(reports) == 1 else f"spectrum_{_safe(rep['channel'])}"
+        sets[name] = Columns({"frequency": data["freqs"], "amplitude": data["spec"],
+                              "noise_floor": data["floor"]},
+                             {"frequency": "Hz", "amplitude": data["unit"],
+                              "noise_floor": data["unit"]})
+    if len(reports) > 1 and path.suffix.lower() in (".csv", ".npz"):
+        cols, units = {"frequency": datas[0]["freqs"]}, {"frequency": "Hz"}
+        for rep, data in zip(reports, datas, strict=True):
+            ch = _safe(rep["channel"])
+            cols |= {f"amplitude_{ch}": data["spec"], f"noise_floor_{ch}": data["floor"]}
+            units |= {f"amplitude_{ch}": data["unit"], f"noise_floor_{ch}": data["unit"]}
+        sets = {"spectrum": Columns(cols, units)}
+    export_arrays(path, sets, attrs={"record": head["record"], "command": "dtwin spectrum",
+                                     "f_sun_hz": head["f_sun_hz"] or float("nan")})
+    note(f"wrote {path}")
 
 
 def _safe(name: str) -> str:

@@ -33,7 +33,10 @@ linear (``--scale``).
 
 Terminal: a short summary table; ``--json``: the report on stdout; ``--out DIR``: ``KIND.png``
 (and further PNGs), the arrays behind them as ``KIND.csv``/``.npz`` (named columns with units;
-maps in long form in the CSV, as a grid in the NPZ), ``view_KIND.json``, ``manifest.json``.
+maps in long form in the CSV, as a grid in the NPZ; ``tsa.csv``, ``tsa_sun.csv`` and
+``planets.csv`` for the TSA, ``kurtogram.csv`` one row per band), ``view_KIND.json``,
+``report.html`` and ``manifest.json``. ``--export FILE`` writes the arrays to one file (.csv,
+.npz, .h5; :func:`dtwin.io.export.export_arrays`), with or without ``--out``.
 """
 
 from __future__ import annotations
@@ -214,11 +217,20 @@ def _tsa_view(record, x, unit, gearbox, freqs, f_sun, speed_range):
             "fm4": planet_fm4, "largest_fm4": int(np.argmax(planet_fm4)),
         },
     }
+    planet_cols = {f"planet_{k}": np.asarray(a) for k, a in enumerate(sep.averages)}
     figs = {
         "tsa.png": plot_tsa(tsa_c, unit=unit, shaft="carrier"),
         "tsa_sun.png": plot_tsa(tsa_s, unit=unit, shaft="sun (relative to the carrier)"),
         "planets.png": plot_planet_averages(sep, planet_fm4, unit=unit),
+        "tsa.csv": Columns({"carrier_angle": tsa_c.angle, "average": tsa_c.average},
+                           {"carrier_angle": "rad", "average": unit}),
+        "tsa_sun.csv": Columns({"sun_angle": tsa_s.angle, "average": tsa_s.average},
+                               {"sun_angle": "rad", "average": unit}),
     }
+    if planet_cols and len({a.size for a in planet_cols.values()}) == 1:
+        figs["planets.csv"] = Columns({"sample": np.arange(next(iter(planet_cols.values())).size),
+                                       **planet_cols},
+                                      {"sample": "1", **{k: unit for k in planet_cols}})
     return report, figs
 
 
@@ -258,7 +270,30 @@ def _kurtogram_view(record, x):
     kg = fast_kurtogram(x, sample_rate=record.sample_rate)
     report = {"best_band_hz": list(kg.best_band), "best_level": kg.best_level,
               "best_kurtosis": kg.best_kurtosis, "levels": kg.levels.tolist()}
-    return report, {"kurtogram.png": plot_kurtogram(kg)}
+    return report, {"kurtogram.png": plot_kurtogram(kg), "kurtogram.csv": kurtogram_columns(kg)}
+
+
+def kurtogram_columns(kg) -> Columns:
+    """The kurtogram as a table, one row per band of the 1/3-binary tree: its level, the
+    number of bands in that row, the band's index, its edges and centre (Hz, the row's bands
+    dividing 0 … Nyquist equally) and its spectral kurtosis."""
+    level, n_bands, index, lo, hi, k = [], [], [], [], [], []
+    nyq = kg.sample_rate / 2.0
+    for r, n in enumerate(np.asarray(kg.n_bands, dtype=int)):
+        width = nyq / n
+        for j in range(n):
+            level.append(float(kg.levels[r]))
+            n_bands.append(int(n))
+            index.append(j)
+            lo.append(j * width)
+            hi.append((j + 1) * width)
+            k.append(float(kg.kurtosis[r, j]))
+    lo_a, hi_a = np.asarray(lo), np.asarray(hi)
+    return Columns({"level": np.asarray(level), "n_bands": np.asarray(n_bands),
+                    "band": np.asarray(index), "f_low": lo_a, "f_high": hi_a,
+                    "f_centre": 0.5 * (lo_a + hi_a), "kurtosis": np.asarray(k)},
+                   {"level": "1", "n_bands": "1", "band": "1", "f_low": "Hz", "f_high": "Hz",
+                    "f_centre": "Hz", "kurtosis": "1"})
 
 
 def _cepstrum_view(record, x, freqs, gearbox):
@@ -352,11 +387,21 @@ def view(
                                      "for the envelope."),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
-    out: Path | None = opts.out_option("KIND.png (and further PNGs), view_KIND.json"),
-    force: bool = opts.force_option(),
+    out: Path | None = opts.out_option("KIND.png (and further PNGs), KIND.csv/.npz, "
+                                       "view_KIND.json, report.html"),
+    force: bool = opts.force_option("Overwrite a finished result in --out and the --export "
+                                    "file."),
+    export: Path | None = typer.Option(
+        None, "--export", help="Also write the view's arrays (with units) to this file: .csv or "
+        ".npz (the main table: the carrier TSA, the kurtogram's bands, the spectrum) or "
+        ".h5/.hdf5 (every table of the view, one group each)."),
 ) -> None:
     """Order, TSA, envelope, kurtogram, cepstrum, waterfall or PSD view of a record."""
     opts.choice("--kind", kind, KINDS)
+    if export is not None:
+        from ..io.export import check_export_path
+
+        check_export_path(export, force=force, inputs=[record_file])
     opts.choice("--scale", scale, ("db", "linear"))
     if units is not None:
         from .. import units as units_mod
@@ -418,8 +463,31 @@ def view(
             "f_sun_source": fsun_source}
     report = to_jsonable({**head, **reports[0]} if len(reports) == 1
                          else {**head, "channels": reports})
+    if export is not None:
+        from ..io.export import export_arrays
+        from .logs import note
+
+        sets = {k.rsplit(".", 1)[0]: v for k, v in figs.items() if isinstance(v, (Columns, Grid))}
+        if not sets:
+            raise opts.OptionError("--export", f"the {kind} view has no arrays to export")
+        export_arrays(export, sets, attrs={"record": str(record_file),
+                                           "command": f"dtwin view --kind {kind}",
+                                           "f_sun_hz": fsun or float("nan")})
+        note(f"wrote {export}")
+    from ..io.html_report import HTMLReport
+
+    html = HTMLReport(
+        title=f"dtwin view --kind {kind}: {Path(record_file).name}",
+        summary=dict(_flatten({k: v for k, v in report.items() if k != "channels"},
+                              raw=True)),
+        figures={f"{k.rsplit('.', 1)[0].replace('_', ' ')}": k for k, v in figs.items()
+                 if k.endswith(".png")},
+        tables={f"{r['channel']} ({r['unit']})": dict(_flatten(r, raw=True)) for r in reports}
+        if len(reports) > 1 else None,
+        frequencies=freqs)
     opts.emit(report, json_out=json_out, table=lambda: _print_summary(report), out=out,
-              force=force, files={**figs, f"view_{kind}.json": report}, inputs=[record_file],
+              force=force, files={**figs, f"view_{kind}.json": report, "report.html": html},
+              inputs=[record_file],
               gearbox=gb, parameters={"kind": kind, "channels": [r["channel"] for r in reports],
                                       "f_sun": fsun, "band": list(band) if band else None})
     if out is None:
@@ -452,14 +520,17 @@ def _one_view(kind, record, x, unit, gearbox, freqs, fsun, speed_range, band, se
     return _psd_view(record, x, unit, freqs, band, segment, scale or "db")
 
 
-def _flatten(d: dict, prefix: str = "") -> list[tuple[str, str]]:
-    rows = []
+def _flatten(d: dict, prefix: str = "", raw: bool = False) -> list[tuple[str, Any]]:
+    """(key, value) rows of a nested report; floats as text with 5 digits unless `raw`."""
+    rows: list[tuple[str, Any]] = []
     for k, v in d.items():
         key = f"{prefix}{k}"
         if isinstance(v, dict):
-            rows.extend(_flatten(v, key + "."))
+            rows.extend(_flatten(v, key + ".", raw))
         elif isinstance(v, list) and v and isinstance(v[0], dict):
             rows.append((key, f"{len(v)} entries (see --json)"))
+        elif raw and isinstance(v, (float, int, list)):
+            rows.append((key, v))
         elif isinstance(v, float):
             rows.append((key, f"{v:.5g}"))
         else:

@@ -48,10 +48,31 @@ def _showwarning(message, category, filename, lineno, file=None, line=None) -> N
     LOGGER.warning("%s", text)
 
 
+#: Messages of other packages that a dtwin user cannot act on, silenced in the CLI only (a
+#: script or notebook sees them): JAX's warning that a multithreaded process forks (Ray starts
+#: its workers by fork/exec, with nothing of JAX's state in the child), and Ray's note that a
+#: local cluster has its token authentication on by default.
+_THIRD_PARTY_WARNINGS = (
+    (r"os\.fork\(\) was called", RuntimeWarning),
+)
+_THIRD_PARTY_LOGGERS = ("ray._private.authentication.authentication_token_setup",)
+
+
+def quiet_third_party() -> None:
+    """Silence the messages of :data:`_THIRD_PARTY_WARNINGS` and :data:`_THIRD_PARTY_LOGGERS`
+    for this process (the ``dtwin`` command calls it at its start)."""
+    for message, category in _THIRD_PARTY_WARNINGS:
+        warnings.filterwarnings("ignore", message=message, category=category)
+    for name in _THIRD_PARTY_LOGGERS:
+        logging.getLogger(name).setLevel(logging.ERROR)
+
+
 def setup_logging(quiet: bool = False) -> None:
     """One stderr handler on the ``dtwin`` logger; Python warnings go through it, each text
-    once per command."""
+    once per command; other packages' messages a user cannot act on are silenced
+    (:func:`quiet_third_party`)."""
     _SHOWN.clear()
+    quiet_third_party()
     if not any(isinstance(h, _StderrHandler) for h in LOGGER.handlers):
         handler = _StderrHandler()
         handler.setFormatter(_Format())

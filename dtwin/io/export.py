@@ -16,6 +16,11 @@ the grid (shape ``(len(y), len(x))``); the CSV holds it in long form, one row pe
 
 Both go through :class:`dtwin.io.output.OutputFolder`, so they are atomic and listed in the
 manifest.
+
+:func:`export_arrays` writes the same arrays to one file a user names (``dtwin spectrum
+--export``, ``dtwin view --export``), its format from the suffix: ``.csv`` and ``.npz`` hold one
+array set (the first), ``.h5``/``.hdf5`` every set as an HDF5 group, one dataset per column with
+its ``unit`` attribute (a grid as its two axes and the 2-D dataset, ``axes`` naming them).
 """
 
 from __future__ import annotations
@@ -28,7 +33,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Columns", "Grid", "columns_csv", "columns_dataframe", "read_columns_csv", "write_columns", "write_grid"]
+__all__ = ["EXPORT_SUFFIXES", "Columns", "Grid", "check_export_path", "columns_csv",
+           "columns_dataframe", "export_arrays", "read_columns_csv", "write_columns", "write_grid"]
 
 
 def _unit_text(unit: str | None) -> str:
@@ -168,3 +174,115 @@ class Grid:
 
     def write_into(self, folder: Any, name: str) -> list[Path]:
         return write_grid(folder, _stem(name), self.x, self.y, self.z)
+
+
+#: File suffixes :func:`export_arrays` writes, and the format of each.
+EXPORT_SUFFIXES = {".csv": "CSV", ".npz": "NPZ", ".h5": "HDF5", ".hdf5": "HDF5"}
+
+
+def _suffix(path: Path) -> str:
+    return path.suffix.lower()
+
+
+def check_export_path(path: str | Path, *, force: bool = False,
+                      inputs: Sequence[str | Path] = (), option: str = "--export") -> Path:
+    """Check a file named for :func:`export_arrays` before any work: a known suffix, a folder
+    that exists and is writable, not one of the `inputs` (a record is never overwritten), and
+    no existing file unless `force`. Raises :class:`~dtwin.errors.SettingsError` naming
+    `option`; **returns** the path."""
+    import os
+
+    from ..errors import OutputExistsError, SettingsError
+
+    path = Path(path)
+    if _suffix(path) not in EXPORT_SUFFIXES:
+        raise SettingsError(f"{option}: {path.name} has no known suffix; end it in "
+                            + ", ".join(EXPORT_SUFFIXES) + " (CSV, NumPy, HDF5)")
+    resolved = path.resolve()
+    for p in inputs:
+        if Path(p).resolve() == resolved:
+            raise SettingsError(f"{option}: {path} is an input of the command; name another "
+                                "file (inputs are never overwritten)")
+    if path.exists() and path.is_dir():
+        raise SettingsError(f"{option}: {path} is a folder; give a file name")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise SettingsError(f"{option}: the folder {parent} does not exist; create it first")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise SettingsError(f"{option}: {parent} is not writable; choose a folder you can write "
+                            "to")
+    if path.exists() and not force:
+        raise OutputExistsError(f"{option}: {path} exists; choose another name or pass --force "
+                                "to overwrite")
+    return path
+
+
+def _set_arrays(item: Columns | Grid) -> tuple[dict[str, np.ndarray], dict[str, str], list[str]]:
+    """Columns of an array set (a grid in long form), their units and, for a grid, its axes."""
+    if isinstance(item, Grid):
+        (xn, xv, xu), (yn, yv, yu), (zn, zv, zu) = item.x, item.y, item.z
+        xx, yy = np.meshgrid(np.asarray(xv), np.asarray(yv))
+        return ({xn: xx.ravel(), yn: yy.ravel(), zn: np.asarray(zv).ravel()},
+                {xn: _unit_text(xu), yn: _unit_text(yu), zn: _unit_text(zu)}, [xn, yn])
+    return ({k: np.asarray(v) for k, v in item.columns.items()},
+            {k: _unit_text(item.units.get(k)) for k in item.columns}, [])
+
+
+def _hdf5_bytes(sets: Mapping[str, Columns | Grid], attrs: Mapping[str, Any]) -> bytes:
+    import h5py
+
+    buf = io.BytesIO()
+    with h5py.File(buf, "w") as f:
+        for k, v in attrs.items():
+            f.attrs[k] = v if isinstance(v, (int, float, np.number)) else str(v)
+        for name, item in sets.items():
+            g = f.create_group(name)
+            if isinstance(item, Grid):
+                for n, vals, unit in (item.x, item.y, item.z):
+                    d = g.create_dataset(n, data=np.asarray(vals))
+                    d.attrs["unit"] = _unit_text(unit)
+                g.attrs["axes"] = np.asarray([item.y[0], item.x[0]], dtype=h5py.string_dtype())
+                continue
+            for n, vals in item.columns.items():
+                d = g.create_dataset(n, data=np.asarray(vals))
+                d.attrs["unit"] = _unit_text(item.units.get(n))
+            g.attrs["columns"] = np.asarray(list(item.columns), dtype=h5py.string_dtype())
+    return buf.getvalue()
+
+
+def export_arrays(path: str | Path, sets: Mapping[str, Columns | Grid], *,
+                  attrs: Mapping[str, Any] | None = None) -> Path:
+    """Write array sets to one file, atomically (a temporary file, then a rename).
+
+    **Arguments:**
+
+    - `path`: the file; ``.csv`` (header ``name [unit]``, full precision) and ``.npz`` hold
+      the first set (a grid in long form), ``.h5``/``.hdf5`` every set as a group.
+    - `sets`: name → :class:`Columns` or :class:`Grid` (e.g. ``{"spectrum": Columns(...)}``).
+    - `attrs`: file attributes (HDF5 only): the record, the command, the input speed.
+
+    **Returns:** the path written. Check it first with :func:`check_export_path`.
+    """
+    import os
+    import tempfile
+
+    path = Path(path)
+    if not sets:
+        raise ValueError("nothing to export")
+    fmt = EXPORT_SUFFIXES[_suffix(path)]
+    if fmt == "HDF5":
+        data = _hdf5_bytes(sets, dict(attrs or {}))
+    else:
+        columns, units, _ = _set_arrays(next(iter(sets.values())))
+        names = list(columns)
+        data = (columns_csv(columns, units).encode() if fmt == "CSV"
+                else _npz_bytes(columns, [units[n] for n in names], names))
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent if str(path.parent) else ".")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path

@@ -27,11 +27,13 @@ import datetime as _dt
 import html
 import io
 import json
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["HTMLReport", "figure_png", "html_report", "write_html_report"]
+__all__ = ["LABEL_SYMBOLS", "HTMLReport", "figure_png", "frequency_text", "html_report",
+           "symbol_legend", "symbol_legend_markdown", "write_html_report"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;
@@ -73,8 +75,31 @@ def _png_of(item: Any, folder_path: Path | None) -> bytes:
                     f"{type(item).__name__}")
 
 
-def _fmt(v: Any) -> tuple[str, bool]:
-    """Cell text and whether it is numeric."""
+#: Words of a column header or summary key that mark its values as frequencies (Hz).
+_FREQUENCY_KEY = re.compile(r"\bHz\b|_hz\b|frequenc|\bf_[a-z]|^f\b|^f \(", re.IGNORECASE)
+
+
+def frequency_text(f: float) -> str:
+    """A frequency (Hz) as text with at least six significant digits and at least 0.01 Hz
+    resolution: 2494.8 Hz is ``2494.8``, 12345.678 Hz ``12345.68``, never rounded to four
+    digits as other quantities are."""
+    import numpy as np
+
+    if not np.isfinite(f):
+        return str(f)
+    digits = 6 if f == 0 else max(6, int(np.floor(np.log10(abs(f)))) + 3)
+    return f"{f:.{digits}g}"
+
+
+def is_frequency_key(key: str) -> bool:
+    """Whether a column header or summary key names a frequency (``"f (Hz)"``,
+    ``"frequency"``, ``"f_sun_hz"``, ``"band (Hz)"``)."""
+    return bool(_FREQUENCY_KEY.search(str(key)))
+
+
+def _fmt(v: Any, frequency: bool = False) -> tuple[str, bool]:
+    """Cell text and whether it is numeric; floats with 4 significant digits, frequencies
+    (`frequency`) by :func:`frequency_text`."""
     import numpy as np
 
     if isinstance(v, (bool, np.bool_)):
@@ -83,12 +108,102 @@ def _fmt(v: Any) -> tuple[str, bool]:
         return str(int(v)), True
     if isinstance(v, (float, np.floating)):
         f = float(v)
+        if frequency:
+            return frequency_text(f), True
         return (f"{f:.4g}" if np.isfinite(f) else str(f)), True
     if v is None:
         return "", False
     if isinstance(v, (list, tuple)) and all(isinstance(x, (int, float)) for x in v) and v:
-        return "[" + ", ".join(_fmt(x)[0] for x in v) + "]", False
+        return "[" + ", ".join(_fmt(x, frequency)[0] for x in v) + "]", False
     return str(v), False
+
+
+#: Symbols of the line labels (``"fm − 7fc"``, ``"61fsr (comb)"``, ``"2fm + fs/3 − fc"``) and
+#: what each stands for (dtwin.kinematics; ring fixed, sun input; Zs, Zp, Zr tooth counts, N
+#: planets). Each is looked for as a token in the page's tables, notes and captions.
+LABEL_SYMBOLS: dict[str, tuple[str, str]] = {
+    "fm": (r"fm", "mesh frequency, fc·Zr = (fsr − fc)·Zs"),
+    "fc": (r"fc", "carrier rotation frequency, fsr·Zs/(Zs + Zr)"),
+    "fsr": (r"fsr", "sun (input shaft) rotation frequency"),
+    "fs": (r"fs(?!/)", "sun-fault frequency, fm·N/Zs: one sun tooth meeting the N planets"),
+    "fs/N": (r"fs/\d+", "the sun fault's repetition per planet, fs/N = fsr − fc (fs/3 for "
+             "three planets)"),
+    "fp": (r"fp", "planet-fault frequency, fm/Zp (2 fm/Zp when both flanks strike)"),
+    "fr": (r"fr", "ring-fault frequency, N·fc (the planet-pass frequency)"),
+    "N fc": (r"N fc", "planet-pass frequency, N·fc (N planets)"),
+    "fe": (r"fe", "electrical frequency of the drive motor, pole pairs × fsr"),
+    "fx": (r"f_?x", "a modulation frequency located from the record, no gearbox frequency"),
+    "(comb)": (r"\(comb\)", "the line belongs to a comb k·g + n·fc (g one of fs/N, fp, fsr, "
+               "fe, fr; k up to what the band holds), scored as one family rather than line by "
+               "line"),
+    "DC": (r"DC", "0 Hz"),
+}
+
+#: Symbol of LABEL_SYMBOLS → key of :meth:`dtwin.kinematics.Kinematics.as_dict` (its value).
+_SYMBOL_KEYS = {"fm": "f_mesh", "fc": "f_carrier", "fsr": "f_sun", "fs": "f_sun_fault",
+                "fp": "f_planet_fault", "fr": "f_ring_fault", "N fc": "f_planet_pass"}
+
+
+def _symbol_pattern(pattern: str) -> re.Pattern:
+    # a symbol is a token: not inside a word ("offset"), a multiplier may precede it ("61fsr")
+    return re.compile(r"(?<![A-Za-z_])" + pattern + r"(?![A-Za-z_])")
+
+
+_SYMBOL_PATTERNS = {k: _symbol_pattern(p) for k, (p, _) in LABEL_SYMBOLS.items()}
+
+
+def symbol_legend(texts: Sequence[str], frequencies: Mapping[str, Any] | None = None
+                  ) -> list[dict[str, Any]]:
+    """The legend of the line-label symbols used in `texts`: one row per symbol found, with
+    its meaning and, where `frequencies` gives it, its value (Hz).
+
+    **Arguments:**
+
+    - `texts`: the label texts of a page (cells, notes, captions).
+    - `frequencies`: characteristic frequencies by name (Hz), as
+      :func:`dtwin.gears.characteristic_frequencies` (``f_mesh``, ``f_carrier``, ``f_sun``,
+      …); ``n_planets`` adds ``fs/N``'s value.
+
+    **Returns:** rows ``{"symbol", "meaning", "value (Hz)"}`` in the order of
+    :data:`LABEL_SYMBOLS`; empty when no symbol occurs.
+    """
+    joined = "\n".join(str(t) for t in texts)
+    freqs = dict(frequencies or {})
+    rows = []
+    for sym, (_, meaning) in LABEL_SYMBOLS.items():
+        found = _SYMBOL_PATTERNS[sym].findall(joined)
+        if not found:
+            continue
+        shown = sorted(set(found))[0] if sym == "fs/N" else sym
+        value = freqs.get(_SYMBOL_KEYS.get(sym, ""))
+        if sym == "fs/N" and freqs.get("f_sun_fault") is not None:
+            n = int(shown.split("/")[1])
+            value = float(freqs["f_sun_fault"]) / n
+        rows.append({"symbol": shown, "meaning": meaning,
+                     "value (Hz)": None if value is None else float(value)})
+    return rows
+
+
+def symbol_legend_markdown(texts: Sequence[str], frequencies: Mapping[str, Any] | None = None
+                           ) -> str:
+    """:func:`symbol_legend` as a Markdown table (an empty string when no symbol occurs)."""
+    rows = symbol_legend(texts, frequencies)
+    if not rows:
+        return ""
+    out = ["| symbol | meaning | value (Hz) |", "|---|---|---|"]
+    out += [f"| {r['symbol']} | {r['meaning']} | "
+            f"{'' if r['value (Hz)'] is None else frequency_text(r['value (Hz)'])} |"
+            for r in rows]
+    return "\n".join(out)
+
+
+def _texts_of(tables: Mapping[str, Any], notes: Sequence[str], captions: Sequence[str]
+              ) -> list[str]:
+    texts = [str(n) for n in notes] + [str(c) for c in captions]
+    for t in tables.values():
+        header, rows = _table_rows(t)
+        texts += [str(v) for r in rows for v in r if isinstance(v, str)]
+    return texts
 
 
 def _table_rows(table: Any) -> tuple[list[str], list[list[Any]]]:
@@ -108,14 +223,16 @@ def _table_rows(table: Any) -> tuple[list[str], list[list[Any]]]:
 
 def _table_html(caption: str, table: Any) -> str:
     header, rows = _table_rows(table)
+    two_column = header == ["quantity", "value"]
     out = [f"<table><caption style='text-align:left;font-weight:600'>{html.escape(caption)}"
            "</caption><thead><tr>"]
     out += [f"<th>{html.escape(h)}</th>" for h in header]
     out.append("</tr></thead><tbody>")
     for r in rows:
         out.append("<tr>")
-        for v in r:
-            text, num = _fmt(v)
+        for j, v in enumerate(r):
+            key = str(r[0]) if two_column and j == 1 else header[j]
+            text, num = _fmt(v, is_frequency_key(key))
             out.append(f"<td class='num'>{html.escape(text)}</td>" if num
                        else f"<td>{html.escape(text)}</td>")
         out.append("</tr>")
@@ -132,12 +249,16 @@ def html_report(
     notes: Sequence[str] = (),
     manifest: Mapping[str, Any] | None = None,
     folder_path: Path | None = None,
+    frequencies: Mapping[str, Any] | None = None,
 ) -> str:
     """The HTML text of a report (arguments as :func:`write_html_report`)."""
     from .output import to_jsonable
 
     figures = dict(figures or {})
     tables = dict(tables or {})
+    legend = symbol_legend(_texts_of(tables, notes, list(figures)), frequencies)
+    if legend:
+        tables["Symbols of the line labels"] = legend
     parts = ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
              "<meta name='viewport' content='width=device-width,initial-scale=1'>",
              f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
@@ -196,6 +317,7 @@ def write_html_report(
     notes: Sequence[str] = (),
     manifest: Mapping[str, Any] | None = None,
     name: str = "report.html",
+    frequencies: Mapping[str, Any] | None = None,
 ) -> Path:
     """Write one self-contained HTML report into an output folder.
 
@@ -205,7 +327,7 @@ def write_html_report(
       is written with its atomic writer and listed in its manifest.
     - `title`: the page's heading (e.g. ``"dtwin identify: bench_sun_fault.dtwin.h5"``).
     - `summary`: a paragraph of text (blank lines separate paragraphs) or a mapping
-      quantity → value shown as a two-column table (floats with 4 significant digits).
+      quantity → value shown as a two-column table.
     - `figures`: caption → a matplotlib ``Figure``, PNG ``bytes``, or the name of a PNG already
       written into `folder` (or any path); each is embedded as a base64 PNG.
     - `tables`: caption → a list of dicts (columns in first-seen order), a pandas DataFrame,
@@ -214,12 +336,19 @@ def write_html_report(
     - `manifest`: the manifest shown at the end; default ``folder.manifest`` (command, inputs
       with SHA-256, versions, parameters, files), in full inside a collapsible block.
     - `name`: file name in `folder` (``report.html``).
+    - `frequencies`: the gearbox's characteristic frequencies (Hz, by name as
+      :func:`dtwin.gears.characteristic_frequencies`), shown beside the symbols of the line
+      labels; a table of every symbol the page's labels use ("fm", "fsr", "(comb)", …) is added
+      whether or not they are given.
+
+    Floats show 4 significant digits, except frequencies (a column or key naming Hz or a
+    frequency), which keep at least six and 0.01 Hz (:func:`frequency_text`).
 
     **Returns:** the path written (inside the staging folder until a staged folder commits).
     """
     text = html_report(title, summary=summary, figures=figures, tables=tables, notes=notes,
                        manifest=folder.manifest if manifest is None else manifest,
-                       folder_path=Path(folder.path))
+                       folder_path=Path(folder.path), frequencies=frequencies)
     return folder.write_text(name, text)
 
 
@@ -235,8 +364,9 @@ class HTMLReport:
     figures: Mapping[str, Any] | None = None
     tables: Mapping[str, Any] | None = None
     notes: Sequence[str] = ()
+    frequencies: Mapping[str, Any] | None = None
 
     def write_into(self, folder: Any, name: str) -> Path:
         return write_html_report(folder, title=self.title, summary=self.summary,
                                  figures=self.figures, tables=self.tables, notes=self.notes,
-                                 name=name)
+                                 name=name, frequencies=self.frequencies)
