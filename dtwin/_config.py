@@ -1,11 +1,13 @@
 """Process-wide JAX configuration: float64 and a persistent compilation cache.
 
 Imported first by :mod:`dtwin`. float64 is required (docs/references.md §6: in float32 the adaptive
-solver stalls on kHz mesh forcing). The compilation cache lives inside the project's virtual
-environment (``$VIRTUAL_ENV/jax-cache`` or ``sys.prefix/jax-cache``) unless ``DTWIN_JAX_CACHE``
-names another folder; set ``DTWIN_JAX_CACHE=off`` (or ``0``, ``none``) to disable it and
-``DTWIN_JAX_CACHE=on`` (or ``1``, ``true``) for the default folder
-(outside a virtual environment: ``~/.cache/dtwin/jax-cache``).
+solver stalls on kHz mesh forcing). The compilation cache lives in the user's cache folder,
+``$XDG_CACHE_HOME/dtwin/jax`` (``~/.cache/dtwin/jax`` when ``XDG_CACHE_HOME`` is unset), shared
+by every dtwin command, script and virtual environment of that user, so a second command does
+not compile again what the first compiled. ``DTWIN_JAX_CACHE`` names another folder; set
+``DTWIN_JAX_CACHE=off`` (or ``0``, ``none``, ``false``, ``no``) to disable it and
+``DTWIN_JAX_CACHE=on`` (or ``1``, ``true``, ``yes``) for the default folder. ``make test``
+points it at ``.venv/jax-cache`` so that test runs leave the user's cache alone.
 
 JAX never writes a program that calls back to the host to the persistent cache, and equinox's
 run-time checks (``eqx.error_if``, inside diffrax, optimistix and lineax) raise through such a
@@ -26,7 +28,6 @@ is known.
 from __future__ import annotations
 
 import os
-import sys
 
 import jax
 
@@ -37,17 +38,24 @@ jax.config.update("jax_enable_x64", True)
 OFF_VALUES = ("off", "0", "none", "false", "no")
 
 
+def default_cache_dir() -> str:
+    """The user's cache folder for JAX's compiled programs: ``$XDG_CACHE_HOME/dtwin/jax``, or
+    ``~/.cache/dtwin/jax`` when ``XDG_CACHE_HOME`` is unset or not an absolute path (the XDG
+    base directory specification)."""
+    base = os.environ.get("XDG_CACHE_HOME", "")
+    if not os.path.isabs(base):
+        base = os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "dtwin", "jax")
+
+
 def _cache_dir() -> str | None:
+    """The folder ``DTWIN_JAX_CACHE`` asks for (None: no persistent cache)."""
     env = os.environ.get("DTWIN_JAX_CACHE")
-    if env is not None and env.lower() in ("", *OFF_VALUES):
+    if env is None or env.lower() in ("on", "1", "true", "yes"):
+        return default_cache_dir()
+    if env.lower() in ("", *OFF_VALUES):
         return None
-    if env is not None and env.lower() not in ("on", "1", "true", "yes"):
-        return env
-    if sys.prefix != sys.base_prefix:  # inside a venv
-        return os.path.join(sys.prefix, "jax-cache")
-    if env is not None:  # asked for outside a venv: the user's cache folder
-        return os.path.join(os.path.expanduser("~"), ".cache", "dtwin", "jax-cache")
-    return None
+    return os.path.expanduser(env)
 
 
 _dir = _cache_dir()
@@ -57,5 +65,5 @@ if _dir is not None:
         jax.config.update("jax_compilation_cache_dir", _dir)
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-    except (OSError, AttributeError):  # read-only prefix or an older jax: run without a cache
+    except (OSError, AttributeError):  # an unwritable folder or an older jax: no cache
         pass

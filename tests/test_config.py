@@ -6,22 +6,48 @@ import sys
 from dtwin import _config
 
 
-def test_cache_switch_words_are_not_folder_names(monkeypatch):
-    in_venv = sys.prefix != sys.base_prefix
-    default = os.path.join(sys.prefix, "jax-cache") if in_venv else None
+def test_cache_switch_words_are_not_folder_names(monkeypatch, tmp_path):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    default = os.path.join(str(tmp_path), "dtwin", "jax")
     for word in ("off", "0", "none", "false", ""):
         monkeypatch.setenv("DTWIN_JAX_CACHE", word)
         assert _config._cache_dir() is None, word
     for word in ("on", "1", "true", "ON"):
         monkeypatch.setenv("DTWIN_JAX_CACHE", word)
-        got = _config._cache_dir()
-        assert got is not None and os.path.basename(got) == "jax-cache", (word, got)
-        if in_venv:
-            assert got == default
+        assert _config._cache_dir() == default, word
     monkeypatch.setenv("DTWIN_JAX_CACHE", "/some/folder")
     assert _config._cache_dir() == "/some/folder"
     monkeypatch.delenv("DTWIN_JAX_CACHE")
     assert _config._cache_dir() == default
+
+
+_CACHE_DIR = "import dtwin, jax; print(jax.config.jax_compilation_cache_dir)"
+
+
+def _cache_dir_in_new_process(**env: str | None) -> str:
+    import subprocess
+
+    environ = {k: v for k, v in os.environ.items()
+               if k not in ("DTWIN_JAX_CACHE", "XDG_CACHE_HOME")}
+    environ.update({k: v for k, v in env.items() if v is not None})
+    return subprocess.run([sys.executable, "-c", _CACHE_DIR], env=environ, capture_output=True,
+                          text=True, timeout=120, check=True).stdout.strip()
+
+
+def test_cache_defaults_to_the_users_cache_folder_and_obeys_the_switch(tmp_path):
+    """`import dtwin` points JAX's persistent cache at the XDG cache folder (not at the virtual
+    environment, which a new clone or `make clean` throws away), at ``~/.cache`` without
+    ``XDG_CACHE_HOME``, at the folder ``DTWIN_JAX_CACHE`` names, and nowhere when it is off."""
+    xdg = tmp_path / "xdg"
+    assert _cache_dir_in_new_process(XDG_CACHE_HOME=str(xdg)) == str(xdg / "dtwin" / "jax")
+    assert (xdg / "dtwin" / "jax").is_dir()
+    home = tmp_path / "home"
+    assert _cache_dir_in_new_process(HOME=str(home)) == str(home / ".cache" / "dtwin" / "jax")
+    mine = tmp_path / "mine"
+    assert _cache_dir_in_new_process(DTWIN_JAX_CACHE=str(mine),
+                                     XDG_CACHE_HOME=str(xdg)) == str(mine)
+    for off in ("off", "0"):
+        assert _cache_dir_in_new_process(DTWIN_JAX_CACHE=off, XDG_CACHE_HOME=str(xdg)) == "None"
 
 
 _FIT_TWICE = """
