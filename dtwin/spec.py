@@ -560,6 +560,29 @@ def _check_operating(table: Any, problems: list) -> dict[str, Any]:
     return out
 
 
+def _tooth_count_rule(g: Mapping[str, Any], found: list) -> list:
+    """The gear set's problems, with a centre distance the spec never gave restated as the
+    tooth-count rule it breaks: without ``centre_distance`` or shifts, dtwin takes the mean of
+    the two meshes' standard centre distances, which exists only when ``z_ring`` is within a few
+    teeth of ``z_sun + 2 z_planet`` (profile shift closes a small difference, not a large one)."""
+    given = any(g.get(k) is not None for k in ("centre_distance", "x_sun", "x_planet", "x_ring"))
+    if given:
+        return list(found)
+    zs, zp, zr = int(g["z_sun"]), int(g["z_planet"]), int(g["z_ring"])
+    out = []
+    for path, msg in found:
+        if path == "gears.centre_distance":
+            path, msg = "gears.z_ring", (
+                f"z_ring = {zr} but z_sun + 2 z_planet = {zs + 2 * zp} (z_sun = {zs}, z_planet = "
+                f"{zp}): the rule z_ring = z_sun + 2 z_planet, which profile shift bends by a "
+                "tooth or two only, is broken by too much for the sun-planet and ring-planet "
+                "meshes to share one carrier radius; change z_ring, z_sun or z_planet (or give "
+                "gears.centre_distance or the profile shifts of your gearbox)")
+        if (path, msg) not in out:
+            out.append((path, msg))
+    return out
+
+
 def _check_cross(data: dict[str, Any], problems: list) -> None:
     """Checks that need several fields: the gear geometry, fault indices, per-planet lists."""
     s = data["sensor"]
@@ -578,7 +601,7 @@ def _check_cross(data: dict[str, Any], problems: list) -> None:
     try:
         gs = _gear_set(g, quiet=False)
     except GeometryError as e:
-        problems.extend(e.problems)
+        problems.extend(_tooth_count_rule(g, e.problems))
         return
     n = gs.n_planets
     z = {"sun": gs.z_sun, "planet": gs.z_planet, "ring": gs.z_ring}
