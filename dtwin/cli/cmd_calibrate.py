@@ -26,6 +26,10 @@ def _channel_index(record, channel: str | int) -> int:
     return list(record.channels).index(channel)
 
 
+#: Most knots `--knots` accepts (the sensor response is smooth; each knot is one fitted gain).
+MAX_KNOTS = 40
+
+
 @app.command()
 def calibrate(
     records: list[Path] = typer.Argument(..., help="Healthy record file(s) of the machine."),
@@ -60,6 +64,12 @@ def calibrate(
     if model is not None:
         opts.choice("--model", model, ("torsional", "translational"))
     opts.at_least("--knots", knots, 1)
+    if knots > MAX_KNOTS:  # every knot is one fitted gain, seen only by the lines near it
+        raise opts.OptionError("--knots", f"must lie in [1, {MAX_KNOTS}], got {knots}: the "
+                               "knots are log-spaced from 0.8 N f_carrier to the "
+                               "passband, each a gain the mesh lines next to it must "
+                               "determine (and each a column of every record's "
+                               "Jacobian in memory)")
     opts.at_least("--window-terms", window_terms, 2)
     if window_terms > N_WINDOW_TERMS:
         raise opts.OptionError("--window-terms", f"at most {N_WINDOW_TERMS} (the window terms "
@@ -85,9 +95,12 @@ def calibrate(
                                    load_sharing=load_sharing, mesh_harmonics=mesh_harmonics)
     import logging
 
+    from .progress import progress, record_size
+
     log = logging.getLogger("dtwin")
-    result = run(recs, gb.spec, kind=model, f_sun=f_sun, channel=_channel_index(recs[0], ch),
-                 settings=settings, progress=lambda m: log.info("calibrate: %s", m))
+    with progress("calibrate", json_out=json_out, size=record_size(recs[0])) as stage:
+        result = run(recs, gb.spec, kind=model, f_sun=f_sun, channel=_channel_index(recs[0], ch),
+                     settings=settings, progress=stage)
     report = result.to_dict()
     report["spec"] = gb.source
     if not result.improves:

@@ -22,7 +22,6 @@ import typer
 from ..units import unit_name
 from . import options as opts
 from .app import app
-from .logs import is_quiet, note
 
 
 def _fmt_lines(lines, k=8) -> str:
@@ -134,6 +133,11 @@ def markdown_report(result, record_name: str) -> str:
     return "\n".join(out) + "\n"
 
 
+#: Most bootstrap draws `--n-boot` accepts: the p-value's Monte Carlo error is then below 0.001
+#: at p = 0.05, and each draw is one refit.
+MAX_N_BOOT = 100_000
+
+
 @app.command()
 def discover(
     record_file: Path = typer.Argument(..., help="Record file (any supported format)."),
@@ -167,6 +171,11 @@ def discover(
     if not 0 < alpha <= 0.01:
         raise opts.OptionError("--alpha", f"must lie in (0, 0.01], got {alpha:g}")
     opts.at_least("--n-boot", n_boot, 20)
+    if n_boot > MAX_N_BOOT:  # each draw is one refit of every candidate
+        raise opts.OptionError("--n-boot", f"must lie in [20, {MAX_N_BOOT}], got {n_boot}: "
+                               "the p-value's Monte Carlo error sqrt(p (1 - p) / B) is "
+                               "below 0.001 at p = 0.05 with 1e5 draws, each draw one "
+                               "refit; the search raises B to K / alpha by itself")
     opts.at_least("--seed", seed, 0)
     opts.input_speed_option("--f-sun", f_sun)
     opts.tacho_reading(tacho)
@@ -183,11 +192,11 @@ def discover(
     given = speed if source not in ("mesh lines", "spec operating.f_sun") else None
 
     settings = DiscoverySettings(alpha=alpha, n_boot=n_boot, max_steps=max_steps, seed=seed)
-    log = None if json_out or is_quiet() else note
+    from .progress import progress, record_size
 
-    result = run(record.channel(ch), gearbox, sample_rate=record.sample_rate, f_sun=given,
-                 kind=kind,
-                 settings=settings, log=log)
+    with progress("discover", json_out=json_out, size=record_size(record)) as stage:
+        result = run(record.channel(ch), gearbox, sample_rate=record.sample_rate, f_sun=given,
+                     kind=kind, settings=settings, log=stage)
     report = {"record": str(record_file), "channel": str(channel), **result.to_dict()}
 
     def table() -> None:

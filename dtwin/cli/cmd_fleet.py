@@ -137,7 +137,7 @@ def fleet_identify(
     run = run_fleet(records, gearbox, out, settings, manifest=manifest,
                     engine="ray" if ray_address and engine == "auto" else engine,
                     address=ray_address, num_cpus=num_cpus,
-                    progress=not (no_progress or is_quiet()), force=force)
+                    progress=not (no_progress or is_quiet() or json_out), force=force)
     if json_out:
         _echo_json(run.to_dict())
     else:

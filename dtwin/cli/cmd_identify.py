@@ -265,11 +265,15 @@ def identify(
     if runup is None:
         for p, r in zip(records, recs, strict=True):
             _check_given_speed(r, gb.spec, f_sun, ch, p)
-    with opts.working("fitting", enabled=not progress):
+    from .progress import progress as shown
+    from .progress import record_size
+
+    with shown("identify", json_out=json_out, size=record_size(recs[0]),
+               enabled=progress) as stage:
         res = fit(recs, gb.spec, names, kind=model, f_sun=f_sun,
                   runup=tuple(runup) if runup else None, solver=solver, starts=starts,
                   refine=refine, jac=jac, max_steps=max_steps, channel=ch, splits=splits,
-                  progress=progress and not _quiet())
+                  progress=stage.enabled)
     report = {"records": [str(p) for p in records], "gearbox": gb.source,
               "model": model, **_window_report(segs), **res.to_dict()}
 
@@ -283,12 +287,6 @@ def identify(
               gearbox=gb, parameters={"free": names, "solver": solver, "starts": starts,
                                       "refine": refine, "jac": jac, "model": model,
                                       "fit_window": window.text(), "splits": splits})
-
-
-def _quiet() -> bool:
-    from .logs import is_quiet
-
-    return is_quiet()
 
 
 #: A ``--f-sun`` further than this (relative) from the speed of the record's lines is refused.
@@ -386,7 +384,9 @@ def severity(
     segs = _segments([record], sample_rate, ch, gb.spec, f_sun, window, tacho)
     rec = segs[0].record
     _check_given_speed(rec, gb.spec, f_sun, ch, record)
-    with opts.working("fitting the severity"):
+    from .progress import progress, record_size
+
+    with progress("severity", json_out=json_out, size=record_size(rec)):
         est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
                                 channel=ch, low_band=low_band, jackknife=jackknife,
                                 ramps="shapes" if shapes else None, splits=splits,
