@@ -114,6 +114,7 @@ from dtwin.build import build_twin, daq_from_spec
 from dtwin.errors import FitError, RecordError, SpecError
 from dtwin.io.readers import read_record
 from dtwin.io.record import Record
+from dtwin.io.validate import MIN_CARRIER_PERIODS
 from dtwin.lumped import replace as replace_lumped
 from dtwin.parts.imperfections import MeshOffsets, load_share_offsets
 from dtwin.parts.mesh_excitation import MeshExcitation
@@ -810,10 +811,11 @@ def calibrate(
     if spec["operating"]["f_sun"] is None:
         raise SpecError([("operating.f_sun", "calibration needs the nominal input speed (Hz)")])
     kin0 = Kinematics.from_spec(spec)
-    if n / fs < 10.0 / kin0.f_carrier:
-        raise RecordError(f"{n / fs:.3g} s is shorter than 10 carrier periods "
-                          f"({10.0 / kin0.f_carrier:.3g} s): the sidebands at f_c cannot be "
-                          "resolved; calibrate on longer records")
+    if n / fs < MIN_CARRIER_PERIODS / kin0.f_carrier * (1.0 - 1e-9):
+        raise RecordError(f"{n / fs:.3g} s is shorter than {MIN_CARRIER_PERIODS:g} carrier "
+                          f"periods ({MIN_CARRIER_PERIODS / kin0.f_carrier:.3g} s): the "
+                          "sidebands at f_c cannot be resolved in each half; calibrate on "
+                          "longer records")
     # the speed: given, or each record's (tachometer, metadata, lines), the mean over records
     ops = [resolve_speed(r, spec, f_sun, channel=channel) for r in recs]
     f_sun = float(np.mean([op.f_sun for op in ops]))

@@ -16,6 +16,7 @@ import pytest
 
 from dtwin.cli import main
 from dtwin.io.readers import read_record
+from dtwin.io.validate import MIN_CARRIER_PERIODS
 
 FS = 5000.0
 
@@ -53,9 +54,10 @@ def test_info_json(csv_file, capsys):
     f_carrier = 29.7 * gears["z_sun"] / (gears["z_sun"] + gears["z_ring"])
     assert rep["frequencies_hz"]["f_carrier"] == pytest.approx(f_carrier)
     assert rep["frequencies_hz"]["f_mesh"] == pytest.approx(f_carrier * gears["z_ring"])
-    # 0.4 s is shorter than 10 carrier periods: the one problem, with the length needed
+    # 0.4 s is shorter than MIN_CARRIER_PERIODS carrier periods: the one problem, with the
+    # length needed
     (p,) = rep["problems"]
-    assert p["kind"] == "too_short" and p["value"] == pytest.approx(10 / f_carrier)
+    assert p["kind"] == "too_short" and p["value"] == pytest.approx(MIN_CARRIER_PERIODS / f_carrier)
 
 
 def test_info_strict_exit_code_and_table(csv_file, capsys):

@@ -21,9 +21,10 @@ The checks and their thresholds:
   sideband ``f_mesh + n_sidebands·f_carrier`` below Nyquist, ``sample_rate > 2(f_mesh +
   n_sidebands f_carrier)``;
 - **record too short** to resolve the carrier sidebands: ``duration ≥ k / f_carrier`` with
-  ``k =`` :data:`MIN_CARRIER_PERIODS` ``= 10``: sidebands spaced ``f_carrier`` apart are then
-  ``k`` frequency bins (``1/T``) apart, clear of a Hann window's main lobe (4 bins wide) and its
-  first side lobes, and 10 carrier revolutions allow time-synchronous averaging;
+  ``k =`` :data:`MIN_CARRIER_PERIODS` ``= 8``: calibration and discovery score each half of a
+  record (:data:`SCORED_PARTS`), and in a half sidebands spaced ``f_carrier`` apart are then
+  :data:`MIN_SIDEBAND_BINS` ``= 4`` frequency bins (``2/T``) apart, clear of a Hann window's
+  main lobe (4 bins wide);
 - **time column** disagreeing with the rate used (relative difference above
   :data:`RATE_TOLERANCE`), or non-uniform (a step deviating more than
   :data:`TIME_JITTER_TOLERANCE` from the mean step);
@@ -44,8 +45,14 @@ from .record import Record
 
 #: Minimum sampling rate per mesh frequency (Nyquist 2 × anti-alias margin 1.25).
 MIN_RATE_PER_MESH = 2.5
-#: Minimum record length in carrier periods to resolve the carrier sidebands (see module doc).
-MIN_CARRIER_PERIODS = 10.0
+#: Bins between neighbouring carrier sidebands needed to resolve them: a Hann window's main
+#: lobe is 4 bins wide.
+MIN_SIDEBAND_BINS = 4
+#: Parts of a record scored separately by calibration and discovery (held-out halves).
+SCORED_PARTS = 2
+#: Minimum record length in carrier periods to resolve the carrier sidebands in each scored
+#: part (see module doc): ``SCORED_PARTS × MIN_SIDEBAND_BINS``.
+MIN_CARRIER_PERIODS = float(SCORED_PARTS * MIN_SIDEBAND_BINS)
 #: Relative disagreement tolerated between a given rate and the file's time column.
 RATE_TOLERANCE = 1e-3
 #: Relative deviation of one time step from the mean step tolerated in a time column.
