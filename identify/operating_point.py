@@ -155,8 +155,11 @@ MAX_HEIGHT_DB = 40.0
 #: Length (s) of the segments of the comb search's averaged spectrum on long records, at least
 #: 16 carrier periods; a record up to twice as long is searched whole.
 SEGMENT_S = 4.0
-#: A line counts when it stands this far over the local noise floor (dB).
+#: A line counts when it stands this far over the local noise floor (dB), and a harmonic when
+#: its strongest line stands `HARMONIC_DB` further (Gaussian noise reaches 16 dB over its
+#: median with probability ~1e-12 per bin).
 MIN_LEVEL_DB = 10.0
+HARMONIC_DB = 6.0
 #: Frequency precision of an interpolated Hann peak: ``LINE_PRECISION / (T H)`` Hz for a line
 #: ``H`` times its noise floor in a record of ``T`` s, at least ``LINE_PRECISION_FLOOR / T``.
 LINE_PRECISION = 0.5
@@ -428,8 +431,8 @@ def _comb_speed(full: _Spectrum, coarse: _Spectrum, pad: int, comb: _Comb, lo: f
             if p is not None and p[1] >= min_level_db and p[0] < f_top:
                 found.append(SpeedLine(comb.label(i), m, int(comb.n[i]), float(comb.order[i]),
                                        *p))
-        if len(found) < 2 and not (found and found[0].level_db >= min_level_db + 5):
-            continue  # a lone weak peak in the noise does not make a harmonic
+        if not found or max(ln.level_db for ln in found) < min_level_db + HARMONIC_DB:
+            continue  # weak peaks in the noise do not make a harmonic
         f_m, sd_m, lines[m] = _harmonic_speed(found, full.duration)
         speeds.append((m, f_m, sd_m))
     if not speeds:
