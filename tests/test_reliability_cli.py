@@ -115,3 +115,18 @@ def test_importing_dtwin_in_a_program_keeps_its_sigint_handling():
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          timeout=120)
     assert out.stdout.strip() == "True", out.stderr
+
+
+@pytest.mark.parametrize("argv,option,bound", [
+    (["discover", "missing.wav", "--preset", "paper-bench", "--n-boot", "1000000000"],
+     "--n-boot", "[20, 100000]"),
+    (["calibrate", "missing.wav", "--preset", "paper-bench", "--knots", "100000", "--out", "o"],
+     "--knots", "[1, 40]"),
+])
+def test_unbounded_work_options_are_bounded(argv, option, bound, tmp_path, monkeypatch,
+                                            capsys):
+    """`discover --n-boot 1e9` (each draw one refit: runs for ever) and `calibrate --knots 1e5`
+    (gigabytes): refused before the record is opened, with the accepted range."""
+    monkeypatch.chdir(tmp_path)
+    line = _fails(argv, capsys)
+    assert line.startswith(f"error: {option}: must lie in {bound}"), line
