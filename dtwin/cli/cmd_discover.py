@@ -83,8 +83,8 @@ def markdown_report(result, record_name: str) -> str:
                 f"the search's (bins {result.settings.threshold_db:g} dB over the floor) "
                 f"{s.gap_before.total:.2f} → {s.gap_after.total:.2f} dB (full model confirmed: "
                 f"{s.gap_confirmed.total:.2f} dB); p = {s.p_value:.2g} ≤ {s.level:.2g}",
-                f"- {s.main['name']}: {s.main['value']:.4g} {_unit_text(s.main['unit'])}, 99 % interval "
-                f"[{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}] (typical on real "
+                f"- {s.main['name']}: {s.main['value']:.4g} {_unit_text(s.main['unit'])},"
+                f"{_interval_text(s.main, ' 99 % interval')} (typical on real "
                 f"machines {s.main['typical_range'][0]:g}–{s.main['typical_range'][1]:g}: "
                 f"{s.main['typical_note']})"
                 + (f"; the group is named, not the member: these are `{s.effect}`'s values if "
@@ -206,7 +206,7 @@ def discover(
                        f"{_total(s.heldout_after):>6s} dB  p={s.p_value:.2g}  {s.main['name']} "
                        f"{s.main['value']:.3g}"
                        + ("" if s.main['unit'] in ("1", "", "-") else f" {s.main['unit']}")
-                       + f" [{s.main['interval'][0]:.3g}, {s.main['interval'][1]:.3g}]"
+                       + _interval_text(s.main)
                        + (" (dimensionless)" if s.main['unit'] == "1" else "")
                        + (f" (if {s.effect})" if s.named != s.effect else ""))
         for s in result.steps:
@@ -282,3 +282,13 @@ def discover_files(result, report: dict, record_file: Path, channel, unit: str |
                                        "kinematic description": r.text}
                                       for r in result.unexplained]})
     return out_files
+
+
+def _interval_text(main: dict, label: str = "") -> str:
+    """The step's interval of its main value, or, where the linearised fit left the parameter's
+    range and was refitted inside it in full (no interval), why there is none."""
+    lo, hi = main["interval"]
+    if lo == lo and hi == hi:  # not NaN
+        return f"{label} [{lo:.3g}, {hi:.3g}]"
+    return (" (no interval: the linearised fit left the range and was refitted inside it; "
+            "`dtwin severity` gives the depth with its interval)")
