@@ -30,7 +30,9 @@ class FleetSettings:
       (``torsional`` or ``translational``; None: the kind a calibrated spec was calibrated
       with, otherwise torsional, :func:`dtwin.build.twin_kind`); `initial`:
       ``((name, value), ...)`` starting values (SI); `f_sun`: input speed (Hz) for every
-      record (None: estimated from each record).
+      record (None: each record's, :func:`dtwin.identify.operating_point.resolve_speed`);
+      `tacho`: ``(channel, pulses per revolution, shaft)`` of a tachometer channel in every
+      record (``--tacho``), read as the record's tachometer, or None.
     - `solver`, `starts`, `refine`, `max_steps`, `tol`, `channel`, `splits`: as
       :func:`dtwin.identify.fit.fit` (`splits` None: a calibrated spec's fault severities are
       fitted with both ends of its excitation/response split, :mod:`dtwin.identify.split`).
@@ -52,6 +54,7 @@ class FleetSettings:
     kind: str | None = None
     initial: tuple[tuple[str, float], ...] = ()
     f_sun: float | None = None
+    tacho: tuple[str | int, int, str] | None = None
     solver: str = "lm"
     starts: int = 1
     refine: int = 1
@@ -74,6 +77,8 @@ class FleetSettings:
         opts = (self.discover_options.items() if isinstance(self.discover_options, Mapping)
                 else self.discover_options)
         object.__setattr__(self, "discover_options", tuple((str(k), v) for k, v in opts))
+        if self.tacho is not None:
+            object.__setattr__(self, "tacho", tuple(self.tacho))
         if not self.free:
             raise SettingsError("FleetSettings.free: name at least one registry parameter")
         if self.kind is not None and self.kind not in ("torsional", "translational"):
@@ -104,6 +109,14 @@ class FleetSettings:
                              "(--f-max), f_sun (--f-sun) or a spec with operating.f_sun")
         return dataclasses.replace(self, f_max=round(1.05 * float(f), 6))
 
+    def record_reading(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`dtwin.io.readers.read_record` for every record (the
+        tachometer channel)."""
+        if self.tacho is None:
+            return {}
+        ch, ppr, shaft = self.tacho
+        return {"tacho": ch, "tacho_ppr": int(ppr), "tacho_shaft": shaft}
+
     def fit_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of :func:`dtwin.identify.fit.fit` / ``fit_batch`` (without the starts);
         call on :meth:`resolved` settings."""
@@ -132,6 +145,8 @@ class FleetSettings:
         fit = {k: getattr(self, k) for k in ("free", "kind", "initial", "f_sun", "solver",
                                              "starts", "refine", "max_steps", "tol", "channel",
                                              "splits", "grid", "order_step", "f_max")}
+        if self.tacho is not None:
+            fit["tacho"] = self.tacho
         spec = {k: v for k, v in dict(spec_data).items() if k != "source"}
         blob = json.dumps(to_jsonable({"fit": fit, "spec": spec}), sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]

@@ -151,7 +151,7 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
     for job in jobs:
         _inject(job, inject, attempts_dir, engine == "ray")
         try:
-            rec = read_record(job["path"])
+            rec = read_record(job["path"], **settings.record_reading())
             runup = runup_range(rec, spec, settings.channel)
             if runup is not None:  # a run-up is fitted as one, alone (never batched as steady)
                 entries[job["key"]] = _runup_entry(job, rec, spec, free, settings, kw, runup,
@@ -232,7 +232,7 @@ def discover_task(job: Mapping[str, Any], spec_data: Mapping[str, Any], settings
         spec = load_spec(spec_data)
         if fit_entry.get("excitation") == SPLIT_STIFFNESS:
             spec = stiffness_split(spec)
-        rec = read_record(job["path"])
+        rec = read_record(job["path"], **settings.record_reading())
         twin = _fitted_twin(spec, settings, fit_entry.get("values", {}), fit_entry.get("f_sun"))
         res = discover(rec.select([settings.channel]), spec, base_twin=twin,
                        kind=twin_kind(spec, settings.kind),
