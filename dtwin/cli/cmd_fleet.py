@@ -2,6 +2,7 @@
 
     dtwin fleet identify 'records/**/*.dtwin.h5' (--spec FILE | --preset NAME) --out RESULTS
                    [--free sun_fault,...] [--model torsional|translational] [--f-sun HZ]
+                   [--tacho CHANNEL[:PPR[:SHAFT]]]
                    [--ray-address ADDRESS] [--engine auto|ray|local] [--num-cpus N]
                    [--batch-size N] [--max-retries N] [--discover] [--manifest fleet.csv]
                    [--max-steps N] [--tol T] [--starts N] [--refine K] [--grid orders|hz]
@@ -55,8 +56,8 @@ def fleet_identify(
     model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
                                      "(default: the kind a calibrated spec was calibrated "
                                      "with, otherwise torsional)."),
-    f_sun: float | None = typer.Option(None, "--f-sun", help="Input speed (Hz) of every "
-                                       "record; default: estimated from each."),
+    f_sun: float | None = opts.f_sun_option("Input speed (Hz) of every record; "),
+    tacho: str | None = opts.tacho_option(),
     ray_address: str | None = typer.Option(None, "--ray-address", help="An existing Ray "
                                            "cluster (ray://HOST:10001 or auto)."),
     engine: str = typer.Option("auto", "--engine", help="auto (Ray if installed), ray, local."),
@@ -97,6 +98,7 @@ def fleet_identify(
     names = opts.free_names("--free", free)
     opts.choice("--model", model, ("torsional", "translational"))
     opts.input_speed_option("--f-sun", f_sun)
+    reading = opts.tacho_reading(tacho)
     opts.choice("--engine", engine, ("auto", "ray", "local"))
     opts.at_least("--num-cpus", num_cpus, 1)
     opts.at_least("--batch-size", batch_size, 1)
@@ -129,6 +131,8 @@ def fleet_identify(
     kind = twin_kind(gearbox, model)
     warn_torsional_tooth_fault(kind, names)
     settings = FleetSettings(free=tuple(names), kind=kind, f_sun=f_sun,
+                             tacho=(reading["tacho"], reading["tacho_ppr"],
+                                    reading["tacho_shaft"]) if reading else None,
                              starts=starts, refine=refine, max_steps=max_steps, tol=tol,
                              channel=opts.channel_token(channel), splits=splits,
                              grid=grid, order_step=order_step, f_max=f_max,
