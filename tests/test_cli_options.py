@@ -128,7 +128,7 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
         ("--batch-size", "0"), ("--max-retries", "-1"), ("--manifest", "{missing}"),
         ("--max-steps", "0"), ("--tol", "nan"), ("--tol", "2"), ("--starts", "0"),
         ("--refine", "0"), ("--grid", "bins"), ("--order-step", "0"), ("--f-max", "0"),
-        ("--channel", ""), ("RECORDS", "{missing}")]),
+        ("--channel", ""), ("RECORDS", "{missing}"), ("--tacho", "0:0")]),
     ("fleet", "table"): ([], [("RESULTS", "{missing}")]),
     ("fleet", "trends"): (["{done}"], [
         ("RESULTS", "{missing}"), ("--threshold", "sun_fault>>1"), ("--horizon", "0"),
