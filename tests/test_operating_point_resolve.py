@@ -213,10 +213,10 @@ def test_severity_refuses_a_speed_the_record_contradicts(csv_record, capsys):
 
 
 @pytest.mark.parametrize("command", ["calibrate", "discover", "identify", "severity",
-                                     "spectrum"])
+                                     "spectrum", "fleet identify"])
 def test_speed_options_in_help(command, capsys):
     from dtwin.cli import main
 
-    main([command, "--help"])
+    main([*command.split(), "--help"])
     out = capsys.readouterr().out
     assert "--f-sun" in out and "--tacho" in out
