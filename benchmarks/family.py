@@ -97,6 +97,8 @@ def run_cli(args: list[str]) -> tuple[int, dict | None, str, float]:
         except SystemExit as e:
             code = int(e.code or 0) if not isinstance(e.code, str) else 2
     wall = time.perf_counter() - t0
+    if code in (130, 143):  # the command was interrupted: so is the benchmark
+        raise KeyboardInterrupt(err.getvalue().strip())
     text = out.getvalue().strip()
     data = None
     if text:
