@@ -187,8 +187,8 @@ def _suffix(path: Path) -> str:
 def check_export_path(path: str | Path, *, force: bool = False,
                       inputs: Sequence[str | Path] = (), option: str = "--export") -> Path:
     """Check a file named for :func:`export_arrays` before any work: a known suffix, a folder
-    that exists and is writable, not one of the `inputs` (a record is never overwritten), and
-    no existing file unless `force`. Raises :class:`~dtwin.errors.SettingsError` naming
+    that is writable or can be created, not one of the `inputs` (a record is never
+    overwritten), and no existing file unless `force`. Raises :class:`~dtwin.errors.SettingsError` naming
     `option`; **returns** the path."""
     import os
 
@@ -205,11 +205,14 @@ def check_export_path(path: str | Path, *, force: bool = False,
                                 "file (inputs are never overwritten)")
     if path.exists() and path.is_dir():
         raise SettingsError(f"{option}: {path} is a folder; give a file name")
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise SettingsError(f"{option}: the folder {parent} does not exist; create it first")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise SettingsError(f"{option}: {parent} is not writable; choose a folder you can write "
+    probe = path.parent
+    while not probe.exists() and probe.parent != probe:  # missing folders are created
+        probe = probe.parent
+    if not probe.is_dir():
+        raise SettingsError(f"{option}: {probe} is a file, so {path} cannot be created; choose "
+                            "another name")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise SettingsError(f"{option}: {probe} is not writable; choose a folder you can write "
                             "to")
     if path.exists() and not force:
         raise OutputExistsError(f"{option}: {path} exists; choose another name or pass --force "
@@ -256,7 +259,7 @@ def export_arrays(path: str | Path, sets: Mapping[str, Columns | Grid], *,
 
     **Arguments:**
 
-    - `path`: the file; ``.csv`` (header ``name [unit]``, full precision) and ``.npz`` hold
+    - `path`: the file (missing folders are created); ``.csv`` (header ``name [unit]``, full precision) and ``.npz`` hold
       the first set (a grid in long form), ``.h5``/``.hdf5`` every set as a group.
     - `sets`: name → :class:`Columns` or :class:`Grid` (e.g. ``{"spectrum": Columns(...)}``).
     - `attrs`: file attributes (HDF5 only): the record, the command, the input speed.
@@ -277,7 +280,8 @@ def export_arrays(path: str | Path, sets: Mapping[str, Columns | Grid], *,
         names = list(columns)
         data = (columns_csv(columns, units).encode() if fmt == "CSV"
                 else _npz_bytes(columns, [units[n] for n in names], names))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent if str(path.parent) else ".")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
