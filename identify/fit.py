@@ -73,7 +73,7 @@ from .split import (
     low_band_losses,
     other_split,
 )
-from .uncertainty import Uncertainty, analyse, expected_noise_rss
+from .uncertainty import MODEL_FORM_REASON, Uncertainty, analyse, expected_noise_rss
 
 __all__ = ["FitResult", "Problem", "SOLVERS", "fit", "fit_batch", "make_problem", "stack_problems"]
 
@@ -618,13 +618,17 @@ class FitResult:
         return 1.0 if self.uncertainty is None else float(self.uncertainty.widened)
 
     def status(self, name: str) -> str:
-        """``NOT DETERMINED``, ``unconverged``, ``widened ×k for lack of fit`` (the loss stands
+        """``NOT DETERMINED`` (``NOT DETERMINED: the model does not fit this record (loss N× the
+        noise)`` above :data:`~dtwin.identify.uncertainty.MODEL_FORM_LIMIT`), ``unconverged``,
+        ``widened ×k for lack of fit`` (the loss stands
         well above the noise: a model-form error of that size could move the value, so it is
         never called ok) or ``ok``; empty without uncertainty."""
         if self.uncertainty is None:
             return ""
         if name in self.uncertainty.not_determined:
-            return "NOT DETERMINED"
+            why = self.uncertainty.not_determined[name]
+            return f"NOT DETERMINED: {why}" if why.startswith(MODEL_FORM_REASON) else \
+                "NOT DETERMINED"
         if not self.converged:
             return "unconverged"
         if self.widened > 1.0:

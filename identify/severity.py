@@ -194,12 +194,14 @@ class SeverityEstimate:
 
     @property
     def status(self) -> str:
-        """``NOT DETERMINED``, ``widened ×k for lack of fit``, ``unconverged``, ``widened by
+        """``NOT DETERMINED`` (with the reason where the model does not fit the record at all:
+        :data:`~dtwin.identify.uncertainty.MODEL_FORM_LIMIT`), ``widened ×k for lack of fit``,
+        ``unconverged``, ``widened by
         the band jackknife`` (the bands disagree beyond their noise: a model-form error, and
         the interval covers it) or ``ok``."""
-        if not self.determined:
-            return "NOT DETERMINED"
         st = self.fit.status(f"{self.location}_fault")
+        if not self.determined:  # the model-form failure says so, with the loss over the noise
+            return st if st.startswith("NOT DETERMINED:") else "NOT DETERMINED"
         if st == "ok" and "band jackknife" in self.method:
             return "widened by the band jackknife"
         return st

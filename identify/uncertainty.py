@@ -44,7 +44,10 @@ how far it moves the estimate (on the independent records: a sun-fault severity 
 inside a ±20 % interval). The stated rule: when ``R > LACK_OF_FIT_LIMIT`` (2) the covariance is
 multiplied by ``R`` (every interval widened by ``k = √R``), the widening is reported
 (``Uncertainty.widened``) and the fit's table says "widened ×k for lack of fit" instead of "ok";
-identifiability flags are judged on the widened intervals.
+identifiability flags are judged on the widened intervals. Above ``MODEL_FORM_LIMIT`` (10: the
+residual's rms more than three times the noise's) no interval stands for the error: every
+parameter is NOT DETERMINED, "the model does not fit this record (loss R× the noise)", and its
+value is indicative only.
 
 **Band jackknife** (:func:`band_jackknife`). The lack-of-fit rule widens only when the loss
 stands above the noise; a model-form error can also hide at the noise level and still move an
@@ -104,6 +107,14 @@ HALF_WIDTH_LIMIT = 0.5
 #: Lack-of-fit ratio (loss over the loss the noise alone would leave) above which the
 #: intervals are widened by its square root (module docstring).
 LACK_OF_FIT_LIMIT = 2.0
+#: Lack of fit above which no interval is trusted (module docstring, "Lack of fit"): the loss
+#: is more than ten times what the noise alone leaves (the residual's rms over three times the
+#: noise's), a model-form error larger than anything a widened interval can stand for. Every
+#: parameter is then NOT DETERMINED ("the model does not fit this record") and its value is
+#: indicative only.
+MODEL_FORM_LIMIT = 10.0
+#: The start of the reason given for a parameter of a fit above :data:`MODEL_FORM_LIMIT`.
+MODEL_FORM_REASON = "the model does not fit this record"
 
 
 def half_width_scale(value: float, transform: str, lower: float, upper: float) -> float:
@@ -379,6 +390,9 @@ def analyse(
                 flags[n] = f
             if (rss - rss_best) / s2_i > CHI2_95 and (better is None or rss_best < better[2]):
                 better = (n, np.asarray(th_best), rss_best)
+    if np.isfinite(lack) and lack > MODEL_FORM_LIMIT:  # a model-form failure, not a precise answer
+        why = f"{MODEL_FORM_REASON} (loss {lack:.3g}× the noise)"
+        flags = {n: why + (f"; {flags[n]}" if n in flags else "") for n in names}
     return Uncertainty(
         names=tuple(names), values=values, std=std, interval=interval, cov_theta=cov_t, cov=cov,
         correlation=corr, singular_values=sv, null_directions=null, not_determined=flags,
