@@ -206,6 +206,11 @@ def info(
               force=force, files={"record_info.json": report}, inputs=[file], gearbox=gb,
               parameters={"preset": preset, **freqs})
     if strict and problems:
+        import sys
+
+        kinds = sorted({p.kind for p in problems})
+        print(f"error: {file}: {len(problems)} problem(s) found with --strict "
+              f"({', '.join(kinds)}){'' if json_out else ', listed above'}", file=sys.stderr)
         raise SystemExit(2)
 
 

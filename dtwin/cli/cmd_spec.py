@@ -66,6 +66,12 @@ def check(
     else:
         _print_report(report)
     if not report["ok"]:
+        import sys
+
+        fields = sorted({p["path"] or "(file)" for p in report["problems"]})
+        print(f"error: {file}: {len(report['problems'])} problem(s) in the spec "
+              f"({', '.join(fields)}){'' if json_out else ', listed above'}; fix them and "
+              "check again", file=sys.stderr)
         raise SystemExit(2)
 
 
