@@ -8,8 +8,9 @@
 
 Writes into ``--out DIR``: ``record.dtwin.h5`` (dtwin's own self-describing record format, read
 back by every command), ``waveform.png``, ``spectrum.png`` (450–550 Hz, numbered and labelled
-peaks, as the paper's Figures 7–9), ``simulate.json`` (settings, time statistics, peak labels)
-and ``manifest.json``. Without ``--out`` only the summary is shown.
+peaks, as the paper's Figures 7–9), ``spectrum.csv``/``.npz``, ``simulate.json`` (settings,
+time statistics, peak labels), ``report.html`` (the figures, settings and peaks on one page) and
+``manifest.json``. Without ``--out`` only the summary is shown.
 """
 
 from __future__ import annotations
@@ -61,7 +62,8 @@ def simulate(
                                              "(capped at Nyquist)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress output"),
     as_json: bool = opts.json_option(),
-    out: Path = opts.out_option("record.dtwin.h5, waveform.png, spectrum.png, simulate.json"),
+    out: Path = opts.out_option("record.dtwin.h5, waveform.png, spectrum.png, spectrum.csv, "
+                                "simulate.json, report.html"),
     force: bool = opts.force_option(),
 ) -> None:
     """Simulate the twin and write a record (dtwin's own format) with waveform and spectrum PNGs."""
@@ -119,6 +121,7 @@ def simulate(
 
     def files() -> dict:
         from ..io.export import Columns
+        from ..io.html_report import HTMLReport
         from ..io.readers import write_record
         from ..plotting.spectrum import plot_spectrum_peaks, plot_waveform
 
@@ -135,6 +138,17 @@ def simulate(
                                      "noise_floor": data["floor"]},
                                     {"frequency": "Hz", "amplitude": unit, "noise_floor": unit}),
             "simulate.json": summary,
+            "report.html": HTMLReport(
+                title=f"dtwin simulate: {spec.name}, {', '.join(fault or []) or 'healthy'}",
+                summary={k: v for k, v in settings.items()
+                         if isinstance(v, (str, int, float, bool)) or v is None},
+                figures={"Simulated waveform": "waveform.png",
+                         "Simulated spectrum": "spectrum.png"},
+                tables={f"Peaks ({unit})": [
+                    {"No.": pk["number"], "f (Hz)": pk["frequency_hz"],
+                     "amplitude": pk["amplitude"], "dB over floor": pk["above_floor_db"],
+                     "label": " | ".join(pk["labels"]) or "?"} for pk in report["peaks"]]},
+                frequencies=freqs),
         }
 
     def table() -> None:
