@@ -245,6 +245,7 @@ def daq_from_spec(spec, **overrides: Any) -> DAQ:
         tacho_shaft=s["tacho_shaft"],
         frf_hz=None if s["frf_hz"] is None else tuple(s["frf_hz"]),
         frf_db=None if s["frf_db"] is None else tuple(s["frf_db"]),
+        passband=float(s["passband"]),
     )
     kw.update(overrides)
     return DAQ(**kw)

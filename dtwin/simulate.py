@@ -139,6 +139,15 @@ class SolverOptions:
         return self.periodic_tol if self.periodic_tol is not None else max(1e-3, 50.0 * self.rtol)
 
 
+#: End of a DAQ's anti-aliasing pass band, as a fraction of its sampling rate, where the spec
+#: states none: a delta-sigma converter's digital filter passes flat to about 0.45 fs (a
+#: classic analyser's fs/2.56 = 0.39 fs is the other common choice).
+DEFAULT_PASSBAND = 0.45
+#: Stop-band attenuation (dB) of the anti-aliasing filter from ``(1 − passband) fs`` up: what
+#: folds onto the pass band's edge lies this far down.
+STOPBAND_DB = 80.0
+
+
 @dataclasses.dataclass(frozen=True)
 class DAQ:
     """Data-acquisition settings of the simulated sensor.
@@ -154,6 +163,8 @@ class DAQ:
       no noise.
     - `tacho_ppr`, `tacho_shaft`: tachometer pulses per revolution of ``"sun"`` or
       ``"carrier"``; None = no tachometer.
+    - `passband`: end of the anti-aliasing filter's pass band, a fraction of `sample_rate`
+      (:func:`daq_filter`; default :data:`DEFAULT_PASSBAND`, a delta-sigma DAQ's 0.45).
     - `frf_hz`, `frf_db`: a smooth sensor frequency response (knots in Hz and gains in dB,
       :mod:`dtwin.sensor_response`) applied to the sampled signal before any integration and
       noise; None = flat (a gain of 1).
@@ -169,6 +180,7 @@ class DAQ:
     tacho_shaft: str = "sun"
     frf_hz: tuple[float, ...] | None = None
     frf_db: tuple[float, ...] | None = None
+    passband: float = DEFAULT_PASSBAND
 
     def __post_init__(self):
         if self.quantity not in QUANTITIES:
@@ -333,13 +345,34 @@ def _initial_state_compiled(twin: Twin, f_sun, start: str):
 
 
 # --------------------------------------------------------------------------------- solve
-def daq_filter(oversample: int) -> np.ndarray:
-    """FIR anti-aliasing filter taps (Kaiser, cut-off 0.4 of the output rate, unit DC gain)."""
+@functools.lru_cache(maxsize=32)
+def _daq_taps(oversample: int, passband: float) -> np.ndarray:
     import scipy.signal  # deferred: scipy.signal takes seconds to import; `import dtwin` stays light
 
-    numtaps = 24 * oversample + 1
-    taps = scipy.signal.firwin(numtaps, 0.8 / oversample, window=("kaiser", 9.0))
-    return taps / taps.sum()
+    # normalised to the internal Nyquist frequency (oversample × fs / 2): the band from
+    # passband·fs to (1 − passband)·fs, which decimation folds onto itself, is the transition
+    width = 2.0 * (1.0 - 2.0 * passband) / oversample
+    numtaps, beta = scipy.signal.kaiserord(STOPBAND_DB + 3.0, width)  # 3 dB design margin
+    numtaps += 1 - numtaps % 2  # odd: a centred, zero-phase filter
+    taps = scipy.signal.firwin(numtaps, 1.0 / oversample, window=("kaiser", beta))
+    taps = taps / taps.sum()
+    taps.setflags(write=False)
+    return taps
+
+
+def daq_filter(oversample: int, passband: float = DEFAULT_PASSBAND) -> np.ndarray:
+    """FIR anti-aliasing filter taps of a DAQ (Kaiser window design, unit DC gain): flat (within
+    ~0.001 dB) up to ``passband`` × the output rate, :data:`STOPBAND_DB` down from ``(1 −
+    passband)`` × the output rate, the band that decimation by `oversample` folds onto the pass
+    band; the transition is centred on the output Nyquist frequency.
+
+    **Arguments:** `oversample` (internal rate over the output rate, ≥ 2); `passband` (fraction
+    of the output rate, 0.3–0.49: 0.45 for a delta-sigma DAQ, 1/2.56 for a classic analyser).
+    **Returns:** the taps (read-only), at the internal rate.
+    """
+    if not 0.3 <= float(passband) < 0.5:
+        raise ValueError(f"passband must lie in [0.3, 0.5) of the sampling rate, got {passband}")
+    return _daq_taps(int(oversample), float(passband))
 
 
 def _filtered_paths(twin: Twin, quantity: str) -> list[int]:
@@ -746,7 +779,7 @@ def simulate(
         raise ValueError(f"discard must be >= 0 s, got {discard}")
     fs_out = float(daq.sample_rate)
     fs_hi = fs_out * daq.oversample
-    taps = daq_filter(daq.oversample)
+    taps = daq_filter(daq.oversample, daq.passband)
     half = (len(taps) - 1) // 2
     n_out = int(round(duration * fs_out))
     if n_out < 8:

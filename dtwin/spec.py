@@ -193,6 +193,11 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
         "window_exponent": FieldSpec("float", "1", 4.0, 0.0, 64.0,
                                      doc="transfer-path window ((1 + cos φ)/2)^p of a planet's "
                                          "angle φ to the sensor (dtwin/parts/transfer_path.py)"),
+        "passband": FieldSpec("float", "1", 0.45, 0.3, 0.49,
+                              doc="end of the DAQ's anti-aliasing pass band, a fraction of "
+                                  "sample_rate: 0.45 for a delta-sigma DAQ (the default), "
+                                  "0.39 (1/2.56) for a classic analyser; the twin's filter "
+                                  "passes flat to it and the gaps are scored up to it"),
         "oversample": FieldSpec("int", "1", 4, 2, 64,
                                 doc="internal simulation rate over the DAQ rate (anti-aliasing)"),
         "tacho_ppr": FieldSpec("int", "1", None, 1, 10000,

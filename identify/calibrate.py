@@ -127,7 +127,7 @@ from dtwin.spec_writer import spec_to_toml
 from dtwin.spectrum import noise_floor
 from dtwin.units import quantity as unit_quantity
 
-from .gap import FLOOR_BINS, PASSBAND, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
+from .gap import FLOOR_BINS, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
 from .lines import Kinematics
 from .operating_point import resolve_speed
 from .shortfall import shortfall_lines
@@ -153,7 +153,7 @@ class CalibrationSettings:
 
     - `window_terms`: K, cosine terms of the window (``c_0 … c_{K-1}``).
     - `n_knots`: knots of the sensor frequency response, log-spaced from 0.8 N f_c to the top
-      of the pass band (`PASSBAND` × the rate).
+      of the pass band (the spec's ``[sensor] passband`` × the rate).
     - `mesh_harmonics`: mesh harmonics with a fitted excitation, at most
       :data:`dtwin.registry.N_EXCITATION_HARMONICS` (None: all below 0.45 × rate, up to that).
     - `discard` (s): start-up simulated before the record (the path's filter settles).
@@ -855,10 +855,12 @@ def calibrate(
     noise_rms = float(np.sqrt(np.median(F) ** 2 * n_half / (6.0 * math.log(2.0))))
     fam = _family_bins(kin, freqs)
     strong = A > F * 10.0 ** (THRESHOLD_DB / 20.0)
-    band = (freqs >= 0.5 * kin.f_carrier) & (freqs <= PASSBAND * fs)
+    # the scored band ends where the DAQ's anti-aliasing pass band does (the spec's)
+    band_top = float(spec["sensor"]["passband"]) * fs
+    band = (freqs >= 0.5 * kin.f_carrier) & (freqs <= band_top)
     S = (fam[None, None, :] | strong) & band[None, None, :]
     Wl = strong & band[None, None, :]
-    knots = np.geomspace(0.8 * kin.n_planets * kin.f_carrier, PASSBAND * fs, settings.n_knots)
+    knots = np.geomspace(0.8 * kin.n_planets * kin.f_carrier, band_top, settings.n_knots)
     B = knot_basis(freqs, knots)
     prior = np.concatenate([np.full(layout.n_window, settings.window_prior),
                             np.full(2 * n_harm, settings.te_prior / _TE_UNIT),
@@ -879,7 +881,7 @@ def calibrate(
 
     rec_idx = np.repeat(np.arange(n_rec), 2)
     half_idx = np.tile(np.arange(2), n_rec)
-    bands = named_bands(kin, PASSBAND * fs)
+    bands = named_bands(kin, band_top)
     a_meas = A.reshape(-1, A.shape[-1])
 
     # the model's amplitudes at θ (response solved on `fit_rows`), on the rows `score_rows`
@@ -1017,7 +1019,7 @@ def calibrate(
     data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
     # what the calibrated twin still leaves unexplained on the healthy records: discovery
     # refuses a candidate whose evidence lies there (dtwin.identify.shortfall)
-    orders, excess = shortfall_lines(freqs, a_meas, a_after, kin, PASSBAND * fs)
+    orders, excess = shortfall_lines(freqs, a_meas, a_after, kin, band_top)
     data["calibration"]["shortfall_orders"] = [round(o, 6) for o in orders]
     data["calibration"]["shortfall_db"] = [round(e, 2) for e in excess]
     return CalibrationResult(data, params, f_sun, gap_before, gap_held, gap_conf, freqs,
@@ -1255,8 +1257,8 @@ def heldout_gap(
     """The gap (dB, per named band) between records the calibration did not see and the twin of
     a (calibrated) `spec`, simulated at each record's own speed with no refit of anything.
 
-    Rows are the records' halves, as in :func:`calibrate`; the band ends at `PASSBAND` × the
-    rate. **Arguments:** `spec` (`Spec` or path), `records` (`Record` or paths, one rate),
+    Rows are the records' halves, as in :func:`calibrate`; the band ends at the spec's
+    ``[sensor] passband`` × the rate. **Arguments:** `spec` (`Spec` or path), `records` (`Record` or paths, one rate),
     `kind`, `channel`, `discard` (s), `solver`.
     """
     if not isinstance(spec, Spec):
@@ -1281,4 +1283,4 @@ def heldout_gap(
         a_meas.append(np.abs(Y))
         a_model.append(np.abs(Z))
     return gap(freqs, np.concatenate(a_meas), np.concatenate(a_model),
-               named_bands(kin, PASSBAND * fs))
+               named_bands(kin, float(spec["sensor"]["passband"]) * fs))

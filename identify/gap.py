@@ -25,8 +25,10 @@ parameters fitted on one half are scored on the other and vice versa;
 the reported gap pools the squared differences of both folds. Adding parameters cannot shrink
 this by fitting the noise of the scored half.
 
-**The band.** The gap is taken over ``0 … PASSBAND × the sampling rate`` (0.45 fs): the
-usable band of a DAQ, whose anti-aliasing filter's pass band ends at ~0.4–0.45 fs. Above it a
+**The band.** The gap is taken over ``0 … passband × the sampling rate``: the usable band
+of the DAQ, where its anti-aliasing filter's pass band ends (the spec's ``[sensor] passband``,
+:data:`PASSBAND` = 0.45 where none is given: a delta-sigma DAQ; 1/2.56 on a classic analyser).
+The twin's own anti-aliasing filter passes flat to the same edge (:func:`dtwin.simulate.daq_filter`). Above it a
 record holds aliases and filter-shaped lines (an independent simulator's 5 f_m = 2501.5 Hz,
 above the 2500 Hz Nyquist frequency of a 5 kHz record, appears at 2498.5 Hz) that no twin of the
 gearbox can be held to: calibration and discovery score the same band.

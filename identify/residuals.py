@@ -446,7 +446,7 @@ def _daq_grid(duration, discard, daq):
     """The DAQ's oversampled rate (Hz), its anti-alias taps and the simulated time grid (s):
     the output samples plus the filter's half-length on each side, as `dtwin.simulate`."""
     fs_hi = float(daq.sample_rate) * daq.oversample
-    taps = daq_filter(daq.oversample)
+    taps = daq_filter(daq.oversample, daq.passband)
     half = (len(taps) - 1) // 2
     n_hi = int(round(duration * float(daq.sample_rate))) * daq.oversample
     return fs_hi, taps, float(discard) + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi

@@ -19,7 +19,7 @@ from dtwin.units import quantity as unit_quantity
 
 from ..effects import registered_effects
 from ..effects.base import EffectContext
-from ..gap import FLOOR_BINS, PASSBAND, gap, named_bands, segment_spectra
+from ..gap import FLOOR_BINS, gap, named_bands, segment_spectra
 from ..lines import (
     Kinematics,
     band_bounds,
@@ -236,7 +236,7 @@ def discover(
     nb = len(freqs)
     # the gap over the DAQ's pass band, as calibration's (dtwin.identify.gap): the lines above
     # it are still found and labelled ("alias of 5fm"), not scored
-    bands = named_bands(kin, PASSBAND * fs)
+    bands = named_bands(kin, float(spec["sensor"]["passband"]) * fs)
     tol_full = settings.tolerance_bins * (freqs_full[1] - freqs_full[0])
     chance = chance_match_probability(kin, tol_full, f_max, band_bounds(kin, f_max))
     combs, modulation = [], None
