@@ -176,16 +176,17 @@ def stiffness_report(lp: Any, faults: Any, curves: dict[str, Any]) -> dict[str, 
     }
 
 
-def input_speed(record, spec, f_sun: float | None, *,
-                channel: int | str = 0) -> tuple[float | None, str | None]:
-    """Input (sun) speed (Hz) of `record` and where it came from, by the one rule of
+def operating_point(record, spec, f_sun: float | None, *, channel: int | str = 0):
+    """The input (sun) speed of `record` by the one rule of
     :func:`dtwin.identify.operating_point.resolve_speed`: `f_sun` (``--f-sun``) → the record's
     tachometer → its metadata ``f_sun`` → its mesh lines (`channel`; needs `spec`) → the
     spec's ``operating.f_sun``. A speed the lines contradict is used with a warning naming the
     lines; when the mesh harmonics disagree with each other, the spec's speed is used with a
-    warning. ``(None, None)`` when nothing gives a speed."""
+    warning. **Returns:** the :class:`~dtwin.identify.operating_point.OperatingPoint` (speed,
+    uncertainty, source, lines used), None when nothing gives a speed."""
     # dtwin.identify (fits, JAX programs) is imported when a record's speed is resolved only
     from dtwin.identify.operating_point import (
+        OperatingPoint,
         SpeedDisagreementError,
         SpeedWarning,
         nominal_speed,
@@ -193,17 +194,24 @@ def input_speed(record, spec, f_sun: float | None, *,
     )
 
     try:
-        op = resolve_speed(record, spec, f_sun, channel=channel, required=False)
+        return resolve_speed(record, spec, f_sun, channel=channel, required=False)
     except SpeedDisagreementError as e:
         nominal = nominal_speed(spec)
         if not nominal:
             raise
-        warnings.warn(f"{e}; the spec's operating.f_sun ({nominal:g} Hz) is used", SpeedWarning,
-                      stacklevel=2)
-        return check_input_speed(nominal, "operating.f_sun"), "spec operating.f_sun"
-    if op is None:
-        return None, None
-    return op.f_sun, op.source
+        note = f"{e}; the spec's operating.f_sun ({nominal:g} Hz) is used"
+        warnings.warn(note, SpeedWarning, stacklevel=2)
+        f = check_input_speed(nominal, "operating.f_sun")
+        return OperatingPoint(f, float("nan"), 0.0, "spec", source="spec operating.f_sun",
+                              note=note)
+
+
+def input_speed(record, spec, f_sun: float | None, *,
+                channel: int | str = 0) -> tuple[float | None, str | None]:
+    """Input (sun) speed (Hz) of `record` and where it came from (:func:`operating_point`);
+    ``(None, None)`` when nothing gives a speed."""
+    op = operating_point(record, spec, f_sun, channel=channel)
+    return (None, None) if op is None else (op.f_sun, op.source)
 
 
 def gear_frequencies(spec, f_sun: float | None, planet_fault: str = "paper") -> dict | None:
@@ -423,6 +431,6 @@ def record_report(rec: Any, problems: list[Any], freqs: dict[str, float]) -> dic
 
 __all__ = [
     "channel_unit", "freqs_report", "gear_frequencies", "input_speed", "modes_report",
-    "operating_mesh_frequency",
+    "operating_mesh_frequency", "operating_point",
     "record_report", "run_simulation", "spectrum_report", "stiffness_curves", "stiffness_report",
 ]

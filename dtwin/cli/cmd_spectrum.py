@@ -40,7 +40,7 @@ from pathlib import Path
 
 import typer
 
-from ..reports import gear_frequencies, input_speed, spectrum_report
+from ..reports import gear_frequencies, operating_point, spectrum_report
 from . import options as opts
 from .app import app
 
@@ -153,7 +153,8 @@ def spectrum(
     except Exception:  # noqa: BLE001 - one message listing the channels
         opts.check_channel(record, opts.channel_token(channel))
         raise
-    fsun, fsun_source = input_speed(record, gearbox, f_sun, channel=rows[0])
+    op = operating_point(record, gearbox, f_sun, channel=rows[0])
+    fsun, fsun_source = (None, None) if op is None else (op.f_sun, op.source)
     opts.checked_record(record, rows, gearbox, fsun)
     nyq = record.sample_rate / 2
     opts.band("--band", band, nyquist=nyq)
@@ -195,6 +196,7 @@ def spectrum(
 
         datas.append(data)
     head = {"record": str(record_file), "f_sun_hz": fsun, "f_sun_source": fsun_source,
+            **({"operating_point": op.to_dict()} if op is not None else {}),
             "gearbox": gb.source if gb is not None else None}
     report = ({**head, **reports[0]} if len(reports) == 1
               else {**head, "channels": reports})
