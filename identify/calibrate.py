@@ -1192,7 +1192,7 @@ def _intervals(theta, G, data: _Data, layout: _Layout, knots, Wl, B, twin, i_exc
         sdj = float(np.sqrt(max(covG[j, j], 0.0)))
         out.append(CalibratedParameter(
             f"frf_db_{j}", float(G[j]), "dB", sdj, settings.frf_prior_db,
-            bool(support[j] and sdj < 3.0), f"response at {f:.4g} Hz"
+            bool(support[j] and sdj < 3.0), f"response at {f:.6g} Hz"
             + ("" if support[j] else "; no measured line near this knot")))
     return out
 
