@@ -198,6 +198,12 @@ def test_spectrum_warns_of_a_wrong_speed_and_takes_a_tachometer(csv_record, caps
     assert rep["f_sun_source"] == "tachometer (sun)"
     assert rep["f_sun_hz"] == pytest.approx(F_TRUE, rel=1e-3)
     assert "disagrees" not in cap.err
+    # no speed given, no tachometer: the lines' estimate, its uncertainty and the lines used
+    main(["spectrum", str(csv_record), "--preset", "paper-sim", "--channel", "accel", "--json"])
+    op = json.loads(capsys.readouterr().out)["operating_point"]
+    assert op["method"] == "spectrum" and op["source"] == "mesh lines"
+    assert abs(op["f_sun_hz"] - F_TRUE) <= 4 * op["std_f_sun_hz"] + 1e-9
+    assert "2fm − fc" in [ln["label"] for ln in op["lines"]]
 
 
 def test_severity_refuses_a_speed_the_record_contradicts(csv_record, capsys):
