@@ -131,9 +131,12 @@ def _echo_windows(segs: list) -> None:
 
 
 def _speed_hint(record, spec) -> float | None:
-    from ..reports import input_speed
+    """The speed (Hz) the record checks use: the tachometer's, the metadata's or the spec's
+    (the fit resolves it from the lines, and :func:`_check_given_speed` checks it)."""
+    from dtwin.identify.operating_point import resolve_speed
 
-    return input_speed(record, spec, None)[0]
+    op = resolve_speed(record, spec, estimate=False, check=False, required=False)
+    return None if op is None else op.f_sun
 
 
 def _unit(recs: list, channel) -> str | None:
