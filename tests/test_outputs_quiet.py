@@ -78,3 +78,17 @@ def test_cli_silences_third_party_messages_and_keeps_dtwin_warnings():
         assert not ray_log.isEnabledFor(logging.WARNING)
     finally:
         ray_log.setLevel(level)
+
+
+def test_messages_name_values_without_python_reprs(capsys):
+    """A wrong channel is named as the user typed it and the record's channels as a list of
+    names, not as Python's list repr (``['vibration']``)."""
+    import pytest
+
+    from dtwin.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["spectrum", str(HEALTHY), "--channel", "9"])
+    assert e.value.code == 2
+    assert capsys.readouterr().err.strip() == (
+        "error: --channel: unknown channel 9; the record has vibration (names or indices 0..0)")

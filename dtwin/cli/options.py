@@ -379,9 +379,8 @@ def check_channel(record: Any, channel: str | int) -> None:
     try:
         record.index(channel)
     except (KeyError, IndexError, ValueError):
-        raise RecordError(f"--channel: unknown channel {channel!r}; the record has "
-
-                          f"{list(record.channels)} (names or indices 0.."
+        raise RecordError(f"--channel: unknown channel {channel}; the record has "
+                          f"{', '.join(map(str, record.channels))} (names or indices 0.."
                           f"{len(record.channels) - 1})") from None
 
 
