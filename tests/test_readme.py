@@ -147,3 +147,11 @@ def test_readme_tour_full(tmp_path):
     lo, hi = sev["interval_95"]  # the severity with its interval, as the README says
     assert 0.0 <= lo <= sev["severity"] <= hi <= 1.0
     assert any(p.suffix == ".csv" for p in (tour / "fleet").iterdir())
+
+
+def test_readme_links_point_at_shipped_files():
+    """Every relative link of the README names a file of the repository."""
+    links = re.findall(r"\]\(([^)#:]+)\)", README.read_text())
+    assert links, "the README links into docs/"
+    missing = [p for p in links if not (ROOT / p).exists()]
+    assert not missing, f"README links to files that do not exist: {missing}"
