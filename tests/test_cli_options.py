@@ -98,14 +98,14 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
         ("--min-spacing", "-1"), ("--max-peaks", "-3"), ("--floor-width", "1"),
         ("--sample-rate", "-1"), ("--scale", "loud"), ("--units", "furlongs"),
         ("--highpass", "0"), ("--segment", "2"), ("--overlap", "1.5"), ("--iso-group", "3"),
-        ("--iso-support", "wobbly"), ("--tacho", "nope"), ("--tacho", "0:0"), *OUT_BAD]),
+        ("--iso-support", "wobbly"), ("--tacho", "nope"), ("--tacho", "0:0"),
+        ("--export", "{rec}"), *OUT_BAD]),
     ("view", R): (["--kind", "psd"], [
         ("RECORD", "{missing}"), ("--kind", "spectrogram"), ("--channel", "nope"),
         ("--preset", "nope"), ("--spec", "{missing}"), ("--f-sun", "0"),
         ("--band", ("-1", "5")), ("--speed-range", ("0", "5")), ("--segment", "2"),
         ("--nat", "-1"), ("--sample-rate", "0"), ("--revs", "0"), ("--scale", "loud"),
-        ("--units", "furlongs"), ("--highpass", "0"),
-
+        ("--units", "furlongs"), ("--highpass", "0"), ("--export", "{rec}"),
         *OUT_BAD]),
     ("identify", R): (["--preset", "paper-sim", "--free", "sun_fault"], [
         ("RECORD", "{missing}"), ("--free", "sun_faul"), ("--spec", "{missing}"),
