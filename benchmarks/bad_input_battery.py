@@ -279,7 +279,7 @@ def cases() -> list[Case]:
     c += _reading("spectrum", out=False)
     c += _reading("view", kinds=("missing", "empty", "truncated", "format", "huge"))
     c += _reading("severity", ["--location", "sun"])
-    c += _reading("identify")
+    c += _reading("identify", ["--free", "sun_fault"])
     c += _reading("calibrate", out=True)
     c.append(Case("calibrate.huge-knots", ("calibrate", "{w}/good.csv", "--preset",
                                            "paper-bench", "--knots", "100000", "--out",
@@ -288,7 +288,7 @@ def cases() -> list[Case]:
     c.append(Case("discover.huge-n-boot", ("discover", "{w}/good.csv", "--preset",
                                            "paper-bench", "--n-boot", "1000000000"),
                   ("good.csv",)))
-    for cmd, extra in (("severity", ["--location", "sun"]), ("identify", []),
+    for cmd, extra in (("severity", ["--location", "sun"]), ("identify", ["--free", "sun_fault"]),
                        ("discover", []), ("calibrate", [])):
         c.append(_interrupt(cmd, (cmd, "{w}/sim.dtwin.h5", "--preset", "paper-bench", *extra),
                             12.0, ("sim.dtwin.h5",), ("sim",)))

@@ -130,3 +130,39 @@ def test_unbounded_work_options_are_bounded(argv, option, bound, tmp_path, monke
     monkeypatch.chdir(tmp_path)
     line = _fails(argv, capsys)
     assert line.startswith(f"error: {option}: must lie in {bound}"), line
+
+
+def test_ctrl_c_inside_a_gc_callback_prints_no_traceback():
+    """SIGINT while the main thread runs a garbage-collector callback (JAX registers one): the
+    KeyboardInterrupt cannot leave the callback, and Python would print "Exception ignored in
+    …" with a traceback. The dtwin command prints its one line and exits 130."""
+    script = (
+        "import gc, sys, time\n"
+        "import dtwin.cli.cmd_freqs as m\n"
+        "def slow(phase, info):\n"
+        "    if phase == 'start':\n"
+        "        time.sleep(0.05)\n"
+        "def work(*a, **k):\n"
+        "    gc.callbacks.append(slow)\n"
+        "    print('ready', flush=True)\n"
+        "    t = time.time()\n"
+        "    while time.time() - t < 60:\n"
+        "        gc.collect()\n"
+        "m.freqs_report = work\n"
+        "sys.argv = ['/usr/bin/dtwin', 'freqs', '--preset', 'paper-sim']\n"
+        "from dtwin.cli import main\n"
+        "main()\n")
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "ready"
+        time.sleep(0.3)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 130, err
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+    assert err.splitlines() == [line for line in err.splitlines()
+                                if line.startswith("interrupted")] and err.strip(), err

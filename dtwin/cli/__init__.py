@@ -32,6 +32,22 @@ def _on_signal(signum: int, frame: object) -> None:
     raise KeyboardInterrupt()
 
 
+def _quiet_unraisable(default):
+    """A ``sys.unraisablehook`` that drops a KeyboardInterrupt/Terminated the signal handler
+    raised inside a finaliser or a garbage-collector callback (JAX registers one): Python
+    cannot propagate it from there and would print "Exception ignored in …" with a traceback.
+    The signal is already in :data:`_SIGNALS`; the command ends with the one ``interrupted``
+    line (the watcher thread, or :func:`main` when the work returns). Anything else goes to
+    `default`."""
+
+    def hook(unraisable) -> None:
+        if isinstance(unraisable.exc_value, (KeyboardInterrupt, Terminated)):
+            return
+        default(unraisable)
+
+    return hook
+
+
 def _interrupt_exit(signum: int) -> SystemExit:
     name = "SIGTERM" if signum == signal.SIGTERM else "SIGINT"
     print(f"interrupted ({name}): nothing was written to --out; run the same command again to "
@@ -155,8 +171,11 @@ def usage_error_line(e: Exception) -> str:
     style of every other bad-input message of the CLI (click prints a usage block, typer with
     rich a box)."""
     ctx = getattr(e, "ctx", None)
-    path = str(getattr(ctx, "command_path", "") or "")
-    where = "dtwin" + (" " + path.split(" ", 1)[1] if " " in path else "")
+    names, c = [], ctx
+    while c is not None and getattr(c, "parent", None) is not None:  # the root is the program
+        names.insert(0, str(c.info_name))
+        c = c.parent
+    where = " ".join(["dtwin", *names])
     message = " ".join(str(getattr(e, "message", e)).split()).rstrip(".")
     message = message[:1].lower() + message[1:]
     param = getattr(e, "param", None)
@@ -231,9 +250,11 @@ def main(argv: list[str] | None = None) -> None:
 
     _SIGNALS.clear()
     old = {}
+    old_unraisable = sys.unraisablehook
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             old[sig] = signal.signal(sig, _on_signal)
+        sys.unraisablehook = _quiet_unraisable(old_unraisable)
         if _CONSOLE_SCRIPT:
             _watch_signals()
     try:
@@ -280,6 +301,7 @@ def main(argv: list[str] | None = None) -> None:
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
+        sys.unraisablehook = old_unraisable
 
 
 __all__ = ["app", "main"]
