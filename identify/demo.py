@@ -3,7 +3,8 @@
     python -m dtwin.identify.demo --out demo-output [--full] [--force]
 
 Steps (each writes figures and a section of ``report.md`` into the output folder, with
-``manifest.json`` listing inputs, versions and parameters):
+``manifest.json`` listing inputs, versions and parameters; ``report.html`` holds them all in one
+page, and the demo ends by printing its path and the figures'):
 
 1. characteristic frequencies of the paper's simulation and bench gearboxes (Tables 2 and 4);
 2. modal analysis (Lin & Parker mode types) of the simulation gearbox;
@@ -14,19 +15,33 @@ Steps (each writes figures and a section of ``report.md`` into the output folder
 5. the bundled sample records (``data/samples``, bench gearbox): labelled spectra;
 6. calibration on the healthy bundled record (:func:`step_calibration`): the calibrated spec,
    the gap before and after, the parameters the record determines;
-7. identification on the bundled records with the calibrated spec (:func:`demo_section`).
+7. identification on the bundled records with the calibrated spec (:func:`demo_section`): the
+   sun-fault severity;
+8. discovery on the sun-fault record with the calibrated spec (:func:`step_discovery`);
+9. a fleet run over the steady bundled records (:func:`step_fleet`).
+
+Each step prints a progress line on stderr with the time it has taken and an estimate of the
+time left (:mod:`dtwin.cli.progress`; the estimate from the last demo on this machine).
 
 It lives in :mod:`dtwin.identify` (not in the core package ``dtwin``): it uses the whole
 library, the identification included, and only public functions (the analyses behind the
 commands come from :mod:`dtwin.reports`, not from the CLI).
 
-``--full`` uses the paper's 4 s records (default 2 s to keep the demo to a few minutes);
-``--quick`` is a smoke run (0.5 s, torsional) used by the tests.
+**Cheaper settings** in the default demo (``--full`` restores the library's defaults): the
+paper's cases simulated for 1 s (``--full``: 4 s); the severity fit from one start, without
+the jackknife and the excitation/response split (``--full``: 3 starts, both); discovery with
+:data:`DISCOVERY_BOOT` bootstrap draws and one step (default 400 and 3); the fleet fits the sun
+fault in the torsional twin of the bench preset with at most :data:`FLEET_STEPS` steps. The
+calibration always runs with the library's settings.
+
+``--quick`` is a smoke run (0.5 s, torsional; calibration, severity, discovery and fleet
+skipped) used by the tests.
 """
 
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import time
 import traceback
@@ -39,6 +54,10 @@ from dtwin.io.readers import read_record
 from dtwin.spec import preset
 
 DATA = Path(__file__).resolve().parent.parent / "data"
+#: Bootstrap draws of the demo's discovery (library default 400).
+DISCOVERY_BOOT = 100
+#: Solver steps of the demo's fleet fits (library default 40).
+FLEET_STEPS = 15
 CASES = {
     "healthy": (),
     "sun_missing_tooth+planet_pitting": ("sun:missing_tooth:0.6", "planet:pitting:0.5:0:0"),
@@ -176,9 +195,10 @@ def step_samples(folder: OutputFolder) -> str:
             + _md_table(rows, ["record", "duration (s)", "rate (Hz)", "peak labels"]))
 
 
-def step_calibration(folder: OutputFolder, quick: bool = False):
+def step_calibration(folder: OutputFolder, quick: bool = False, say=None):
     """Calibrate the bench preset on ``bench_healthy`` (the README's first step): returns the
-    report section and the calibrated spec (None when the step could not run)."""
+    report section and the calibrated spec (None when the step could not run). `say` gets the
+    calibration's stages (one line each)."""
     from dtwin.spec_writer import spec_to_toml
 
     from .calibrate import calibrate
@@ -193,7 +213,7 @@ def step_calibration(folder: OutputFolder, quick: bool = False):
     rec = read_record(path)
     spec = preset("paper-bench")
     res = calibrate([rec], spec,
-                    progress=lambda m: print(f"[demo]   calibrate: {m}", flush=True))
+                    progress=None if say is None else (lambda m: say(f"calibration: {m}")))
     res.records = [path.name]
     folder.write_text("calibrated.toml", spec_to_toml(res.spec_data))
     folder.write_json("calibration.json", res.to_dict())
@@ -234,8 +254,130 @@ def step_calibration(folder: OutputFolder, quick: bool = False):
     return text, res.spec()
 
 
-def step_identify(folder: OutputFolder, quick: bool = False, spec=None) -> str:
-    return demo_section(folder, DATA, quick=quick, spec=spec)
+def step_identify(folder: OutputFolder, quick: bool = False, spec=None, full: bool = False
+                  ) -> str:
+    return demo_section(folder, DATA, quick=quick, spec=spec, full=full)
+
+
+def step_discovery(folder: OutputFolder, quick: bool = False, spec=None, full: bool = False,
+                   say=None) -> str:
+    """Discovery (``dtwin discover``) on ``bench_sun_fault`` with `spec` (the calibrated spec;
+    None: the bench preset): which effect the twin misses, the held-out gap before and after."""
+    from .discover import DiscoverySettings, discover
+    from .plotting.discover import plot_gap_bars, plot_step_spectra
+    from .tables import discovery_rows
+
+    head = "## 8. Discovery on the sun-fault record\n"
+    if quick:
+        return head + "\n(quick run: discovery is skipped; `make demo` runs it.)"
+    path = DATA / "samples" / "bench_sun_fault.dtwin.h5"
+    rec = read_record(path)
+    calibrated = spec is not None
+    spec = spec if calibrated else preset("paper-bench")
+    settings = DiscoverySettings() if full else DiscoverySettings(n_boot=DISCOVERY_BOOT,
+                                                                  max_steps=1)
+    res = discover(rec.channel(0), spec, sample_rate=rec.sample_rate, settings=settings,
+                   log=None if say is None else (lambda m: say(f"discovery: {m}")))
+    folder.write_json("discover.json", res.to_dict())
+    folder.savefig("discover_gap.png", plot_gap_bars(res))
+    last = len(res.models) - 1
+    folder.savefig("discover_spectrum.png", plot_step_spectra(res, last, unit=rec.units[0]))
+    cols = ("step", "effect", "parameter", "value", "lower_99", "upper_99", "unit",
+            "gap_before_db", "gap_after_db", "p_value")
+    rows = [[r[c] if isinstance(r[c], (int, str)) else _num(r[c]) for c in cols]
+            for r in discovery_rows(res)]
+    unexplained = ", ".join(f"{r.frequency:.1f} Hz" for r in res.unexplained[:6]) or "none"
+    return "\n".join([
+        head,
+        f"`dtwin discover data/samples/{path.name} --spec calibrated.toml` with the "
+        f"{'calibrated spec of section 6' if calibrated else 'bench preset'}: held-out gap of "
+        f"the base twin {res.initial_gap.total:.1f} dB, after discovery "
+        f"{res.final_gap.total:.1f} dB. Stopped: {res.stop_reason}. Lines still unexplained: "
+        f"{unexplained}.",
+        "",
+        _md_table(rows, list(cols)) if rows else "No effect was added.",
+        "",
+        "![gap per band](discover_gap.png)",
+        "",
+        "![spectra](discover_spectrum.png)",
+    ])
+
+
+def step_fleet(folder: OutputFolder, quick: bool = False, spec=None, full: bool = False) -> str:
+    """A fleet run (``dtwin fleet identify``) over the steady bundled records: the sun-fault
+    severity of each, in one table (``fleet/``). The default demo fits the torsional twin of the
+    bench preset (`spec`, calibrated with the translational twin, is used with ``--full``)."""
+    from .fleet import FleetSettings, load_results, run_fleet, table_rows
+
+    head = "## 9. A fleet run over the bundled records\n"
+    if quick:
+        return head + "\n(quick run: the fleet run is skipped; `make demo` runs it.)"
+    paths = [p for p in sorted((DATA / "samples").glob("bench_*.dtwin.h5"))
+             if "runup" not in p.name]
+    given = "--spec calibrated.toml" if spec is not None and full else "--preset paper-bench"
+    spec = spec if spec is not None and full else preset("paper-bench")
+    settings = FleetSettings(free=("sun_fault",), kind="translational" if full else "torsional",
+                             max_steps=40 if full else FLEET_STEPS)
+    out = folder.path / "fleet"
+    run = run_fleet([str(p) for p in paths], spec, out, settings, engine="local",
+                    progress=False, force=True, command=["dtwin", "fleet", "identify"])
+    rows, _ = table_rows(load_results(out, failed=True))
+    table = [[r.get("record", "").split("/")[-1], r.get("status", ""),
+              _num(r.get("sun_fault")), f"{_num(r.get('sun_fault_lo95'))} – "
+              f"{_num(r.get('sun_fault_hi95'))}", _num(r.get("gap_db"))] for r in rows]
+    return "\n".join([
+        head,
+        f"`dtwin fleet identify data/samples/bench_*.dtwin.h5 {given} --free sun_fault --model "
+        f"{settings.kind} --max-steps {settings.max_steps} --out fleet/`: {run.records} records, "
+        f"{run.fitted} fitted, {run.failed} failed in {run.wall_time_s:.0f} s; the table is "
+        f"`fleet/{run.table.name if run.table else 'table.csv'}`."
+        + (" The torsional twin reads a tooth fault several times small (section 7 fits the "
+           "translational one); the fleet run ranks the records."
+           if settings.kind == "torsional" else ""),
+        "",
+        _md_table(table, ["record", "status", "sun_fault", "95 % interval", "gap (dB)"]),
+    ])
+
+
+def _num(v) -> str:
+    try:
+        return f"{float(v):.3g}"
+    except (TypeError, ValueError):
+        return "–"
+
+
+def write_html(folder: OutputFolder, sections: list[str], timings: dict[str, str]) -> Path:
+    """``report.html``: the demo's sections in one self-contained page (the markdown tables
+    as tables, the figures embedded, the text as notes) and each step's time."""
+    from dtwin.io.html_report import write_html_report
+
+    figures: dict[str, str] = {}
+    tables: dict[str, tuple[list[str], list[list[str]]]] = {}
+    notes: list[str] = []
+    for text in sections[2:]:
+        title = text.splitlines()[0].lstrip("# ").strip() if text else ""
+        rows: list[list[str]] = []
+        for line in text.splitlines()[1:] + [""]:
+            if line.startswith("|"):
+                cells = [c.strip() for c in line.strip().strip("|").split("|")]
+                if not all(set(c) <= set("-:") for c in cells):
+                    rows.append(cells)
+                continue
+            if rows:
+                name = title if title not in tables else f"{title} ({len(tables)})"
+                tables[name] = (rows[0], rows[1:])
+                rows = []
+            for cap, file in re.findall(r"!\[([^\]]*)\]\(([^)]+)\)", line):
+                if (folder.path / file).exists():
+                    figures[f"{title}: {cap}"] = file
+            if line.strip() and not line.startswith(("!", "#", "```")):
+                notes.append(f"{title.split('.')[0]}. {line.strip()}")
+    shown = set(figures.values())
+    for png in sorted(folder.path.glob("*.png")):  # figures no section names (sample spectra)
+        if png.name not in shown:
+            figures[png.stem.replace("_", " ")] = png.name
+    return write_html_report(folder, title="dtwin demo", summary=timings, figures=figures,
+                             tables=tables, notes=notes)
 
 
 
@@ -254,14 +396,14 @@ def main(argv: list[str] | None = None) -> int:
     force = args.force or (out / "manifest.json").exists()  # the demo's own folder: refresh it
     folder = OutputFolder(out, force=force, parameters={"full": args.full, "quick": args.quick})
     folder.force = True  # the report is rewritten after every step (atomically)
-    duration = 4.0 if args.full else (0.5 if args.quick else 2.0)
+    duration = 4.0 if args.full else (0.5 if args.quick else 1.0)
     kind = "torsional" if args.quick else None
     sections = ["# dtwin demo report\n",
                 "Generated by `make demo` (python -m dtwin.identify.demo). Figures beside this file."]
     calibrated: dict = {}  # section 6 hands its calibrated spec to section 7
 
     def calibration(folder, quick):
-        text, spec = step_calibration(folder, quick)
+        text, spec = step_calibration(folder, quick, say=stage)
         calibrated["spec"] = spec
         return text
 
@@ -271,21 +413,36 @@ def main(argv: list[str] | None = None) -> int:
              ("paper cases", lambda: step_paper_cases(folder, duration, kind)),
              ("sample records", lambda: step_samples(folder)),
              ("calibration", lambda: calibration(folder, args.quick)),
-             ("identification", lambda: step_identify(folder, args.quick, calibrated.get("spec")))]
+             ("identification", lambda: step_identify(folder, args.quick, calibrated.get("spec"),
+                                                      args.full)),
+             ("discovery", lambda: step_discovery(folder, args.quick, calibrated.get("spec"),
+                                                  args.full, say=stage)),
+             ("fleet", lambda: step_fleet(folder, args.quick, calibrated.get("spec"),
+                                          args.full))]
+    from dtwin.cli.progress import progress
+
     failed = []
-    for name, fn in steps:
-        t0 = time.time()
-        print(f"[demo] {name} ...", flush=True)
-        try:
-            text = fn()
-        except Exception:  # report every failing step, keep the others  # noqa: BLE001
-            failed.append(name)
-            text = f"## {name}: FAILED\n\n```\n{traceback.format_exc()}\n```"
-        if text:
-            sections.append(text)
-        print(f"[demo] {name} done in {time.time() - t0:.0f} s", flush=True)
-        folder.write_text("report.md", "\n\n".join(sections) + "\n")
-    print(f"[demo] report: {out / 'report.md'}")
+    timings: dict[str, str] = {}
+    mode = "full" if args.full else ("quick" if args.quick else "default")
+    with progress("demo", size=mode) as stage:
+        for name, fn in steps:
+            t0 = time.time()
+            stage(name)
+            try:
+                text = fn()
+            except Exception:  # report every failing step, keep the others  # noqa: BLE001
+                failed.append(name)
+                text = f"## {name}: FAILED\n\n```\n{traceback.format_exc()}\n```"
+            if text:
+                sections.append(text)
+            timings[name] = f"{time.time() - t0:.0f} s" + (" (FAILED)" if name in failed else "")
+            folder.write_text("report.md", "\n\n".join(sections) + "\n")
+        stage("HTML report")
+        html = write_html(folder, sections, timings)
+    figures = sorted(p.name for p in out.glob("*.png"))
+    print(f"[demo] report: {html}")
+    print(f"[demo] figures ({len(figures)}) in {out}: {', '.join(figures)}")
+    print(f"[demo] the same as Markdown: {out / 'report.md'}")
     if failed:
         print(f"[demo] failed steps: {', '.join(failed)}", file=sys.stderr)
         return 1
@@ -295,7 +452,7 @@ def main(argv: list[str] | None = None) -> int:
 # --- section 6: identification on the bundled records ----------------------------------------
 
 
-def demo_section(folder, data: Path, quick: bool = False, spec=None) -> str:
+def demo_section(folder, data: Path, quick: bool = False, spec=None, full: bool = False) -> str:
     """Speeds of the bundled records and the sun-fault severity of ``bench_sun_fault``, with
     `spec` (the calibrated spec of :func:`step_calibration`; None: the bench preset)."""
     from dtwin.build import build_twin
@@ -325,7 +482,8 @@ def demo_section(folder, data: Path, quick: bool = False, spec=None) -> str:
         return "\n".join(lines)
     rec = read_record(data / "samples" / "bench_sun_fault.dtwin.h5")
     est = estimate_severity(rec, spec, "sun", f_sun=estimate_speed(rec, twin, 30.0).f_sun,
-                            starts=3, refine=1, jackknife=calibrated)
+                            starts=3 if full else 1, refine=1,
+                            jackknife=calibrated and full, splits=None if full else False)
     folder.savefig("identify_sun_fault.png", plot_fit(est.fit))
     folder.write_json("identify_sun_fault.json", est.fit.to_dict())
     lo, hi = est.interval
