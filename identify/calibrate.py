@@ -817,7 +817,8 @@ def calibrate(
                           "sidebands at f_c cannot be resolved in each half; calibrate on "
                           "longer records")
     # the speed: given, or each record's (tachometer, metadata, lines), the mean over records
-    ops = [resolve_speed(r, spec, f_sun, channel=channel) for r in recs]
+    # a record that holds no mesh line of this gearbox cannot calibrate it: refuse at once
+    ops = [resolve_speed(r, spec, f_sun, channel=channel, fallback=False) for r in recs]
     f_sun = float(np.mean([op.f_sun for op in ops]))
     kin = Kinematics.from_gears(g["z_sun"], g["z_planet"], g["z_ring"], g["n_planets"], f_sun)
     say(f"speed {f_sun:.4f} Hz from {n_rec} record(s) ({ops[0].source})")

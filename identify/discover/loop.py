@@ -172,8 +172,10 @@ def discover(
     # 1. speed (given, tachometer, metadata or the record's lines), kinematics
     kin0 = Kinematics.from_spec(spec)
     freqs_full, a_full = amplitude_spectrum(x, fs, "hann")
+    # a record that holds no mesh line of this gearbox has nothing to compare: refuse at once
     op = resolve_speed(record if isinstance(record, Record)
-                       else Record(x[None, :], fs, ("signal",), ("",)), spec, f_sun)
+                       else Record(x[None, :], fs, ("signal",), ("",)), spec, f_sun,
+                       fallback=False)
     f_est = op.f_sun
     # the spec's speed unless the estimate moves the top of the band by more than half the
     # line tolerance (a calibrated spec carries its baseline's speed: 30.0011 Hz against
