@@ -48,8 +48,9 @@ def calibrated(tmp_path_factory) -> Path:
 
 
 def test_discover_names_the_sun_fault_on_the_bundled_record(calibrated, tmp_path):
-    """Measured: held-out gap 19.3 → 5.2 dB, sun_local_fault (group sun_rotation) named, its
-    severity refitted inside its range at 0.55 (truth 0.6); nothing set aside silently."""
+    """Measured (on the samples before they were made again with the flat pass band): held-out
+    gap 19.3 → 5.2 dB, sun_local_fault (group sun_rotation) named, its severity refitted
+    inside its range at 0.55 (truth 0.6)."""
     code, res, err = _dtwin("discover", str(SAMPLES / "bench_sun_fault.dtwin.h5"), "--spec",
                             str(calibrated), "--out", str(tmp_path / "diag"), "--json")
     assert code == 0, err
