@@ -40,13 +40,16 @@ def _run(tw, unrolled, **kw):
 def test_same_steps_and_record_as_diffrax_tsit5(twin):
     # integral-only control: the step sequence depends on this step's error only, so rounding
     # differences (the stages are summed in another order) cannot change it. The dynamics then
-    # carry those rounding differences along: over this 0.2 s record they grow to ~5e-8 of the
-    # signal's maximum (1e-9 at rtol 1e-8 and 1 kHz rate scale, 5e-9 at 1e-5 and 1 kHz); one
-    # tableau coefficient off by 1e-4 of itself changes the steps and the record by ~1e-2
+    # carry those rounding differences along: over this 0.2 s record they stay near 1e-9 of the
+    # signal's maximum, except as the missing tooth leaves and enters mesh, where a
+    # rounding-sized shift of the contact's kink gives a spike of up to ~2e-6 (the DAQ filter,
+    # flat to 0.45 fs, passes it; a filter flat to 0.3 fs leaves 2e-8). One tableau coefficient
+    # off by 1e-4 of itself changes the steps and the record by ~1e-2
     a, b = _run(twin, True, pcoeff=0.0, icoeff=1.0), _run(twin, False, pcoeff=0.0, icoeff=1.0)
     assert int(a.num_steps) == int(b.num_steps) > 1000
     x, y = np.asarray(a.signal), np.asarray(b.signal)
-    assert np.max(np.abs(x - y)) <= 2e-7 * np.max(np.abs(y))
+    assert np.median(np.abs(x - y)) <= 1e-8 * np.max(np.abs(y))
+    assert np.max(np.abs(x - y)) <= 1e-5 * np.max(np.abs(y))
     # the default PI controller carries the previous error forward: rounding can move a step
     # (a few in 10^4), and the records then agree to the tolerance, not to rounding
     a, b = _run(twin, True), _run(twin, False)
