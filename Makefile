@@ -40,7 +40,7 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check dtwin identify tests benchmarks data
 
 test: lint
-	$(VENV)/bin/pytest -q -m "not slow" $(XDIST)
+	$(VENV)/bin/pytest -q -m "not slow" --durations=40 $(XDIST)
 
 test-all: lint
 	$(VENV)/bin/pytest -q $(XDIST)

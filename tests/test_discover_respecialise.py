@@ -58,8 +58,26 @@ def _comb_lines(lines, lo, hi):
             and "fs/4" in r.text]
 
 
+#: Since the DAQ's pass band is flat to 0.45 fs (the old filter was 6 dB down at 0.40 fs and
+#: 20 dB at 0.45 fs, in the record and in the twin alike), the translational record's lines
+#: above 2 kHz stand in the residual too, and the resonance is located at 2028.5 Hz (damping
+#: ratio 0.1) rather than around 1.5 kHz: the linearised refit lowers the gap 9.86 → 9.39 dB but
+#: the twin simulated in full does not (9.86 → 9.92 dB), and discovery declines it, as it must.
+RESONANCE_NOT_KEPT = ("one resonance located between the translational modes near 1.5 and 2 kHz "
+                      "is not kept once simulated in full: {}")
+
+
 def test_a_resonance_lifting_the_added_faults_comb_is_offered_next(sequential):
     res = _discover(sequential, **QUICK)
+    assert [s.effect for s in res.steps][:1] == ["sun_local_fault"], res.stop_reason
+    assert res.respecialised == [2]
+    if len(res.steps) == 1:
+        # offered next, first by score, refitted, and declined only by the full simulation
+        first = min(res.last_candidates, key=lambda c: c.score_rank)
+        assert first.name == "housing_resonance", [(c.name, c.score_rank)
+                                                    for c in res.last_candidates]
+        assert first.rejected and "simulated in full" in first.rejected, first.rejected
+        pytest.xfail(RESONANCE_NOT_KEPT.format(first.rejected))
     assert [s.effect for s in res.steps] == ["sun_local_fault", "housing_resonance"], \
         [(s.named, s.gap_confirmed.total) for s in res.steps]
     assert res.groups == ["sun_rotation", "housing_resonance"]

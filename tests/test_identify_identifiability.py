@@ -135,19 +135,31 @@ def _coverage(spec, truth_twin, n_real, duration):
     return res, inside, ratio
 
 
+def _ratio_bounds(n: int, level: float = 0.99) -> tuple[float, float]:
+    """Where predicted sd / sample spread of `n` estimates falls with probability `level` when
+    the predicted sd is exact: the sample sd s of n normal draws has (n − 1) s² / σ² ~ χ²(n − 1)
+    (n = 12: 0.64–2.06; n = 40: 0.77–1.40)."""
+    from scipy.stats import chi2
+
+    lo, hi = chi2.ppf([(1 - level) / 2, (1 + level) / 2], n - 1)
+    return float(np.sqrt((n - 1) / hi)), float(np.sqrt((n - 1) / lo))
+
+
 def test_interval_coverage_refits(spec, truth_twin):
     """CI form: 12 realisations of 0.5 s (a 1 s batch of 12 costs ~2× more on the 2-core
     machine); ≥ 10 of 12 intervals hold the truth (the claim's 34/40 = 85 %; P ≥ 0.98 for
-    exact 95 % intervals), predicted sd / spread within 0.7–1.4 of each other.
+    exact 95 % intervals), predicted sd / spread where 99 % of 12-estimate spreads put it when
+    the predicted sd is exact (0.64–2.06: :func:`_ratio_bounds`).
 
-    Measured: sun_fault 11/12 inside, ratio 1.19; k_ring_planet 12/12, ratio 1.08 (relative
+    Measured: sun_fault 12/12 inside, ratio 1.16; k_ring_planet 12/12, ratio 1.61 (relative
     spread 0.30: not determined at 5 kHz); all 12 converged (statistical stopping rule,
     `dtwin.identify.fit.SIGMA_TOL`); ~100 s on the quiet 2-core CPU, the records mapped one after
     another (1352 s at load 10–16 when they were vmapped and LM ran to its 20-step limit)."""
     res, inside, ratio = _coverage(spec, truth_twin, 12, 0.5)
     print("inside", inside, "ratio", ratio, "converged", sum(r.converged for r in res))
     assert np.all(inside >= 10), (inside, ratio)
-    assert np.all((ratio > 0.7) & (ratio < 1.4)), (inside, ratio)
+    lo, hi = _ratio_bounds(12)
+    assert np.all((ratio > lo) & (ratio < hi)), (inside, ratio)
 
 
 @pytest.mark.slow
@@ -156,7 +168,8 @@ def test_interval_coverage_refits_40(spec, truth_twin):
     res, inside, ratio = _coverage(spec, truth_twin, 40, 1.0)
     print("inside", inside, "ratio", ratio, "converged", sum(r.converged for r in res))
     assert np.all(inside >= 34), (inside, ratio)
-    assert np.all((ratio > 0.7) & (ratio < 1.4)), (inside, ratio)
+    lo, hi = _ratio_bounds(40)
+    assert np.all((ratio > lo) & (ratio < hi)), (inside, ratio)
 
 
 def test_intervals_do_not_depend_on_another_parameters_scale():
