@@ -741,8 +741,8 @@ def _scaled_residuals(u, args):
 
 def _fit(data: _Data, theta0, max_steps: int, loss_rtol: float, run_steps: int,
          restart_rtol: float):
-    """θ at the fit's end, its Levenberg–Marquardt steps (all runs) and whether it stopped
-    before `max_steps` with its loss settled.
+    """θ at the fit's end, its Levenberg–Marquardt steps (all runs), whether it stopped
+    before `max_steps` with its loss settled, and its loss there (½‖r‖², prior rows included).
 
     A Levenberg–Marquardt run from θ0 can settle on a shallow slope, its trust region small
     and its column scales those of θ0, and crawl (the loss falling by ~1e-4 of itself per step
@@ -767,11 +767,11 @@ def _fit(data: _Data, theta0, max_steps: int, loss_rtol: float, run_steps: int,
         new = sol.value * scale
         new_loss, new_scale = _column_scales(*_residuals_and_jacobian(new, data), P)
         if not new_loss < loss:  # LM accepts only steps that lower the loss: nothing moved
-            return np.asarray(theta), steps, True
+            return np.asarray(theta), steps, True, float(loss)
         theta, drop, loss, scale = new, loss - new_loss, new_loss, new_scale
         if drop <= restart_rtol * (loss + drop):
-            return np.asarray(theta), steps, True
-    return np.asarray(theta), steps, False
+            return np.asarray(theta), steps, True, float(loss)
+    return np.asarray(theta), steps, False, float(loss)
 
 
 # ------------------------------------------------------------------------------------ the driver
@@ -913,9 +913,6 @@ def calibrate(
         sc = half_idx == score_half
         return float(10.0 ** (float(G[0]) / 20.0)) * np.abs(Z0[half_idx[sc]])
 
-    def half_loss(theta_h, d):
-        return float(jnp.sum(_residuals(jnp.asarray(theta_h), d) ** 2))
-
     def cross_validated(lin, warm):
         """The held-out gap about linearisation `lin` (fitted on each half, scored on the other
         with the linearised response) and the halves' fits, ``[(θ, data)]``. Each half is
@@ -928,9 +925,10 @@ def calibrate(
         for h in (0, 1):
             tr = half_idx == h
             d = data_for(rec_idx[tr], half_idx[tr], lin)
-            runs = [_fit(d, start, settings.max_steps, settings.loss_rtol, settings.run_steps,
-                         settings.restart_rtol)[0] for start in (lin[2], warm)]
-            theta_h = min(runs, key=lambda t: half_loss(t, d))
+            # each run's own final loss on this half (the fit computes it) picks the start
+            theta_h = min((_fit(d, start, settings.max_steps, settings.loss_rtol,
+                                settings.run_steps, settings.restart_rtol)
+                           for start in (lin[2], warm)), key=lambda run: run[3])[0]
             a_held[half_idx != h] = amp_at(theta_h, tr, half_idx != h, lin)
             fits.append((theta_h, d))
         return gap(freqs, a_meas, a_held, bands), fits
@@ -969,8 +967,8 @@ def calibrate(
             f"final fit on all data, linearised at the fitted values ({attempt} of "
             f"{settings.relinearize})")
         d_all = data_for(rec_idx, half_idx, lin)
-        theta, steps, converged = _fit(d_all, lin[2], settings.max_steps, settings.loss_rtol,
-                                       settings.run_steps, settings.restart_rtol)
+        theta, steps, converged, _ = _fit(d_all, lin[2], settings.max_steps, settings.loss_rtol,
+                                          settings.run_steps, settings.restart_rtol)
         gap_lin = gap(freqs, a_meas, amp_at(theta, every, every, lin), bands)
         # the calibrated spec, then its confirmation by a full simulation
         _, G = _model_amp(jnp.asarray(theta), d_all)
