@@ -265,15 +265,16 @@ def test_calibration_fit_stops_when_its_loss_stalls_and_says_when_it_did_not():
 
     data = _toy_fit_data()
     theta0 = jnp.zeros(3)
-    theta, steps, converged = _fit(data, theta0, 400, 1e-8, 50, 1e-5)
+    theta, steps, converged, final = _fit(data, theta0, 400, 1e-8, 50, 1e-5)
     assert converged and steps < 400
     loss = float(jnp.sum(_residuals(jnp.asarray(theta), data) ** 2))
+    assert abs(final - 0.5 * loss) <= 1e-9 * loss, (final, loss)  # the loss it reports is ½‖r‖²
     plain = optx.least_squares(_residuals, optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14),
                                theta0, args=data, max_steps=10 * steps, throw=False)
     loss_plain = float(jnp.sum(_residuals(plain.value, data) ** 2))
     assert loss <= loss_plain * (1 + 1e-6), (loss, loss_plain)
     assert abs(theta[0] - 0.5) < 0.05 and abs(theta[1] + 0.3) < 0.05
-    _, steps, converged = _fit(data, theta0, 2, 1e-8, 50, 1e-5)
+    _, steps, converged, _ = _fit(data, theta0, 2, 1e-8, 50, 1e-5)
     assert steps == 2 and not converged
 
 
