@@ -9,6 +9,9 @@ import jax  # noqa: E402
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 
+# the bundled bench's calibration by `dtwin calibrate`, one per session (tests/_bench.py)
+from _bench import bench_calibration  # noqa: E402,F401
+
 # the spec calibrated on the independent records' baseline-1, one per session (tests/_independent.py)
 from _independent import independent_calibrated_spec, independent_calibration  # noqa: E402,F401
 

@@ -13,38 +13,18 @@ range (1.19); the search refits it inside the range in full simulation and keeps
 
 from __future__ import annotations
 
-import contextlib
-import io
-import json
 from pathlib import Path
 
 import pytest
-
-SAMPLES = Path(__file__).resolve().parents[1] / "data" / "samples"
-
-
-def _dtwin(*args: str) -> tuple[int, dict | None, str]:
-    from dtwin.cli import main
-
-    out, err = io.StringIO(), io.StringIO()
-    code = 0
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            main([*args])
-        except SystemExit as e:
-            code = int(e.code or 0)
-    text = out.getvalue()
-    data = json.loads(text[text.find("{"):]) if "{" in text else None
-    return code, data, err.getvalue()
+from _bench import SAMPLES
+from _bench import run_cli as _dtwin
 
 
 @pytest.fixture(scope="module")
-def calibrated(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("workflow") / "cal"
-    code, _, err = _dtwin("calibrate", str(SAMPLES / "bench_healthy.dtwin.h5"), "--preset",
-                          "paper-bench", "--out", str(out))
-    assert code == 0, err
-    return out / "calibrated.toml"
+def calibrated(bench_calibration) -> Path:
+    """The session's one calibration of the bench (tests/_bench.py: ``dtwin calibrate`` on
+    bench_healthy with the paper-bench preset, as the README runs it)."""
+    return bench_calibration / "calibrated.toml"
 
 
 def test_discover_names_the_sun_fault_on_the_bundled_record(calibrated, tmp_path):
@@ -69,12 +49,120 @@ def test_discover_names_the_sun_fault_on_the_bundled_record(calibrated, tmp_path
             assert c["out_of_range"] is None or "outside its physical range" in c["out_of_range"]
 
 
+def _identify_readme_free_list(calibrated, out: Path, *window: str) -> None:
+    code, res, err = _dtwin("identify", str(SAMPLES / "bench_sun_fault.dtwin.h5"), "--spec",
+                            str(calibrated), "--free", "k_sun_planet,zeta_mesh,sun_fault",
+                            "--max-steps", "3", *window, "--out", str(out), "--json")
+    assert code == 0, err
+    assert res is not None, "identify --json printed no result"
+    # every stage ran: the fit, its intervals (where it crashed) and the check against the
+    # calibration
+    assert set(res["values"]) == {"k_sun_planet", "zeta_mesh", "sun_fault"}, res.keys()
+    assert (out / "manifest.json").exists()
+
+
 def test_identify_with_the_readme_free_list_finishes(calibrated, tmp_path):
     """`dtwin identify REC --spec CAL --free k_sun_planet,zeta_mesh,sun_fault` exits 0 (it
     crashed in its uncertainty stage after 17 min: the loss compared with the parameter
-    vector); cut to 3 solver steps here."""
-    code, res, err = _dtwin("identify", str(SAMPLES / "bench_sun_fault.dtwin.h5"), "--spec",
-                            str(calibrated), "--free", "k_sun_planet,zeta_mesh,sun_fault",
-                            "--max-steps", "3", "--out", str(tmp_path / "ident"), "--json")
-    assert code == 0, err
-    assert res is not None, "identify --json printed no result"
+    vector); cut to 3 solver steps and a 1 s window of the record here (the uncertainty stage
+    runs whatever the window; the 4 s window in the slow form)."""
+    _identify_readme_free_list(calibrated, tmp_path / "ident", "--fit-window", "1:1")
+
+
+@pytest.mark.slow
+def test_identify_with_the_readme_free_list_finishes_slow(calibrated, tmp_path):
+    """The same on the record's default window (4 s)."""
+    _identify_readme_free_list(calibrated, tmp_path / "ident")
+
+
+# ------------------------------------------------ the calibration's load shares (issue 19)
+def test_calibration_fits_unequal_load_sharing_on_the_bench(bench_calibration):
+    """The bundled bench_healthy record (made by a translational twin with 20 stiffness
+    harmonics, a transmission error and pin-hole position errors of 0.4 and −0.3 mrad that load
+    the planets unequally: not the calibrating twin) holds carrier orders k f_c, k = 1, 2 and 4,
+    30–50 dB over the floor. Without load shares the calibration left it at 25 dB held out
+    (the frequency response bent to hide the low band); with them the held-out gap falls below
+    a third of the uncalibrated one and the low band to within 3 dB. The calibrated spec
+    carries the shares, and a twin built from it has the clearances that give them."""
+    import json
+
+    import numpy as np
+
+    from dtwin.build import build_twin
+    from dtwin.parts.imperfections import MeshOffsets
+    from dtwin.spec import load_spec
+
+    res = json.loads((bench_calibration / "calibration.json").read_text())
+    names = [p["name"] for p in res["parameters"]]
+    assert "load_share_1" in names and "load_share_2" in names
+    before = res["gap_before"]["total"]
+    print(before, res["gap_heldout"]["total"], res["gap_confirmed"])
+    assert res["gap_heldout"]["total"] < before / 3
+    assert res["gap_confirmed"]["total"] < before / 3
+    assert res["gap_confirmed"]["bands"]["low"] < 3.0
+    spec = load_spec(bench_calibration / "calibrated.toml")
+    shares = spec["imperfections"]["load_sharing"]
+    assert shares[0] == 1.0 and max(abs(v - 1.0) for v in shares) > 0.1
+    (part,) = [p for p in build_twin(spec, kind="torsional").parts if isinstance(p, MeshOffsets)]
+    assert np.ptp(np.asarray(part.e_sp)) > 0
+
+
+def test_calibrated_bench_severity_holds_the_truth(calibrated):
+    """Issue 19's bench acceptance, severity part: with the calibrated spec (the twin it was
+    calibrated with, translational as paper-bench says) and the band jackknife, the sun
+    fault's interval holds the truth 0.6 and not 0; the healthy record's holds 0 (before the
+    load shares: 0.0023 [0.0014, 0.0035] on the faulty record). Without the jackknife the
+    faulty record's 0.516 [0.476, 0.555] leaves the truth out: a model-form error at the
+    noise level (lack of fit 1.17), which the bands' disagreement shows."""
+    from dtwin import read_record
+    from dtwin.build import twin_kind
+    from dtwin.identify.severity import estimate_severity
+    from dtwin.spec import load_spec
+
+    assert twin_kind(load_spec(calibrated)) == "translational"
+    sev = estimate_severity(read_record(SAMPLES / "bench_sun_fault.dtwin.h5"), calibrated, "sun",
+                            jackknife=True)
+    healthy = estimate_severity(read_record(SAMPLES / "bench_healthy.dtwin.h5"), calibrated,
+                                "sun")
+    print(sev.summary(), healthy.summary(), sep="\n")
+    assert sev.interval[0] > 0.2 and sev.interval[0] <= 0.6 <= sev.interval[1]
+    assert "band jackknife" in sev.method
+    assert healthy.interval[0] == 0.0 and "healthy not rejected" in healthy.method
+
+
+def test_calibrated_bench_flags_stiffness_confounded_with_the_calibration(calibrated):
+    """Issue 19's bench acceptance, identify part (reduced: at the spec's values, no solver
+    steps; the full fit is tests/test_severity_independent.py's slow bench tests): with the
+    calibration held, the 5 kHz record gives k_sun_planet a ±10 % interval; with the
+    excitation's four harmonics and the two load-share clearances free as well it cannot tell
+    the stiffness from them, and the check flags it, while the sun fault's sidebands keep it
+    determined."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    from dtwin import read_record
+    from dtwin.identify.confounding import calibrated_excitation, calibration_confounding
+    from dtwin.identify.fit import _value_and_jacfwd, make_problem
+    from dtwin.identify.residuals import point_groups
+    from dtwin.identify.uncertainty import analyse, expected_noise_rss
+    from dtwin.spec import load_spec
+
+    spec = load_spec(calibrated)
+    assert calibrated_excitation(spec) == tuple(
+        f"excitation_ring_{cs}_{h}" for cs in ("cos", "sin") for h in range(1, 5))
+    problem, _ = make_problem(read_record(SAMPLES / "bench_sun_fault.dtwin.h5"), calibrated,
+                              ["k_sun_planet", "sun_fault"], initial={"sun_fault": 0.5})
+    groups, rss = point_groups(problem.observations), expected_noise_rss(problem.observations)
+    r, J = _value_and_jacfwd(jnp.zeros(2), problem)
+    held = analyse(problem.pset, np.zeros(2), np.asarray(r), np.asarray(J), groups,
+                   n_profiled_gains=problem.n_profiled_gains, expected_rss=rss)
+    assert held.not_determined == {}
+    free, wide = calibration_confounding(problem, np.zeros(2), held, spec, groups=groups,
+                                         expected_rss=rss, jacobian=_value_and_jacfwd)
+    print(free.not_determined, wide)
+    assert list(free.not_determined) == ["k_sun_planet"]
+    assert free.not_determined["k_sun_planet"].startswith(
+        "confounded with the calibration (4 transmission-error harmonics and 2 load-share "
+        "clearances")
+    lo, hi = wide["k_sun_planet"]
+    assert hi / lo > 3.0
