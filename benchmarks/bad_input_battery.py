@@ -135,6 +135,7 @@ def make_inputs(w: Path) -> None:
                 "wf_increment": 1 / RATE, "unit_string": "m/s^2"})])
         whole = (w / "good.tdms").read_bytes()
         (w / "truncated.tdms").write_bytes(whole[: int(0.7 * len(whole))])
+        (w / "cutheader.tdms").write_bytes(whole[:60])  # inside the first segment's metadata
     except ImportError:  # npTDMS is optional
         pass
     (w / "text.wav").write_text("this is not a WAV file\n")
@@ -232,6 +233,8 @@ def cases() -> list[Case]:
                   ("truncated.wav",)))
     c.append(Case("record-info.truncated-csv", ("record", "info", "{w}/truncated.csv"),
                   ("truncated.csv",)))
+    c.append(Case("record-info.cut-tdms-header", ("record", "info", "{w}/cutheader.tdms"),
+                  ("cutheader.tdms",)))
     for k, f in (("missing", "nonexistent.csv"), ("empty", "empty.csv"),
                  ("truncated", "truncated.wav"), ("format", "text.wav")):
         c.append(Case(f"record-convert.{k}", ("record", "convert", "{w}/" + f,
@@ -269,6 +272,12 @@ def cases() -> list[Case]:
           Case("simulate.huge-duration", ("simulate", "--preset", "paper-bench", "--duration",
                                           "1e9")),
           Case("simulate.empty-out", ("simulate", "--preset", "paper-bench", "--out", "")),
+          Case("simulate.huge-tacho-ppr", ("simulate", "--preset", "paper-bench",
+                                           "--tacho-ppr", "1e9")),
+          Case("compare-drives.huge-discard", ("compare-drives", "--preset", "paper-bench",
+                                               "--discard", "1e9")),
+          Case("compare-drives.huge-duration", ("compare-drives", "--preset", "paper-bench",
+                                                "--duration", "1e9")),
           Case("simulate.wrong-rate", ("simulate", "--preset", "paper-bench", "--sample-rate",
                                        "500")),
           Case("simulate.usage", ("simulate", "--preset", "paper-bench", "--duration", "abc")),
@@ -277,6 +286,8 @@ def cases() -> list[Case]:
                      9.0)]
     # commands that read a record
     c += _reading("spectrum", out=False)
+    c.append(Case("spectrum.huge-floor-width", ("spectrum", "{w}/good.csv", "--floor-width",
+                                                "1e9"), ("good.csv",)))
     c += _reading("view", kinds=("missing", "empty", "truncated", "format", "huge"))
     c += _reading("severity", ["--location", "sun"])
     c += _reading("identify", ["--free", "sun_fault"])
@@ -288,6 +299,11 @@ def cases() -> list[Case]:
     c.append(Case("discover.huge-n-boot", ("discover", "{w}/good.csv", "--preset",
                                            "paper-bench", "--n-boot", "1000000000"),
                   ("good.csv",)))
+    c.append(Case("discover.n-boot-1e9", ("discover", "{w}/good.csv", "--preset",
+                                          "paper-bench", "--n-boot", "1e9"), ("good.csv",)))
+    c.append(Case("identify.huge-max-steps", ("identify", "{w}/good.csv", "--preset",
+                                              "paper-bench", "--free", "sun_fault",
+                                              "--max-steps", "1e9"), ("good.csv",)))
     for cmd, extra in (("severity", ["--location", "sun"]), ("identify", ["--free", "sun_fault"]),
                        ("discover", []), ("calibrate", [])):
         c.append(_interrupt(cmd, (cmd, "{w}/sim.dtwin.h5", "--preset", "paper-bench", *extra),

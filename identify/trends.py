@@ -12,10 +12,11 @@ weighted least squares, weights ``1/σ_i²`` with ``σ_i`` = half the 95 % inter
 
 **Flag** (:class:`TrendFlag`) of a parameter with a threshold ``(value, "above"|"below")``:
 
-- ``crossed``: the last record's value is beyond the threshold, whatever the trend and however
-  few the records (the machine is past it now); the time reported is when the trend line
-  crossed, when there is a trend beyond the threshold too, else the first record of the last
-  run of records beyond it;
+- ``crossed``: a record's value is beyond the threshold, whatever the trend and however few the
+  records. When the last record is beyond it (the machine is past it now), the time reported
+  is when the trend line crossed, when there is a trend beyond the threshold too, else the
+  first record of the last run of records beyond it; when only earlier records are (the last
+  back within: a repair, or a misfit of those records), the first record beyond it;
 - ``approaching``: not crossed, the slope points toward the threshold and differs from zero by
   more than 2 se_b, and the line reaches the threshold within `horizon_days` of the last record
   (the predicted date is reported);
@@ -77,7 +78,8 @@ class TrendFlag:
     """State of a trajectory against its threshold (module docstring): `state` (``ok``,
     ``too_few``, ``approaching``, ``crossed``), `threshold` (SI), `direction`, `crossing_time`
     (ISO UTC: for ``crossed`` the line's crossing, or the first record of the last run beyond
-    the threshold when there is no trend beyond it; predicted for ``approaching``; else None),
+    the threshold when there is no trend beyond it, or the first record beyond it when the last
+    record is back within it; predicted for ``approaching``; else None),
     `reason` (one sentence)."""
 
     state: str
@@ -209,6 +211,13 @@ def flag_trend(days, values, intercept: float, slope: float, slope_se: float,
                f"{t.size} record(s): too few for a trend")
         return TrendFlag("crossed", threshold, direction, when(float(t[first])),
                          f"last value {x[-1]:.4g} is {direction} {threshold:.4g} ({why})")
+    beyond = sgn * (x - threshold) > 0
+    if beyond.any():  # an earlier record beyond it, the last back within: still a crossing
+        k = int(np.argmax(beyond))
+        return TrendFlag("crossed", threshold, direction, when(float(t[k])),
+                         f"record {k + 1} of {t.size} at {x[k]:.4g} is {direction} "
+                         f"{threshold:.4g}; the last value {x[-1]:.4g} is back within it (a "
+                         "repair, or a misfit of that record: check it)")
     if not trend:
         return TrendFlag("too_few", threshold, direction, None,
                          f"{t.size} record(s): too few for a trend ({MIN_TREND_RECORDS} at "

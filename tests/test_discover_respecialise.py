@@ -4,7 +4,13 @@ gearbox made by the translational twin, discovery with the torsional twin calibr
 healthy record of it — the sun fault's comb stands 18–26 dB above the twin around 1.5 kHz
 once the fault is in the model, lifted by modes the torsional twin lacks. Only the current
 model's residual shows it; a housing resonance located there is offered and added in the next
-step, and the comb lines in its band leave the residual."""
+step, and the comb lines in its band leave the residual.
+
+Every test here is a slow form (``make test-all``): the one claim CI would check, the
+resonance kept in the second step, is an expected failure since the DAQ's pass band became flat
+to 0.45 fs (RESONANCE_NOT_KEPT), and its fixture (a calibration and two 4 s translational
+records) costs about 8 minutes of a 2-core CI run.
+"""
 
 import pytest
 from _gearboxes import SEQUENTIAL
@@ -67,6 +73,7 @@ RESONANCE_NOT_KEPT = ("one resonance located between the translational modes nea
                       "is not kept once simulated in full: {}")
 
 
+@pytest.mark.slow
 def test_a_resonance_lifting_the_added_faults_comb_is_offered_next(sequential):
     res = _discover(sequential, **QUICK)
     assert [s.effect for s in res.steps][:1] == ["sun_local_fault"], res.stop_reason

@@ -132,6 +132,104 @@ def test_unbounded_work_options_are_bounded(argv, option, bound, tmp_path, monke
     assert line.startswith(f"error: {option}: must lie in {bound}"), line
 
 
+def _no_work(monkeypatch):
+    """The expensive steps fail the test if they run."""
+    from importlib import import_module
+
+    def never(*a, **k):
+        raise AssertionError("work started before the options were checked")
+
+    import dtwin.cli.cmd_simulate as cmd
+
+    monkeypatch.setattr(cmd, "run_simulation", never)
+    for module, name in (("dtwin.identify.fit", "fit"), ("dtwin.identify.fleet", "run_fleet"),
+                         ("dtwin.identify.discover", "discover"),
+                         ("dtwin.coupling", "compare_drives")):
+        monkeypatch.setattr(import_module(module), name, never)
+
+
+#: (argv, the line's start): counts written as `1e9` (the issue's spelling), refused with the
+#: accepted range; the bounds are the documented ones (docs/guide.md)
+SCIENTIFIC = [
+    (["discover", "missing.wav", "--preset", "paper-bench", "--n-boot", "1e9"],
+     "error: --n-boot: must lie in [20, 100000], got 1000000000"),
+    (["calibrate", "missing.wav", "--preset", "paper-bench", "--knots", "1e5", "--out", "o"],
+     "error: --knots: must lie in [1, 40], got 100000"),
+    (["discover", "missing.wav", "--preset", "paper-bench", "--seed", "1e30"],
+     "error: --seed: must lie in [0, 4294967295], got 1.000e+30"),
+    (["identify", "missing.wav", "--preset", "paper-sim", "--free", "sun_fault", "--starts",
+      "1e9"], "error: --starts: must lie in [1, 3], got 1000000000"),  # 3^1 grid points
+    (["identify", "missing.wav", "--preset", "paper-sim", "--free", "sun_fault,k_sun_planet",
+      "--starts", "9", "--refine", "1e1"], "error: --refine: must lie in [1, 9], got 10"),
+    (["identify", "missing.wav", "--preset", "paper-sim", "--free", "sun_fault", "--max-steps",
+      "1e9"], "error: --max-steps: must lie in [1, 1000], got 1000000000"),
+    (["fleet", "identify", "missing.wav", "--preset", "paper-sim", "--out", "o",
+      "--max-retries", "1e9"], "error: --max-retries: must lie in [0, 10], got 1000000000"),
+    (["spectrum", "missing.wav", "--floor-width", "1e9"],
+     "error: --floor-width: must lie in [3, 10001], got 1000000000"),
+    (["simulate", "--preset", "paper-sim", "--duration", "1e9"],
+     "error: --duration: must lie in (0, 3600] s, got 1e+09"),
+    (["compare-drives", "--preset", "paper-sim", "--discard", "1e9"],
+     "error: --discard: must lie in [0, 60] s"),
+    (["compare-drives", "--preset", "paper-sim", "--duration", "1e9"],
+     "error: --duration: must lie in (0, 3600] s, got 1e+09"),
+    # paper-sim: a 5000 Hz DAQ and 30 Hz on the sun: floor(2500 / 30) = 83 pulses per turn
+    (["simulate", "--preset", "paper-sim", "--tacho-ppr", "1e9"],
+     "error: --tacho-ppr: must lie in [1, 83], got 1000000000"),
+    (["discover", "missing.wav", "--preset", "paper-bench", "--n-boot", "2.5"],
+     "error: --n-boot: '2.5' is not a whole number (accepted: an integer)"),
+]
+
+
+def _case_id(argv: list[str], start: str) -> str:
+    option = start.split(": ")[1]
+    return f"{argv[0]} {option}={argv[argv.index(option) + 1]}"
+
+
+@pytest.mark.parametrize("argv,start", SCIENTIFIC, ids=[_case_id(*c) for c in SCIENTIFIC])
+def test_absurd_counts_are_refused_with_their_range(argv, start, tmp_path, monkeypatch, capsys):
+    """`--n-boot 1e9` and the other counts across commands: a count may be written 1e3, and
+    one beyond what can run (for ever, or out of memory) is one `error:` line with the
+    accepted range, before any record is opened or anything simulated or fitted."""
+    monkeypatch.chdir(tmp_path)
+    _no_work(monkeypatch)
+    line = _fails(argv, capsys)
+    assert line.startswith(start), line
+
+
+def test_num_cpus_bounded_by_the_machine(tmp_path, monkeypatch, capsys):
+    import os
+
+    monkeypatch.chdir(tmp_path)
+    _no_work(monkeypatch)
+    cpus = os.cpu_count()
+    line = _fails(["fleet", "identify", "missing.wav", "--preset", "paper-sim", "--out", "o",
+                   "--num-cpus", "1e9"], capsys)
+    assert line.startswith(f"error: --num-cpus: must lie in [1, {cpus}], got 1000000000"), line
+
+
+def test_view_counts_bounded_by_the_record(tmp_path, capsys):
+    """view --revs and --segment beyond the record: named by their option with the record's
+    range (the record: 0.5 s at 8 kHz, 4000 samples, the input shaft at 30 Hz, about 15
+    revolutions), not by the library argument behind them."""
+    import numpy as np
+    from scipy.io import wavfile
+
+    fs, n = 8000, 4000
+    path = tmp_path / "tone.wav"
+    wavfile.write(path, fs, (10000 * np.sin(2 * np.pi * 504.0 * np.arange(n) / fs))
+                  .astype(np.int16))
+    line = _fails(["view", str(path), "--kind", "waterfall", "--segment", "1e9"], capsys)
+    assert line.startswith(f"error: --segment: must lie in [16, {n}], got 1000000000"), line
+    with pytest.raises(SystemExit) as e:
+        main(["view", str(path), "--kind", "ordermap", "--preset", "paper-bench", "--f-sun",
+              "30", "--revs", "1e9"])
+    assert e.value.code == 2
+    last = capsys.readouterr().err.splitlines()[-1]  # after the short-record warnings
+    assert last.startswith("error: --revs: must lie in [1, 1") and "got 1000000000" in last
+    assert int(last.split("[1, ")[1].split("]")[0]) in (14, 15), last
+
+
 def test_ctrl_c_inside_a_gc_callback_prints_no_traceback():
     """SIGINT while the main thread runs a garbage-collector callback (JAX registers one): the
     KeyboardInterrupt cannot leave the callback, and Python would print "Exception ignored in

@@ -22,6 +22,8 @@ FLEET = {
     "two_below": ([0.1, 0.15], "too_few"),       # no trend, nothing above: not "ok"
     "jump": ([0.2, 0.2, 0.2, 0.2, 0.5], "crossed"),  # the line ends below 0.4, the record above
     "flat": ([0.1, 0.11, 0.1, 0.12], "ok"),
+    "dip": ([0.2, 0.5, 0.2, 0.2], "crossed"),   # a record above, the last back below
+    "one_above": ([0.45], "crossed"),           # one record: no trend, but above
 }
 
 
@@ -45,6 +47,10 @@ def test_crossing_whatever_the_trend_and_too_few_records():
     assert tr["two_above"].parameters["sun_fault"].flag.crossing_time.startswith("2026-03-02")
     assert "too few for a trend" in tr["two_below"].parameters["sun_fault"].flag.reason
     assert tr["flat"].flagged == [] and tr["two_below"].flagged == ["sun_fault"]
+    dip = tr["dip"].parameters["sun_fault"].flag  # the record above is day 1
+    assert dip.crossing_time.startswith("2026-03-02")
+    assert "record 2 of 4 at 0.5 is above 0.4" in dip.reason and "back within" in dip.reason
+    assert tr["one_above"].parameters["sun_fault"].flag.crossing_time.startswith("2026-03-01")
 
 
 def test_fleet_trends_screen_shows_each_state(tmp_path, capsys):

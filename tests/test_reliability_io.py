@@ -114,6 +114,67 @@ def test_truncated_tdms(tmp_path):
         read_record(cut)
 
 
+def test_tdms_cut_in_its_lead_in_or_metadata(tmp_path, capsys):
+    """A TDMS file cut inside its first segment's 28-byte lead-in, or inside the metadata that
+    follows it: truncated (npTDMS reads such a file as one without channels), said in one
+    `error:` line; npTDMS's own console handler prints nothing while the file is read."""
+    import logging
+
+    from nptdms import ChannelObject, TdmsWriter
+
+    x = np.sin(np.arange(5000) * 0.1)
+    path = tmp_path / "rec.tdms"
+    with TdmsWriter(path) as w:
+        w.write_segment([ChannelObject("g", "acc", x, properties={"wf_increment": 1 / FS})])
+    whole = path.read_bytes()
+    assert whole[:4] == b"TDSm"
+    raw_offset = struct.unpack("<Q", whole[20:28])[0]  # metadata bytes after the lead-in
+    heard: list[str] = []
+
+    class Ear(logging.Handler):  # stands for npTDMS's console handler
+        def emit(self, record):
+            heard.append(record.getMessage())
+
+    ear = Ear(logging.WARNING)
+    loggers = [logging.getLogger(n) for n in ("nptdms.reader", "nptdms.tdms_segment")]
+    for log in loggers:
+        log.addHandler(ear)
+    try:
+        for keep in (5, 20, 28, 28 + raw_offset // 2):
+            cut = tmp_path / f"cut{keep}.tdms"
+            cut.write_bytes(whole[:keep])
+            before = _sha(cut)
+            code, out, err = _run(["record", "info", str(cut)], capsys)
+            assert code == 2 and out == "", (keep, out)
+            assert err.count("\n") == 1 and err.startswith(f"error: {cut}: "), (keep, err)
+            assert "truncated" in err and "copy the file again" in err, (keep, err)
+            assert _sha(cut) == before
+    finally:
+        for log in loggers:
+            log.removeHandler(ear)
+    assert heard == []
+    for log in loggers:  # the handlers npTDMS had are back
+        assert ear not in log.handlers
+    junk = tmp_path / "junk.tdms"
+    junk.write_bytes(b"abcd")
+    with pytest.raises(RecordError, match="not a TDMS file"):
+        read_record(junk)
+
+
+def test_convert_onto_its_own_input_by_relative_spelling(tmp_path, wav, monkeypatch, capsys):
+    """x, ./x and sub/../x from the working folder name the same file: refused, unchanged."""
+    monkeypatch.chdir(tmp_path)
+    main(["record", "convert", "rec.wav", "x.dtwin.h5"])
+    capsys.readouterr()
+    before = _sha("x.dtwin.h5")
+    (tmp_path / "sub").mkdir()
+    for src, target in (("x.dtwin.h5", "./x.dtwin.h5"), ("./x.dtwin.h5", "x.dtwin.h5"),
+                        ("x.dtwin.h5", "sub/../x.dtwin.h5")):
+        code, _, err = _run(["record", "convert", src, target, "--force"], capsys)
+        assert code == 2 and err.startswith("error: TARGET:") and "input file" in err, err
+        assert _sha("x.dtwin.h5") == before
+
+
 def test_strict_info_flags_absurd_values(tmp_path, capsys):
     t = np.arange(20000) / 10000
     x = np.sin(2 * np.pi * 50 * t)

@@ -51,3 +51,16 @@ def test_too_many_planets_to_fit(tmp_path, capsys):
 def test_ring_with_too_few_teeth(tmp_path, capsys):
     (p,) = _check(tmp_path, capsys, 20, 30, 31, 3)
     assert p["path"] == "gears.z_ring" and "z_planet" in p["message"]
+
+
+@pytest.mark.parametrize("field,teeth", [
+    ("z_sun", (-20, 30, 80, 3)), ("z_planet", (20, -30, 80, 3)), ("z_ring", (20, 30, -80, 3)),
+    ("z_sun", (0, 30, 60, 3)), ("n_planets", (20, 30, 80, -3)),
+])
+def test_negative_or_zero_counts_name_their_field(tmp_path, capsys, field, teeth):
+    """A negative (or zero) tooth or planet count: one problem, on that field, with its
+    value; not a tooth-count rule or a collision reported on a field the spec gave right."""
+    (p,) = _check(tmp_path, capsys, *teeth)
+    value = teeth[("z_sun", "z_planet", "z_ring", "n_planets").index(field)]
+    assert p["path"] == f"gears.{field}", p
+    assert f"gears.{field} = {value} " in p["message"] and "range" in p["message"], p

@@ -177,6 +177,8 @@ def usage_error_line(e: Exception) -> str:
         c = c.parent
     where = " ".join(["dtwin", *names])
     message = " ".join(str(getattr(e, "message", e)).split()).rstrip(".")
+    if message.lower().startswith("value error, "):  # a parser's ValueError, through pydantic
+        message = message[len("value error, "):]
     message = message[:1].lower() + message[1:]
     param = getattr(e, "param", None)
     if _is(e, "NoSuchOption"):

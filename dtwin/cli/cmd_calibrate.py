@@ -37,10 +37,12 @@ def calibrate(
     preset: str | None = opts.preset_option(),
     model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
                                      "(default: the spec's model.kind)."),
-    knots: int = typer.Option(5, "--knots", help="Knots of the sensor frequency response."),
-    window_terms: int = typer.Option(7, "--window-terms", help="Cosine terms of the window."),
+    knots: int = typer.Option(5, "--knots", parser=opts.whole_number,
+                              help="Knots of the sensor frequency response."),
+    window_terms: int = typer.Option(7, "--window-terms", parser=opts.whole_number,
+                                     help="Cosine terms of the window."),
     mesh_harmonics: int | None = typer.Option(
-        None, "--mesh-harmonics",
+        None, "--mesh-harmonics", parser=opts.whole_number,
         help="Mesh harmonics with a fitted transmission error (default: every one below 0.45 × "
              "the rate, at most 12)."),
     load_sharing: str = typer.Option("auto", "--load-sharing",
@@ -63,21 +65,14 @@ def calibrate(
 
     if model is not None:
         opts.choice("--model", model, ("torsional", "translational"))
-    opts.at_least("--knots", knots, 1)
-    if knots > MAX_KNOTS:  # every knot is one fitted gain, seen only by the lines near it
-        raise opts.OptionError("--knots", f"must lie in [1, {MAX_KNOTS}], got {knots}: the "
-                               "knots are log-spaced from 0.8 N f_carrier to the "
-                               "passband, each a gain the mesh lines next to it must "
-                               "determine (and each a column of every record's "
-                               "Jacobian in memory)")
-    opts.at_least("--window-terms", window_terms, 2)
-    if window_terms > N_WINDOW_TERMS:
-        raise opts.OptionError("--window-terms", f"at most {N_WINDOW_TERMS} (the window terms "
-                               f"with a registry name), got {window_terms}")
-    if mesh_harmonics is not None and not 1 <= mesh_harmonics <= N_EXCITATION_HARMONICS:
-        raise opts.OptionError("--mesh-harmonics", f"must be 1 … {N_EXCITATION_HARMONICS} (the "
-                               f"excitation harmonics with a registry name), got "
-                               f"{mesh_harmonics}")
+    opts.count("--knots", knots, 1, MAX_KNOTS,  # each knot one fitted gain, seen by its lines
+               "the knots are log-spaced from 0.8 N f_carrier to the passband, each a gain the "
+               "mesh lines next to it must determine (and each a column of every record's "
+               "Jacobian in memory)")
+    opts.count("--window-terms", window_terms, 2, N_WINDOW_TERMS,
+               "the window terms with a registry name")
+    opts.count("--mesh-harmonics", mesh_harmonics, 1, N_EXCITATION_HARMONICS,
+               "the excitation harmonics with a registry name")
     opts.choice("--load-sharing", load_sharing, ("auto", "on", "off"))
     opts.input_speed_option("--f-sun", f_sun)
     opts.tacho_reading(tacho)

@@ -66,8 +66,7 @@ def compare_drives_cmd(
     sev = _parse_list(severities, "--severities")
     for s in sev:
         opts.in_range("--severities", s, 0.0, 1.0, "(a severity)")
-    opts.positive("--duration", duration, unit="s")
-    opts.positive("--discard", discard, allow_zero=True, unit="s")
+    opts.simulated_span(duration, discard)
     opts.choice("--kind", kind, ("translational", "torsional"))
     opts.choice("--quantity", quantity, _QUANTITIES)
     opts.positive("--k-shaft", k_shaft, unit="N·m/rad")

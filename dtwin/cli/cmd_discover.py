@@ -150,10 +150,13 @@ def discover(
     tacho: str | None = opts.tacho_option(),
     sample_rate: float | None = typer.Option(None, "--sample-rate",
                                              help="Sampling rate (Hz) for formats without one."),
-    max_steps: int = typer.Option(3, "--max-steps", help="Budget of effects added."),
+    max_steps: int = typer.Option(3, "--max-steps", parser=opts.whole_number,
+                                  help="Budget of effects added."),
     alpha: float = typer.Option(0.01, "--alpha", help="Family-wise level per step (<= 0.01)."),
-    n_boot: int = typer.Option(400, "--n-boot", help="Bootstrap draws of the null statistic."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
+    n_boot: int = typer.Option(400, "--n-boot", parser=opts.whole_number,
+                               help="Bootstrap draws of the null statistic."),
+    seed: int = typer.Option(0, "--seed", parser=opts.whole_number,
+                             help="Seed of the bootstrap."),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON on stdout."),
     out: Path | None = typer.Option(None, "--out", help="Write discover.json/.md, PNGs."),
     force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
@@ -170,13 +173,11 @@ def discover(
     opts.finite("--alpha", alpha)
     if not 0 < alpha <= 0.01:
         raise opts.OptionError("--alpha", f"must lie in (0, 0.01], got {alpha:g}")
-    opts.at_least("--n-boot", n_boot, 20)
-    if n_boot > MAX_N_BOOT:  # each draw is one refit of every candidate
-        raise opts.OptionError("--n-boot", f"must lie in [20, {MAX_N_BOOT}], got {n_boot}: "
-                               "the p-value's Monte Carlo error sqrt(p (1 - p) / B) is "
-                               "below 0.001 at p = 0.05 with 1e5 draws, each draw one "
-                               "refit; the search raises B to K / alpha by itself")
-    opts.at_least("--seed", seed, 0)
+    opts.count("--n-boot", n_boot, 20, MAX_N_BOOT,  # each draw is one refit of every candidate
+               "the p-value's Monte Carlo error sqrt(p (1 - p) / B) is below 0.001 at p = "
+               "0.05 with 1e5 draws, each draw one refit; the search raises B to K / alpha by "
+               "itself")
+    opts.count("--seed", seed, 0, opts.MAX_SEED)
     opts.input_speed_option("--f-sun", f_sun)
     opts.tacho_reading(tacho)
     opts.check_out(out, force)

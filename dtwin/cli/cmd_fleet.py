@@ -25,6 +25,7 @@ line per machine with its flagged parameters. See docs/fleet.md.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import typer
@@ -37,6 +38,9 @@ from .logs import is_quiet, note, warn
 fleet_app = typer.Typer(help="Fleet runs: many records in batch or on a Ray cluster, the "
                         "results table and per-machine trends.", no_args_is_help=True)
 app.add_typer(fleet_app, name="fleet")
+
+#: Most retries of a failed task `--max-retries` accepts.
+MAX_RETRIES = 10
 
 
 def _echo_json(obj) -> None:
@@ -61,22 +65,29 @@ def fleet_identify(
     ray_address: str | None = typer.Option(None, "--ray-address", help="An existing Ray "
                                            "cluster (ray://HOST:10001 or auto)."),
     engine: str = typer.Option("auto", "--engine", help="auto (Ray if installed), ray, local."),
-    num_cpus: int | None = typer.Option(None, "--num-cpus", help="CPUs of a local Ray."),
-    batch_size: int = typer.Option(1, "--batch-size", help="Records per task, fitted in one "
+    num_cpus: int | None = typer.Option(None, "--num-cpus", parser=opts.whole_number,
+                                        help="CPUs of a local Ray (at most this machine's)."),
+    batch_size: int = typer.Option(1, "--batch-size", parser=opts.whole_number,
+                                   help="Records per task, fitted in one "
                                    "vmapped call when they share length and rate (order "
                                    "domain; with --grid hz also the speed to 0.1 Hz)."),
-    max_retries: int = typer.Option(2, "--max-retries", help="Retries of a failed task."),
+    max_retries: int = typer.Option(2, "--max-retries", parser=opts.whole_number,
+                                    help="Retries of a failed task (at most "
+                                    f"{MAX_RETRIES})."),
     discover: bool = typer.Option(False, "--discover", help="Also run discovery per record "
                                   "(its own tasks; costly)."),
     manifest: Path | None = typer.Option(None, "--manifest", help="Fleet manifest CSV: path, "
                                          "machine, timestamp."),
-    max_steps: int = typer.Option(40, "--max-steps", help="Solver steps per fit."),
+    max_steps: int = typer.Option(40, "--max-steps", parser=opts.whole_number,
+                                  help="Solver steps per fit."),
     tol: float = typer.Option(1e-4, "--tol", help="Solver tolerance: rtol = atol = tol on θ and "
                               "on the residuals (RMS norm); 1e-3 converges in fewer steps on "
                               "short records (docs/fleet.md)."),
 
-    starts: int = typer.Option(1, "--starts", help="Grid starts (batch size 1 only)."),
-    refine: int = typer.Option(1, "--refine", help="Starts refined (batch size 1 only)."),
+    starts: int = typer.Option(1, "--starts", parser=opts.whole_number,
+                               help="Grid starts (batch size 1 only)."),
+    refine: int = typer.Option(1, "--refine", parser=opts.whole_number,
+                               help="Starts refined (batch size 1 only)."),
     grid: str = typer.Option("orders", "--grid", help="orders (residuals in the order domain: "
                              "records at any speed batch together) or hz (DFT bins)."),
     order_step: float | None = typer.Option(None, "--order-step", help="Step of the order "
@@ -100,18 +111,19 @@ def fleet_identify(
     opts.input_speed_option("--f-sun", f_sun)
     reading = opts.tacho_reading(tacho)
     opts.choice("--engine", engine, ("auto", "ray", "local"))
-    opts.at_least("--num-cpus", num_cpus, 1)
+    if num_cpus is not None:
+        cpus = os.cpu_count() or 1
+        opts.count("--num-cpus", num_cpus, 1, cpus, f"this machine has {cpus} CPUs, and each "
+                   "Ray worker is a process with its own compiled twin; give a cluster with "
+                   "--ray-address for more")
     opts.at_least("--batch-size", batch_size, 1)
-    opts.at_least("--max-retries", max_retries, 0)
-    opts.at_least("--max-steps", max_steps, 1)
+    opts.count("--max-retries", max_retries, 0, MAX_RETRIES, "a task is retried when its "
+               "worker died or it failed unexpectedly; one that fails this often will again")
+    opts.solver_steps(max_steps)
     opts.finite("--tol", tol)
     if not 0 < tol < 1:
         raise opts.OptionError("--tol", f"a relative tolerance in (0, 1), got {tol:g}")
-    opts.at_least("--starts", starts, 1)
-    opts.at_least("--refine", refine, 1)
-    if refine > starts:
-        raise opts.OptionError("--refine", f"refines the best of the --starts: at most {starts}, "
-                               f"got {refine}")
+    opts.starts_and_refine(starts, refine, names)
     opts.choice("--grid", grid, ("orders", "hz"))
     opts.positive("--order-step", order_step)
     opts.input_speed_option("--f-max", f_max)

@@ -221,10 +221,13 @@ def identify(
     runup: tuple[float, float] | None = typer.Option(None, "--runup", help="Run-up records: "
                                                      "speed range LOW HIGH (Hz)."),
     solver: str = typer.Option("lm", "--solver", help="lm, gauss-newton or dogleg."),
-    starts: int = typer.Option(1, "--starts", help="Grid starts evaluated in one batch."),
-    refine: int = typer.Option(1, "--refine", help="Best starts refined by the solver."),
+    starts: int = typer.Option(1, "--starts", parser=opts.whole_number,
+                               help="Grid starts evaluated in one batch."),
+    refine: int = typer.Option(1, "--refine", parser=opts.whole_number,
+                               help="Best starts refined by the solver."),
     jac: str = typer.Option("fwd", "--jac", help="fwd (forward mode) or rev (reverse)."),
-    max_steps: int = typer.Option(40, "--max-steps", help="Solver steps."),
+    max_steps: int = typer.Option(40, "--max-steps", parser=opts.whole_number,
+                                  help="Solver steps."),
     channel: str = opts.channel_option(),
     fit_window: str = fit_window_option(),
     splits: bool | None = opts.splits_option("a fault severity is free"),
@@ -244,12 +247,8 @@ def identify(
     _check_common(model, f_sun, out, force)
     opts.choice("--solver", solver, SOLVERS)
     opts.choice("--jac", jac, ("fwd", "rev"))
-    opts.at_least("--starts", starts, 1)
-    opts.at_least("--refine", refine, 1)
-    if refine > starts:
-        raise opts.OptionError("--refine", f"refines the best of the --starts: at most {starts}, "
-                               f"got {refine}")
-    opts.at_least("--max-steps", max_steps, 1)
+    opts.starts_and_refine(starts, refine, names)
+    opts.solver_steps(max_steps)
     window = _parse_window(fit_window)
     opts.tacho_reading(tacho)
     if runup is not None and window.start is None:

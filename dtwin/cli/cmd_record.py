@@ -148,7 +148,8 @@ _SENS = typer.Option(None, "--sensitivity", help="Sensor sensitivity 'NAME=100 m
                      "(repeatable); converts volts to the physical unit; 'NAME=100 mV/g -> "
                      "m/s^2' also converts the unit.")
 _TACHO = typer.Option(None, "--tacho", help="Tachometer channel (name or index).")
-_PPR = typer.Option(None, "--tacho-ppr", help="Tachometer pulses per revolution.")
+_PPR = typer.Option(None, "--tacho-ppr", parser=opts.whole_number,
+                    help="Tachometer pulses per revolution.")
 _SHAFT = typer.Option(None, "--tacho-shaft", help="Shaft the tacho sees: sun or carrier.")
 _GROUP = typer.Option(None, "--group", help="TDMS group, HDF5 group or MATLAB struct to read.")
 _FMT = typer.Option(None, "--format", help="Force a format: csv wav numpy matlab hdf5 tdms uff "

@@ -24,7 +24,7 @@ from . import options as opts
 from .app import app
 
 #: Longest start-up transient `--discard` accepts (s).
-MAX_DISCARD_S = 60.0
+MAX_DISCARD_S = opts.MAX_DISCARD_S
 
 
 def _check_memory(spec, duration: float, rate: float) -> None:
@@ -38,6 +38,27 @@ def _check_memory(spec, duration: float, rate: float) -> None:
     require(need, what=f"a {duration:g} s record at {rate:g} Hz ({duration * rate:.3g} samples, "
             f"the solver saving {2 * n_dof} states at 4 × that rate)", option="--sample-rate",
             fix="lower --sample-rate or --duration")
+
+
+def _check_tacho(spec, ppr: int, f_sun: float | None, ramp_to: float | None,
+                 rate: float) -> None:
+    """Refuse more tachometer pulses per revolution than the DAQ rate resolves: `ppr` pulses
+    per revolution of a shaft turning at ``f`` Hz (the highest speed of the run, on the shaft
+    the spec's DAQ puts the tachometer on) make a pulse train of ``ppr f`` Hz, which must stay
+    at or below Nyquist, ``rate / 2`` (Hz)."""
+    from ..build import daq_from_spec
+
+    f_nom = f_sun or spec["operating"].get("f_sun")
+    if not f_nom:
+        return
+    f_top = max(float(f_nom), float(ramp_to or 0.0))
+    shaft = daq_from_spec(spec).tacho_shaft or "sun"
+    f_shaft = f_top if shaft == "sun" else float(gear_frequencies(spec, f_top)["f_carrier"])
+    high = max(1, int(rate / (2.0 * f_shaft)))
+    opts.count("--tacho-ppr", ppr, 1, high,
+               f"{ppr} pulses per revolution of the {shaft} shaft at {f_shaft:.4g} Hz make "
+               f"{ppr * f_shaft:.4g} Hz, above Nyquist ({rate / 2:g} Hz at {rate:g} Hz): lower "
+               "--tacho-ppr or raise --sample-rate")
 
 
 @app.command()
@@ -55,8 +76,9 @@ def simulate(
     sample_rate: float = typer.Option(None, "--sample-rate", help="DAQ rate (Hz)"),
     quantity: str = typer.Option(None, help="acceleration | velocity | displacement | ring_velocity"),
     snr_db: float = typer.Option(None, "--snr-db", help="measurement noise, SNR over the record (dB)"),
-    seed: int = typer.Option(0, help="noise seed"),
-    tacho_ppr: int = typer.Option(None, "--tacho-ppr", help="add a tachometer channel (pulses/rev)"),
+    seed: int = typer.Option(0, parser=opts.whole_number, help="noise seed"),
+    tacho_ppr: int = typer.Option(None, "--tacho-ppr", parser=opts.whole_number,
+                                  help="add a tachometer channel (pulses/rev)"),
     band: tuple[float, float] = typer.Option(None, help="spectrum band LOW HIGH (Hz); default "
                                              "the mesh harmonics fm − 12 fc … 3 fm + 12 fc "
                                              "(capped at Nyquist)"),
@@ -72,18 +94,14 @@ def simulate(
     from ..simulate import QUANTITIES
 
     opts.input_speed_option("--f-sun", f_sun)
-    opts.positive("--duration", duration, unit="s")
-    if duration > 3600:
-        raise opts.OptionError("--duration", f"at most 3600 s, got {duration:g}")
-    opts.in_range("--discard", discard, 0.0, MAX_DISCARD_S, "s (the start-up transient the "
-                  "twin simulates and drops; it settles within seconds)")
+    opts.simulated_span(duration, discard)
     opts.choice("--start", start, ("steady", "rest"))
     opts.input_speed_option("--ramp-to", ramp_to)
     opts.choice("--kind", kind, ("translational", "torsional"))
     opts.positive("--sample-rate", sample_rate, unit="Hz")
     opts.choice("--quantity", quantity, QUANTITIES)
     opts.finite("--snr-db", snr_db)
-    opts.at_least("--seed", seed, 0)
+    opts.count("--seed", seed, 0, opts.MAX_SEED)
     opts.at_least("--tacho-ppr", tacho_ppr, 1)
     opts.band("--band", band)
     for f in fault or []:
@@ -103,6 +121,8 @@ def simulate(
                 raise opts.OptionError("--sample-rate", f"the mesh frequency {fm:.4g} Hz lies "
                                        f"above Nyquist ({nyq:g} Hz at {rate:g} Hz); raise "
                                        "--sample-rate or give --band LOW HIGH below Nyquist")
+    if tacho_ppr is not None:
+        _check_tacho(spec, tacho_ppr, f_sun, ramp_to, rate)
     _check_memory(spec, duration, rate)
     with opts.progress_line("simulating", enabled=not (quiet or as_json)) as shown:
         record, res, settings = run_simulation(

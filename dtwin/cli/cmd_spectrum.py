@@ -68,6 +68,10 @@ def _print_table(report: dict, title: str) -> None:
                   f"factor {s['crest_factor']:.3f}; resolution {report['resolution_hz']:.4g} Hz")
 
 
+#: Widest running-median window of the noise floor `--floor-width` accepts (bins).
+MAX_FLOOR_WIDTH = 10_001
+
+
 @app.command()
 def spectrum(
     record_file: Path = typer.Argument(..., help="Record file (any supported format)."),
@@ -87,8 +91,9 @@ def spectrum(
                                    "and the lower edge of the ISO 20816 band."),
     welch: bool = typer.Option(False, "--welch", help="Welch-averaged amplitude spectrum "
                                "(segments of --segment samples overlapping by --overlap)."),
-    segment: int = typer.Option(4096, "--segment", help="Welch segment (samples; resolution "
-                                "sample rate / segment)."),
+    segment: int = typer.Option(4096, "--segment", parser=opts.whole_number,
+                                help="Welch segment (samples; resolution sample rate / "
+                                     "segment)."),
     overlap: float = typer.Option(0.5, "--overlap", help="Welch overlap (fraction in [0, 1))."),
     iso_group: int = typer.Option(2, "--iso-group", help="ISO 20816-3 machine group of the "
                                   "zone lines: 1 (300 kW–50 MW) or 2 (15–300 kW)."),
@@ -106,9 +111,11 @@ def spectrum(
                                        help="Peak height above the noise floor (dB)."),
     min_spacing: float | None = typer.Option(None, "--min-spacing",
                                              help="Minimum distance between peaks (Hz)."),
-    max_peaks: int = typer.Option(15, "--max-peaks", help="Keep the highest N peaks."),
-    floor_width: int = typer.Option(31, "--floor-width",
-                                    help="Running-median window of the noise floor (bins)."),
+    max_peaks: int = typer.Option(15, "--max-peaks", parser=opts.whole_number,
+                                  help="Keep the highest N peaks."),
+    floor_width: int = typer.Option(31, "--floor-width", parser=opts.whole_number,
+                                    help="Running-median window of the noise floor (bins, at "
+                                         f"most {MAX_FLOOR_WIDTH})."),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("spectrum.png, waveform.png, iso20816.png, spectrum.json, "
@@ -143,7 +150,9 @@ def spectrum(
     opts.in_range("--threshold-db", threshold_db, 0.0, 200.0, "dB")
     opts.positive("--min-spacing", min_spacing, unit="Hz")
     opts.at_least("--max-peaks", max_peaks, 1)
-    opts.at_least("--floor-width", floor_width, 3)
+    opts.count("--floor-width", floor_width, 3, MAX_FLOOR_WIDTH, "a running median wider "
+               "than that is no longer the floor around a peak, and its window is held in "
+               "memory")
     opts.check_out(out, force)
     gb = opts.load_gearbox(preset, spec, required=False)
     gearbox = gb.spec if gb is not None else None

@@ -151,6 +151,10 @@ def _ordermap_view(record, x, unit, gearbox, freqs, f_sun, speed_range, revs, sc
     if ang["sun"] is None:
         raise SpecError([("--preset/--spec", "the tachometer is on the carrier: give the gearbox "
                           "to convert its angle to the input shaft")])
+    if revs is not None:  # given: at most the revolutions the input shaft makes in the record
+        turns = int(abs(float(ang["sun"][-1]) - float(ang["sun"][0])) / (2.0 * np.pi))
+        opts.count("--revs", revs, 1, max(turns, 1), "the revolutions of the input shaft in "
+                   "the record; each order spectrum needs --revs of them")
     if freqs is not None:
         o = {k: v / freqs["f_sun"] for k, v in freqs.items()}
         mo, pp = o["f_mesh"], o["f_planet_pass"]
@@ -322,6 +326,7 @@ def _waterfall_view(record, x, unit, gearbox, freqs, f_sun, speed_range, segment
     if (record.tacho is not None and record.tacho_ppr) or (gearbox is not None and f_sun):
         ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
         angle, source = ang["sun"], ang["source"]
+    opts.count("--segment", segment, 16, max(x.size, 16), "samples, the record's length")
     wf = waterfall(x, record.sample_rate, segment_length=segment, angle=angle)
     orders = None
     if freqs is not None:
@@ -371,7 +376,8 @@ def view(
                                                     help="Band LOW HIGH (Hz): envelope, psd."),
     speed_range: tuple[float, float] | None = typer.Option(
         None, "--speed-range", help="Input-speed range LOW HIGH (Hz) for tacho-less tracking."),
-    segment: int = typer.Option(1024, "--segment", help="Segment length (samples): waterfall, psd."),
+    segment: int = typer.Option(1024, "--segment", parser=opts.whole_number,
+                                help="Segment length (samples): waterfall, psd."),
     nat: list[float] | None = typer.Option(None, "--nat", help="Natural frequency (Hz) to overlay "
                                            "on the Campbell diagram (repeatable)."),
     units: str | None = typer.Option(None, "--units", help="Output unit: m/s^2, g, mm/s, um "
@@ -379,7 +385,8 @@ def view(
                                      "recorded."),
     highpass: float = typer.Option(10.0, "--highpass", help="High-pass (Hz) of the integration "
                                    "to mm/s or um (4th-order Butterworth, zero phase)."),
-    revs: int | None = typer.Option(None, "--revs", help="ordermap: revolutions per spectrum "
+    revs: int | None = typer.Option(None, "--revs", parser=opts.whole_number,
+                                    help="ordermap: revolutions per spectrum "
                                     "(order resolution 1/REVS); default: five bins between "
                                     "the planet-pass sidebands (4 without a gearbox)."),
     scale: str | None = typer.Option(None, "--scale", help="db (re the unit's ISO 1683 "

@@ -161,6 +161,69 @@ def at_least(option: str, value: int | None, low: int) -> int | None:
     return value
 
 
+def whole_number(text: Any) -> int:
+    """The value of a count option (``typer.Option(..., parser=whole_number)``): an integer,
+    also written as a whole number in decimal or scientific notation (``1000``, ``1e3``,
+    ``1_000``), so that ``--n-boot 1e9`` reaches the option's range check (:func:`count`)
+    rather than a bare "not an integer".
+
+    **Raises:** ``ValueError`` (a usage error naming the option) for text that is not a whole
+    number (``2.5``, ``inf``, ``abc``, or beyond 10^4000)."""
+    if isinstance(text, bool):
+        raise ValueError(f"{text!r} is not a whole number")
+    if isinstance(text, int):
+        return text
+    t = str(text).strip()
+    try:
+        return int(t)
+    except ValueError:
+        pass
+    import decimal
+
+    try:
+        d = decimal.Decimal(t)
+        if not (d.is_finite() and d == d.to_integral_value()) or abs(d.adjusted()) > 4000:
+            raise ValueError
+        return int(d)
+    except (ArithmeticError, ValueError):
+        raise ValueError(f"{t!r} is not a whole number") from None
+
+
+def count(option: str, value: int | None, low: int, high: int, why: str = "") -> int | None:
+    """An integer option in the closed range [low, high] (None passes); `why` (what the upper
+    bound protects: run time, memory) follows the range in the message."""
+    if value is not None and not low <= value <= high:
+        shown = str(value)
+        if len(shown) > 16:  # 1e30, not thirty-one digits
+            import decimal
+
+            shown = f"{decimal.Decimal(value):.3e}"
+        raise OptionError(option, f"must lie in [{low}, {high}], got {shown}"
+                          + (f": {why}" if why else ""))
+    return value
+
+
+#: Most solver steps a fit accepts (``--max-steps`` of identify and fleet identify).
+MAX_SOLVER_STEPS = 1000
+
+
+def solver_steps(value: int) -> int | None:
+    """``--max-steps`` of a fit in [1, :data:`MAX_SOLVER_STEPS`]."""
+    return count("--max-steps", value, 1, MAX_SOLVER_STEPS,
+                 "each step is one Jacobian of the twin (seconds to minutes), and a fit that has "
+                 "not converged in a thousand steps will not: free fewer parameters or use more "
+                 "--starts")
+
+
+def starts_and_refine(starts: int, refine: int, names: Sequence[str]) -> None:
+    """``--starts`` in [1, 3^p] (the start grid of `names`, the p free parameters, holds 0 and
+    the corners and edges of ``{-s, 0, s}^p``: 3^p points) and ``--refine`` in [1, --starts]."""
+    grid = 3 ** len(names)
+    count("--starts", starts, 1, grid, f"the start grid of {len(names)} free parameter(s) "
+          f"holds {grid} points (0 and the corners and edges of {{-s, 0, s}}^{len(names)})")
+    count("--refine", refine, 1, starts, "it refines the best of the --starts")
+
+
 def in_range(option: str, value: float | None, low: float, high: float,
              what: str = "") -> float | None:
     """`value` in the closed interval [low, high] (None passes)."""
@@ -171,6 +234,27 @@ def in_range(option: str, value: float | None, low: float, high: float,
         raise OptionError(option, f"must lie in [{low:g}, {high:g}]{' ' + what if what else ''}, "
                           f"got {value:g}")
     return value
+
+
+#: Largest seed of a random-number generator a command accepts (``--seed``): 2^32 − 1.
+MAX_SEED = 2**32 - 1
+
+#: Longest record a simulating command accepts (``--duration``, s).
+MAX_DURATION_S = 3600.0
+#: Longest start-up transient a simulating command simulates and drops (``--discard``, s).
+MAX_DISCARD_S = 60.0
+
+
+def simulated_span(duration: float, discard: float) -> None:
+    """``--duration`` in (0, :data:`MAX_DURATION_S`] s and ``--discard`` in [0,
+    :data:`MAX_DISCARD_S`] s, the two lengths a simulating command integrates."""
+    positive("--duration", duration, unit="s")
+    if duration > MAX_DURATION_S:
+        raise OptionError("--duration", f"must lie in (0, {MAX_DURATION_S:g}] s, got "
+                          f"{duration:g}: the twin is integrated over it at several times the "
+                          "sampling rate (an hour is already hours of solving)")
+    in_range("--discard", discard, 0.0, MAX_DISCARD_S, "s (the start-up transient the twin "
+             "simulates and drops; it settles within seconds)")
 
 
 def choice(option: str, value: str | None, allowed: Sequence[str]) -> str | None:
@@ -612,9 +696,11 @@ def print_table(table: Any) -> None:
 
 
 __all__ = [
-    "PRESETS", "Gearbox", "OptionError", "at_least", "band", "channel_option", "channel_token",
-    "check_channel", "check_out", "choice", "console", "emit", "existing_file", "finite",
-    "f_sun_option", "force_option", "in_range", "input_speed_option", "json_option", "load_gearbox",
+    "MAX_DISCARD_S", "MAX_DURATION_S", "MAX_SEED", "MAX_SOLVER_STEPS", "PRESETS", "Gearbox",
+    "OptionError", "at_least", "band", "channel_option", "channel_token", "check_channel",
+    "check_out", "choice", "console", "count", "emit", "existing_file", "finite", "f_sun_option",
+    "force_option", "in_range", "input_speed_option", "json_option", "load_gearbox",
     "out_option", "positive", "preset_option", "print_table", "read_record",
-    "sample_rate_option", "spec_option", "tacho_option", "tacho_reading", "write_outputs",
+    "sample_rate_option", "simulated_span", "solver_steps", "spec_option", "starts_and_refine",
+    "tacho_option", "tacho_reading", "whole_number", "write_outputs",
 ]

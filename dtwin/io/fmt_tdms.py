@@ -25,11 +25,15 @@ _ERRORS = (ValueError, KeyError, EOFError, IndexError, struct.error, NotImplemen
 
 
 class _TruncationWatch(logging.Handler):
-    """Collects npTDMS's log warnings that a segment holds less data than its header states (it
-    logs them and reads what is there; a cut file would pass as a shorter record) and keeps them
-    off the console while the file is read."""
+    """Collects npTDMS's log warnings that a segment holds less data than its header states, or
+    that the last segment's metadata is incomplete (npTDMS logs them and reads what is there, or
+    nothing: a cut file would pass as a shorter record, or as one without channels), and keeps
+    every npTDMS log line off the console while the file is read (npTDMS gives its loggers a
+    console handler of their own, so turning propagation off alone does not silence them)."""
 
     _LOGGERS = ("nptdms.reader", "nptdms.tdms_segment")
+    _CUT = ("less data than expected", "not a multiple of the chunk size",
+            "metadata is incomplete")
 
     def __init__(self) -> None:
         super().__init__(logging.WARNING)
@@ -37,22 +41,46 @@ class _TruncationWatch(logging.Handler):
 
     def emit(self, record: logging.LogRecord) -> None:
         msg = record.getMessage()
-        if "less data than expected" in msg or "not a multiple of the chunk size" in msg:
+        if any(cut in msg for cut in self._CUT):
             self.messages.append(msg)
 
     def __enter__(self) -> _TruncationWatch:
         self._saved = []
         for name in self._LOGGERS:
             log = logging.getLogger(name)
-            self._saved.append((log, log.propagate))
+            self._saved.append((log, log.propagate, list(log.handlers)))
+            for h in list(log.handlers):
+                log.removeHandler(h)
             log.addHandler(self)
             log.propagate = False
         return self
 
     def __exit__(self, *exc: object) -> None:
-        for log, propagate in self._saved:
+        for log, propagate, handlers in self._saved:
             log.removeHandler(self)
+            for h in handlers:
+                log.addHandler(h)
             log.propagate = propagate
+
+
+#: Bytes of a TDMS segment's lead-in (tag ``TDSm``, table of contents, version, two offsets).
+_LEAD_IN = 28
+
+
+def _check_lead_in(path: Path) -> None:
+    """Refuse a file shorter than one segment's lead-in: npTDMS reads such a file as one
+    without channels. One that starts with the ``TDSm`` tag was cut."""
+    size = path.stat().st_size
+    if size >= _LEAD_IN:
+        return
+    with open(path, "rb") as f:
+        head = f.read(4)
+    if size and b"TDSm"[:len(head)] == head:
+        raise UnreadableFileError(
+            f"{path}: the TDMS file is truncated: {size} bytes, fewer than the {_LEAD_IN} of "
+            "its first segment's lead-in; the copy or the recording was cut: copy the file "
+            "again from the recorder")
+    raise UnreadableFileError(f"{path}: not a TDMS file ({size} bytes, no 'TDSm' segment)")
 
 
 def read(
@@ -65,14 +93,16 @@ def read(
     if time_column is not None:
         raise RecordError(f"{where}: TDMS waveforms carry their own time base; drop "
                           "time_column= (or pass sample_rate=)")
+    _check_lead_in(path)
     try:
         with _TruncationWatch() as cut:
             tdms = TdmsFile.read(path)
         if cut.messages:
+            what = ("its last segment's metadata is incomplete" if "metadata" in cut.messages[0]
+                    else "its last segment holds less data than its header states")
             raise UnreadableFileError(
-                f"{where}: the TDMS file is truncated: its last segment holds less data than its "
-                f"header states (npTDMS: {cut.messages[0]}); the copy or the recording was cut: "
-                "copy the file again from the recorder")
+                f"{where}: the TDMS file is truncated: {what} (npTDMS: {cut.messages[0]}); the "
+                "copy or the recording was cut: copy the file again from the recorder")
         groups = [g for g in tdms.groups() if len(g.channels()) > 0]
         if group is not None:
             sel = [g for g in groups if g.name == group]
