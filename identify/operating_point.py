@@ -197,16 +197,21 @@ def _hann_spectrum(x: np.ndarray, fs: float, n_seg: int, pad: int) -> _Spectrum:
     return _Spectrum(np.fft.rfftfreq(pad * n_seg, 1.0 / fs), np.sqrt(power / count), n_seg / fs)
 
 
+def _loaded(spec_or_twin):
+    """A spec given by its path, loaded; anything else as it is."""
+    if isinstance(spec_or_twin, (str, os.PathLike)):
+        from dtwin.spec import load_spec
+
+        return load_spec(spec_or_twin)
+    return spec_or_twin
+
+
 def _teeth(spec_or_twin) -> tuple[int, int, int] | None:
     """``(z_sun, z_ring, n_planets)`` of a spec (or its path), twin, gear set or
     :class:`~dtwin.kinematics.Kinematics`; None without tooth numbers."""
-    obj = spec_or_twin
+    obj = _loaded(spec_or_twin)
     if obj is None:
         return None
-    if isinstance(obj, (str, os.PathLike)):
-        from dtwin.spec import load_spec
-
-        obj = load_spec(obj)
     if hasattr(obj, "gear_set"):
         obj = obj.gear_set()
     elif hasattr(obj, "lp"):
@@ -220,13 +225,9 @@ def _teeth(spec_or_twin) -> tuple[int, int, int] | None:
 def nominal_speed(spec_or_twin) -> float | None:
     """The nominal input speed (Hz): a spec's ``operating.f_sun``, a twin's drive set point, a
     :class:`~dtwin.kinematics.Kinematics`' ``f_sun``; None when it states none."""
-    obj = spec_or_twin
+    obj = _loaded(spec_or_twin)
     if obj is None:
         return None
-    if isinstance(obj, (str, os.PathLike)):
-        from dtwin.spec import load_spec
-
-        obj = load_spec(obj)
     if hasattr(obj, "parts"):
         from dtwin.parts.drive import DrivePart
 

@@ -120,11 +120,10 @@ def spectrum(
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("spectrum.png, waveform.png, iso20816.png, spectrum.json, "
                                        "spectrum.csv/.npz, waveform.csv/.npz, report.html"),
-    force: bool = opts.force_option("Overwrite a finished result in --out and the --export "
-                                    "file."),
-    export: Path | None = typer.Option(
-        None, "--export", help="Also write the spectrum (frequency, amplitude, noise floor, "
-        "with units) to this file: .csv, .npz or .h5/.hdf5 (HDF5: one group per channel)."),
+    force: bool = opts.export_force_option(),
+    export: Path | None = opts.export_option(
+        "the spectrum (frequency, amplitude, noise floor, with units) to this file: .csv, .npz "
+        "or .h5/.hdf5 (HDF5: one group per channel)."),
 ) -> None:
     """Amplitude spectrum of a record with numbered peaks labelled by gear frequencies."""
     from .. import units as units_mod

@@ -396,12 +396,11 @@ def view(
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("KIND.png (and further PNGs), KIND.csv/.npz, "
                                        "view_KIND.json, report.html"),
-    force: bool = opts.force_option("Overwrite a finished result in --out and the --export "
-                                    "file."),
-    export: Path | None = typer.Option(
-        None, "--export", help="Also write the view's arrays (with units) to this file: .csv or "
-        ".npz (the main table: the carrier TSA, the kurtogram's bands, the spectrum) or "
-        ".h5/.hdf5 (every table of the view, one group each)."),
+    force: bool = opts.export_force_option(),
+    export: Path | None = opts.export_option(
+        "the view's arrays (with units) to this file: .csv or .npz (the main table: the "
+        "carrier TSA, the kurtogram's bands, the spectrum) or .h5/.hdf5 (every table of the "
+        "view, one group each)."),
 ) -> None:
     """Order, TSA, envelope, kurtogram, cepstrum, waterfall or PSD view of a record."""
     opts.choice("--kind", kind, KINDS)

@@ -69,6 +69,16 @@ def force_option(help: str = "Overwrite a finished result in --out.") -> Any:
     return typer.Option(False, "--force", help=help)
 
 
+def export_force_option() -> Any:
+    """``--force`` of a command that also writes an ``--export`` file."""
+    return force_option("Overwrite a finished result in --out and the --export file.")
+
+
+def export_option(what: str) -> Any:
+    """``--export FILE``: `what` (the arrays and the formats a command writes) to one file."""
+    return typer.Option(None, "--export", help=f"Also write {what}")
+
+
 def channel_option() -> Any:
     return typer.Option("0", "--channel", help="Channel name or index.")
 
