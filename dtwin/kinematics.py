@@ -28,7 +28,52 @@ import re
 from collections.abc import Sequence
 from typing import Literal
 
-__all__ = ["Kinematics", "OrderBounds", "combination_text"]
+__all__ = ["LABEL_NOTES", "SYMBOLS", "Kinematics", "OrderBounds", "combination_text",
+           "symbol_of"]
+
+
+#: Every frequency symbol a line label may use ("fm − 7fc", "61fsr (comb)", "2fm + fs/3 −
+#: fc", "BPFO + fp"): symbol → (what it stands for, the key of :meth:`Kinematics.as_dict` or
+#: :attr:`Kinematics.f_electrical` that gives its value in Hz, None where the gearbox alone
+#: does not). Ring fixed, sun input; Zs, Zp, Zr tooth counts, N planets. ``fs/N`` stands for
+#: every ``fs/<integer>`` ("fs/3" for three planets). The one table the labels are checked
+#: against (:func:`combination_text` refuses a symbol it lacks) and that the reports' legends
+#: and docs/signal_processing.md ("Symbols of the line labels") are written from.
+SYMBOLS: dict[str, tuple[str, str | None]] = {
+    "fm": ("mesh frequency, fc·Zr = (fsr − fc)·Zs", "f_mesh"),
+    "fc": ("carrier rotation frequency, fsr·Zs/(Zs + Zr)", "f_carrier"),
+    "fsr": ("sun (input shaft) rotation frequency, absolute", "f_sun"),
+    "fs": ("sun-fault frequency, fm·N/Zs: one sun tooth meeting the N planets", "f_sun_fault"),
+    "fs/N": ("the sun fault's repetition per planet, fs/N = fsr − fc (fs/3 for three "
+             "planets)", None),
+    "fp": ("planet-fault frequency, fm/Zp (the planet's rotation relative to the carrier; "
+           "2 fm/Zp when both flanks strike)", "f_planet_fault"),
+    "fr": ("ring-fault frequency, fm·N/Zr = N·fc", "f_ring_fault"),
+    "N fc": ("planet-pass frequency, N·fc (N planets passing a point of the ring)",
+             "f_planet_pass"),
+    "fe": ("electrical frequency of the drive motor, pole pairs × fsr", "f_electrical"),
+    "fx": ("a modulation frequency located from the record, no gearbox frequency (a load or "
+           "speed fluctuation)", None),
+    "BPFO": ("ball-pass frequency of a planet bearing's outer race (the planet bore), in the "
+             "carrier frame: n fp/2 (1 − d/D cos α), n rolling elements of diameter d on "
+             "pitch diameter D, contact angle α", None),
+    "BPFI": ("ball-pass frequency of a planet bearing's inner race (the carrier pin), in the "
+             "carrier frame: n fp/2 (1 + d/D cos α)", None),
+    "BSF": ("ball-spin frequency of a planet bearing's rolling element, D/(2d) fp "
+            "(1 − (d/D cos α)²); a rolling-element defect strikes at 2 BSF", None),
+    "fcage": ("cage frequency of a planet bearing relative to its pin, fp/2 (1 + d/D cos α)",
+              None),
+}
+
+#: Words of a line label that are no frequency symbol: annotation → what it says.
+LABEL_NOTES: dict[str, str] = {
+    "(comb)": ("the line belongs to a comb k·g + n·fc (g one of fs/N, fp, fsr, fe, N fc; k up "
+               "to what the band holds) found in the record and scored as one family rather "
+               "than line by line"),
+    "alias of": ("the line is the mirror 2·(Nyquist frequency) − f of the named line above "
+                 "Nyquist, let through the anti-alias filter's transition band"),
+    "DC": "0 Hz: every term of the combination cancelled",
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,14 +213,33 @@ _MULT = re.compile(r"^(\d+)(\D.*)$")
 _FRACTION = re.compile(r"^(\D+)/(\d+)$")
 
 
+def symbol_of(term: str) -> str:
+    """The entry of :data:`SYMBOLS` that a label's term stands on: its multiplier dropped
+    ("61fsr" → "fsr") and a fraction's denominator written N ("14fs/3" → "fs/N").
+
+    **Raises:** ``ValueError`` when :data:`SYMBOLS` does not define it: a new symbol needs its
+    definition before any label can use it."""
+    m = _MULT.match(term)
+    sym = m.group(2) if m else term
+    f = _FRACTION.match(sym)
+    key = f"{f.group(1)}/N" if f else sym
+    if key not in SYMBOLS:
+        raise ValueError(f"line-label symbol {sym!r} has no definition in "
+                         "dtwin.kinematics.SYMBOLS: add what it stands for there first")
+    return key
+
+
 def combination_text(terms: Sequence[tuple[str, int]]) -> str:
     """A combination ``sum c_k sym_k`` written like the paper's figures ("fm − 7fc",
     "2fm + fs/3 − fc"), simplified to its shortest equivalent form: like symbols merged (a
     symbol may carry a multiplier, ``("2fm", 1)`` is ``2fm``), whole multiples of a fraction
     written as the symbol (``3fs/3`` is ``fs``), zero terms dropped, terms in
-    their first order of appearance; ``"DC"`` when nothing is left."""
+    their first order of appearance; ``"DC"`` when nothing is left. Every symbol must be one
+    of :data:`SYMBOLS` (``ValueError`` otherwise, :func:`symbol_of`), so each label a report
+    prints has its definition in the report's legend."""
     coef: dict[str, int] = {}
     for sym, c in terms:
+        symbol_of(sym)  # every symbol is defined (SYMBOLS)
         m = _MULT.match(sym)
         if m:
             sym, c = m.group(2), int(m.group(1)) * c

@@ -82,56 +82,18 @@ def discovery_rows(result: Any) -> list[dict[str, Any]]:
     return rows
 
 
-def _candidate_outcome(c: Any, step: Any | None, level: float | None) -> tuple[str, str]:
-    """Whether a candidate was accepted or set aside, and why, in words."""
-    if step is not None and c.name == step.effect:
-        return "accepted", (f"p = {c.p_value:.2g} ≤ {step.level:.2g}, amplitude's interval "
-                            "excludes zero, held-out gap lower simulated in full")
-    if c.screened:
-        return "set aside", c.screened
-    if c.rejected:
-        return "set aside", c.rejected
-    if not c.significant:
-        if level is not None and not c.p_value <= level:
-            return "set aside", f"not significant: p = {c.p_value:.2g} > {level:.2g}"
-        if level is None and c.p_value == c.p_value:
-            return "set aside", f"not significant (p = {c.p_value:.2g})"
-        return "set aside", "did not lower the search's gap"
-    if not c.identified:
-        return "set aside", "amplitude not identified: its interval includes zero"
-    return "set aside", (f"significant and identified, but {step.effect} closed the gap more"
-                         if step is not None else "significant and identified, not confirmed")
-
-
 def discovery_candidate_rows(result: Any) -> list[dict[str, Any]]:
     """One row per candidate judged in each step of a discovery
     (:class:`dtwin.identify.discover.DiscoveryResult`), the last (unaccepted) step included:
-    step, candidate and its group, the search's gap before the step and with the candidate
-    (dB, linearised), p-value against the step's family-wise level, and whether it was
-    accepted or set aside and why (screened out, not significant, amplitude not identified,
-    a failed or out-of-range refit, not confirmed simulated in full)."""
-    rows: list[dict[str, Any]] = []
-
-    def add(number: int, step: Any | None, cands: Any, before: float | None,
-            level: float | None) -> None:
-        for c in cands:
-            outcome, why = _candidate_outcome(c, step, level)
-            rows.append({"step": number, "candidate": c.name, "group": c.group,
-                         "coverage": float(c.coverage), "gap before (dB)": before,
-                         "gap with it (dB)": float(c.gap_after), "p-value": float(c.p_value),
-                         "level": level, "outcome": outcome, "why": why})
-
-    for s in result.steps:
-        add(s.number, s, s.candidates, float(s.gap_before.total), float(s.level))
-    kept = {id(c) for s in result.steps for c in s.candidates}
-    last = [c for c in result.last_candidates if id(c) not in kept]
-    if last:  # the step that accepted nothing: its level as the search set it (alpha / K)
-        before = float(result.steps[-1].gap_confirmed.total) if result.steps else None
-        settings = result.settings
-        k = (sum(1 for c in last if not c.screened) if settings.screen == "coverage"
-             else len(last))
-        add(len(result.steps) + 1, None, last, before, settings.alpha / max(k, 1))
-    return rows
+    step, candidate and its group, coverage, screening score (degrees of freedom, rank), the
+    search's gap before the step and with the candidate (dB, linearised), p-value against the
+    step's family-wise level, whether its amplitude was identified, its fitted main value with
+    unit and interval, an out-of-range refit, and whether it was accepted or set aside and why
+    (screened out, not significant, amplitude not identified, a failed or out-of-range refit,
+    not confirmed simulated in full). These are
+    :meth:`dtwin.identify.discover.DiscoveryResult.candidate_table`'s rows: the terminal, the
+    JSON and both reports print the same verdicts."""
+    return result.candidate_table()
 
 
 def trend_rows(trends: Mapping[str, Any]) -> list[dict[str, Any]]:

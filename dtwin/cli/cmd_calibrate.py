@@ -129,9 +129,11 @@ def _files(result, report, unit: str):
         from dtwin.spec_writer import spec_to_toml
 
         from ..io.export import Columns
-        from ..io.html_report import HTMLReport
+        from ..io.html_report import HTMLReport, frequency_text
 
-        rows = [{"parameter": p.name, "value": f"{p.value:.5g}", "sd": f"{p.sd:.2g}",
+        # a frequency (Hz) to 0.01 Hz, other values to 5 significant digits
+        rows = [{"parameter": p.name, "value": (frequency_text(p.value) if p.unit == "Hz"
+                                                else f"{p.value:.5g}"), "sd": f"{p.sd:.2g}",
                  "unit": p.unit, "status": p.status,
                  "note": p.note} for p in result.parameters]
         return {

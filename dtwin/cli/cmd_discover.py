@@ -6,11 +6,14 @@
                    [--n-boot 400] [--seed 0] [--json] [--out DIR] [--force]
 
 Runs :func:`dtwin.identify.discover.discover` (docs/discovery.md) on one channel of the record with
-the spec's base twin. Terminal: one line per step (effect named, why, main parameter with its
-99 % interval, held-out gap before → after) and the unexplained lines. ``--json``: the whole
-result on stdout. ``--out DIR``: ``discover.json``, ``discover.md`` (readable report),
-``gap.png`` (gap per step), ``spectrum_step<k>.png`` (measured vs model, residual lines marked,
-full band and the first mesh band) and ``manifest.json``.
+the spec's base twin. Terminal (:func:`screen_summary`): one line per step (effect named, why,
+main parameter with its 99 % interval, held-out gap before → after), one line per refit
+candidate and step with its verdict (identified or not, accepted or set aside and why), and the
+unexplained lines. ``--json``: the whole result on stdout. ``--out DIR``: ``discover.json``,
+``discover.md`` (readable report), ``report.html``, ``gap.png`` (gap per step),
+``spectrum_step<k>.png`` (measured vs model, residual lines marked, full band and the first
+mesh band), ``spectra.csv``/``.npz`` and ``manifest.json``. Every output takes its candidate
+verdicts from :meth:`dtwin.identify.discover.DiscoveryResult.candidate_table`.
 """
 
 from __future__ import annotations
@@ -33,11 +36,82 @@ def _unit_text(unit: str) -> str:
     return "dimensionless" if unit in ("1", "") else unit
 
 
-def _score(c) -> str:
-    """A candidate's screening score at zero amplitude, its degrees of freedom and rank."""
-    if c.score != c.score:  # not scored (screen="coverage")
+def _score(row: dict) -> str:
+    """A candidate's screening score at zero amplitude, its degrees of freedom and rank (a row
+    of :meth:`dtwin.identify.discover.DiscoveryResult.candidate_table`)."""
+    if row["score"] != row["score"]:  # not scored (screen="coverage")
         return ""
-    return f"{c.score:.3g} ({c.score_df}), rank {c.score_rank}"
+    return f"{row['score']:.3g} ({row['score df']}), rank {row['rank']}"
+
+
+def _main_text(row: dict) -> str:
+    """A candidate's fitted main value with its unit and interval, as text ("" when not
+    refit)."""
+    if row["main"] != row["main"]:
+        return ""
+    unit = "" if row["main unit"] in ("", "-") else f" {_unit_text(row['main unit'])}"
+    iv = row["interval"]
+    return f"{row['main']:.4g}{unit}" + ("" if iv is None else f" [{iv[0]:.3g}, {iv[1]:.3g}]")
+
+
+def _candidate_markdown(rows: list[dict]) -> list[str]:
+    """The Markdown table of the candidates of one step (rows of
+    :meth:`dtwin.identify.discover.DiscoveryResult.candidate_table`)."""
+    out = ["| candidate | group | coverage | score (df), rank | p | search's gap (dB) "
+           "| identified | fitted main value [interval] | outcome: why |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    out += [f"| {r['candidate']} | {r['group']} | {r['coverage']:.2f} | {_score(r)} | "
+            f"{r['p-value']:.3g} | {r['gap with it (dB)']:.2f} | {r['identified']} | "
+            f"{_main_text(r)} | {r['outcome']}: {r['why']} |" for r in rows]
+    return out
+
+
+def screen_summary(result) -> list[str]:
+    """The lines ``dtwin discover`` prints on the terminal at the end of a search (a
+    :class:`dtwin.identify.discover.DiscoveryResult`): the held-out gap of the base model, one
+    line per step, what each added, the respecialised steps, each refit candidate's verdict
+    (identified or not, accepted or set aside and why: the rows of
+    :meth:`~dtwin.identify.discover.DiscoveryResult.candidate_table`, which the JSON and both
+    reports print too), the candidates screened out, why the search stopped and the
+    unexplained lines."""
+    out = [f"base model: held-out gap {result.initial_gap.total:.2f} dB"]
+    for s in result.steps:
+        out.append(f"step {s.number}: {s.named:28s} gap {_total(s.heldout_before):>6s} → "
+                   f"{_total(s.heldout_after):>6s} dB  p={s.p_value:.2g}  {s.main['name']} "
+                   f"{s.main['value']:.3g}"
+                   + ("" if s.main['unit'] in ("1", "", "-") else f" {s.main['unit']}")
+                   + _interval_text(s.main)
+                   + (" (dimensionless)" if s.main['unit'] == "1" else "")
+                   + (f" (if {s.effect})" if s.named != s.effect else ""))
+    for s in result.steps:
+        if s.summary:
+            out.append(f"step {s.number}: {s.summary}")
+    for k in result.respecialised:
+        out.append(f"before step {k}: candidates specialised again from the current "
+                   "model's residual")
+    rows = result.candidate_table()
+    for r in rows:
+        if r["why"].startswith("screened out"):
+            continue
+        out.append(f"step {r['step']} candidate {r['candidate']}: identified "
+                   f"{r['identified']}; {r['outcome']}: {r['why']}")
+    screened: dict[int, list[str]] = {}
+    for r in rows:
+        if r["why"].startswith("screened out"):
+            screened.setdefault(r["step"], []).append(r["candidate"])
+    for k, names in screened.items():
+        out.append(f"step {k}: screened out (not refit): {', '.join(names)}")
+    out.append(f"stopped: {result.stop_reason}")
+    out += [f"unexplained: {r.frequency:9.2f} Hz  +{r.excess_db:5.1f} dB  {r.text}"
+            for r in result.unexplained[:15]]
+    return out
+
+
+def _label_frequencies(kin) -> dict:
+    """The gearbox's frequencies by name (Hz) that the legend of the line-label symbols shows
+    beside each symbol: :meth:`dtwin.kinematics.Kinematics.as_dict` and the motor's electrical
+    frequency ``f_electrical`` (None without a motor line)."""
+    return {**kin.as_dict(), "f_electrical": kin.f_electrical}
 
 
 def _total(g) -> str:
@@ -67,6 +141,7 @@ def markdown_report(result, record_name: str) -> str:
            f"**{result.final_gap.total:.2f} dB** ({_gap_rule(result.settings)}). Stopped: "
            f"{result.stop_reason}.", "",
            "![gap](gap.png)", "", "![base](spectrum_step0.png)", ""]
+    rows = result.candidate_table()
     for s in result.steps:
         out += [f"## Step {s.number}: {s.named}", "",
                 "- before this step the candidates were specialised again from the current "
@@ -94,22 +169,12 @@ def markdown_report(result, record_name: str) -> str:
         for p in s.parameters:
             out.append(f"| {p['name']} | {p['value']:.4g} | [{p['interval'][0]:.3g}, "
                        f"{p['interval'][1]:.3g}] | {_unit_text(p['unit'])} |")
-        out += ["", "| candidate | group | coverage | score (df) | p | search's gap (dB) "
-                "| identified | set aside |", "|---|---|---|---|---|---|---|---|"]
-        for c in s.candidates:
-            out.append(f"| {c.name} | {c.group} | {c.coverage:.2f} | {_score(c)} | "
-                       f"{c.p_value:.3g} | {c.gap_after:.2f} | {c.identified} | "
-                       f"{c.rejected or c.screened or ''} |")
+        out += [""] + _candidate_markdown([r for r in rows if r["step"] == s.number])
         out += ["", f"![step {s.number}](spectrum_step{s.number}.png)", ""]
-    kept = {id(c) for s in result.steps for c in s.candidates}
-    last = [c for c in result.last_candidates if id(c) not in kept]
+    last = [r for r in rows if r["step"] > len(result.steps)]
     if last:
-        out += ["## Candidates refit in the last step (none kept)", "",
-                "| candidate | group | coverage | score (df) | p | search's gap (dB) | identified "
-                "| set aside |", "|---|---|---|---|---|---|---|---|"]
-        out += [f"| {c.name} | {c.group} | {c.coverage:.2f} | {_score(c)} | {c.p_value:.3g} | "
-                f"{c.gap_after:.2f} | {c.identified} | {c.rejected or c.screened or ''} |"
-                for c in last] + [""]
+        out += ["## Candidates refit in the last step (none kept)", ""]
+        out += _candidate_markdown(last) + [""]
     fams = list(result.combs) + ([result.modulation] if result.modulation is not None else [])
     if fams:
         out += ["## Line families in the last residual (scored as a whole)", ""]
@@ -127,7 +192,7 @@ def markdown_report(result, record_name: str) -> str:
                 + _fmt_lines(result.extra_in_model, 20)]
     from ..io.html_report import symbol_legend_markdown
 
-    legend = symbol_legend_markdown(out, result.kinematics.as_dict())
+    legend = symbol_legend_markdown(out, _label_frequencies(result.kinematics))
     if legend:
         out += ["", "## Symbols of the line labels", "", legend]
     return "\n".join(out) + "\n"
@@ -201,30 +266,8 @@ def discover(
     report = {"record": str(record_file), "channel": str(channel), **result.to_dict()}
 
     def table() -> None:
-        typer.echo(f"base model: held-out gap {result.initial_gap.total:.2f} dB")
-        for s in result.steps:
-            typer.echo(f"step {s.number}: {s.named:28s} gap {_total(s.heldout_before):>6s} → "
-                       f"{_total(s.heldout_after):>6s} dB  p={s.p_value:.2g}  {s.main['name']} "
-                       f"{s.main['value']:.3g}"
-                       + ("" if s.main['unit'] in ("1", "", "-") else f" {s.main['unit']}")
-                       + _interval_text(s.main)
-                       + (" (dimensionless)" if s.main['unit'] == "1" else "")
-                       + (f" (if {s.effect})" if s.named != s.effect else ""))
-        for s in result.steps:
-            if s.summary:
-                typer.echo(f"step {s.number}: {s.summary}")
-        for k in result.respecialised:
-            typer.echo(f"before step {k}: candidates specialised again from the current "
-                       "model's residual")
-        set_aside = {c.name: c.rejected for s in result.steps for c in s.candidates
-                     if c.rejected}
-        set_aside.update({c.name: c.rejected for c in result.last_candidates if c.rejected})
-        for name, why in set_aside.items():
-            typer.echo(f"set aside: {name}: {why}")
-        typer.echo(f"stopped: {result.stop_reason}")
-
-        for r in result.unexplained[:15]:
-            typer.echo(f"unexplained: {r.frequency:9.2f} Hz  +{r.excess_db:5.1f} dB  {r.text}")
+        for line in screen_summary(result):
+            typer.echo(line)
 
     def files() -> dict:
         return discover_files(result, report, record_file, channel,
@@ -272,11 +315,18 @@ def discover_files(result, report: dict, record_file: Path, channel, unit: str |
                  "final held-out gap (dB)": result.final_gap.total,
                  "stopped": result.stop_reason},
         figures=figures,
-        frequencies=result.kinematics.as_dict(),
+        frequencies=_label_frequencies(result.kinematics),
         tables={"Effects added (99 % intervals)": discovery_rows(result),
                 "Candidates judged in each step (the search's gap, bins "
                 f"{result.settings.threshold_db:g} dB over the floor; p-value against the "
                 "step's family-wise level)": discovery_candidate_rows(result),
+                "Residual lines each added effect matched": [
+                    {"step": st.number, "effect": st.named, "frequency (Hz)": r.frequency,
+                     "excess (dB)": r.excess_db, "kinematic description": r.text,
+                     "on the effect's signature": lab}
+                    for st in result.steps
+                    for r, lab in zip(st.matched_lines, st.matched_labels
+                                      or [""] * len(st.matched_lines), strict=True)],
                 "Unexplained lines": [{"frequency (Hz)": r.frequency,
                                        "excess (dB)": r.excess_db,
                                        "over floor (dB)": r.above_floor_db,

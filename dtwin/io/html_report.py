@@ -33,7 +33,8 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["LABEL_SYMBOLS", "HTMLReport", "figure_png", "frequency_text", "html_report",
-           "symbol_legend", "symbol_legend_markdown", "write_html_report"]
+           "symbol_glossary_markdown", "symbol_legend", "symbol_legend_markdown",
+           "write_html_report"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;
@@ -118,35 +119,42 @@ def _fmt(v: Any, frequency: bool = False) -> tuple[str, bool]:
     return str(v), False
 
 
-#: Symbols of the line labels (``"fm − 7fc"``, ``"61fsr (comb)"``, ``"2fm + fs/3 − fc"``) and
-#: what each stands for (dtwin.kinematics; ring fixed, sun input; Zs, Zp, Zr tooth counts, N
-#: planets). Each is looked for as a token in the page's tables, notes and captions.
-LABEL_SYMBOLS: dict[str, tuple[str, str]] = {
-    "fm": (r"fm", "mesh frequency, fc·Zr = (fsr − fc)·Zs"),
-    "fc": (r"fc", "carrier rotation frequency, fsr·Zs/(Zs + Zr)"),
-    "fsr": (r"fsr", "sun (input shaft) rotation frequency"),
-    "fs": (r"fs(?!/)", "sun-fault frequency, fm·N/Zs: one sun tooth meeting the N planets"),
-    "fs/N": (r"fs/\d+", "the sun fault's repetition per planet, fs/N = fsr − fc (fs/3 for "
-             "three planets)"),
-    "fp": (r"fp", "planet-fault frequency, fm/Zp (2 fm/Zp when both flanks strike)"),
-    "fr": (r"fr", "ring-fault frequency, N·fc (the planet-pass frequency)"),
-    "N fc": (r"N fc", "planet-pass frequency, N·fc (N planets)"),
-    "fe": (r"fe", "electrical frequency of the drive motor, pole pairs × fsr"),
-    "fx": (r"f_?x", "a modulation frequency located from the record, no gearbox frequency"),
-    "(comb)": (r"\(comb\)", "the line belongs to a comb k·g + n·fc (g one of fs/N, fp, fsr, "
-               "fe, fr; k up to what the band holds), scored as one family rather than line by "
-               "line"),
-    "DC": (r"DC", "0 Hz"),
-}
+def _label_symbols() -> dict[str, tuple[str, str]]:
+    """:data:`LABEL_SYMBOLS` from the one table of the symbols (:data:`dtwin.kinematics.SYMBOLS`)
+    and of the labels' annotations (:data:`dtwin.kinematics.LABEL_NOTES`)."""
+    from ..kinematics import LABEL_NOTES, SYMBOLS
 
-#: Symbol of LABEL_SYMBOLS → key of :meth:`dtwin.kinematics.Kinematics.as_dict` (its value).
-_SYMBOL_KEYS = {"fm": "f_mesh", "fc": "f_carrier", "fsr": "f_sun", "fs": "f_sun_fault",
-                "fp": "f_planet_fault", "fr": "f_ring_fault", "N fc": "f_planet_pass"}
+    out = {}
+    for sym, (meaning, _) in SYMBOLS.items():
+        # "fs/N" stands for fs/<integer>; "N fc" is written as such
+        pattern = (re.escape(sym[:-2]) + r"/\d+" if sym.endswith("/N") else re.escape(sym))
+        out[sym] = (pattern, meaning)
+    out.update({note: (re.escape(note), meaning) for note, meaning in LABEL_NOTES.items()})
+    return out
+
+
+#: Symbols of the line labels (``"fm − 7fc"``, ``"61fsr (comb)"``, ``"2fm + fs/3 − fc"``,
+#: ``"BPFO + fp"``) and their annotations, each with the pattern that finds it as a token in a
+#: page's tables, notes and captions and what it stands for: symbol → (pattern, meaning).
+#: Written from :data:`dtwin.kinematics.SYMBOLS` and :data:`dtwin.kinematics.LABEL_NOTES`, the
+#: one table that :func:`dtwin.kinematics.combination_text` checks every label against.
+LABEL_SYMBOLS: dict[str, tuple[str, str]] = _label_symbols()
+
+
+def _symbol_keys() -> dict[str, str]:
+    from ..kinematics import SYMBOLS
+
+    return {sym: key for sym, (_, key) in SYMBOLS.items() if key is not None}
+
+
+#: Symbol of LABEL_SYMBOLS → key of the `frequencies` mapping that gives its value (Hz).
+_SYMBOL_KEYS = _symbol_keys()
 
 
 def _symbol_pattern(pattern: str) -> re.Pattern:
-    # a symbol is a token: not inside a word ("offset"), a multiplier may precede it ("61fsr")
-    return re.compile(r"(?<![A-Za-z_])" + pattern + r"(?![A-Za-z_])")
+    # a symbol is a token: not inside a word ("offset", "fcage" holds no "fc"), not the whole
+    # of a fraction ("fs/3" holds no "fs"); a multiplier may precede it ("61fsr")
+    return re.compile(r"(?<![A-Za-z_])" + pattern + r"(?![A-Za-z_/])")
 
 
 _SYMBOL_PATTERNS = {k: _symbol_pattern(p) for k, (p, _) in LABEL_SYMBOLS.items()}
@@ -197,6 +205,16 @@ def symbol_legend_markdown(texts: Sequence[str], frequencies: Mapping[str, Any] 
     return "\n".join(out)
 
 
+def symbol_glossary_markdown() -> str:
+    """Every symbol and annotation a line label may use, with what it stands for, as a Markdown
+    table (:data:`LABEL_SYMBOLS`, from :data:`dtwin.kinematics.SYMBOLS` and
+    :data:`dtwin.kinematics.LABEL_NOTES`): the table of docs/signal_processing.md ("Symbols of
+    the line labels"), which the tests compare with this text."""
+    out = ["| symbol | meaning |", "|---|---|"]
+    out += [f"| `{sym}` | {meaning} |" for sym, (_, meaning) in LABEL_SYMBOLS.items()]
+    return "\n".join(out)
+
+
 def _texts_of(tables: Mapping[str, Any], notes: Sequence[str], captions: Sequence[str]
               ) -> list[str]:
     texts = [str(n) for n in notes] + [str(c) for c in captions]
@@ -221,6 +239,21 @@ def _table_rows(table: Any) -> tuple[list[str], list[list[Any]]]:
     return header, [[r.get(h) for h in header] for r in rows]
 
 
+#: Columns of a table with a unit column (``unit``, ``main unit``) that hold values in the
+#: row's unit: where that unit is Hz they are frequencies (:func:`frequency_text`).
+_IN_ROW_UNIT = re.compile(r"^(value|initial|fitted|estimate|main|interval|sd|sigma|"
+                          r"(lower|upper)[_ ]?\w*)$", re.IGNORECASE)
+
+
+def _row_frequency_columns(header: list[str], row: list[Any]) -> set[int]:
+    """The columns of `row` that hold a frequency because the row's unit column says Hz (a
+    fitted ``f_sun`` of 29.6999 Hz is not shown as 29.7)."""
+    units = [j for j, h in enumerate(header) if h == "unit" or h.endswith(" unit")]
+    if not any(str(row[j]).strip() == "Hz" for j in units):
+        return set()
+    return {j for j, h in enumerate(header) if _IN_ROW_UNIT.match(h)}
+
+
 def _table_html(caption: str, table: Any) -> str:
     header, rows = _table_rows(table)
     two_column = header == ["quantity", "value"]
@@ -230,9 +263,10 @@ def _table_html(caption: str, table: Any) -> str:
     out.append("</tr></thead><tbody>")
     for r in rows:
         out.append("<tr>")
+        in_hz = _row_frequency_columns(header, r)
         for j, v in enumerate(r):
             key = str(r[0]) if two_column and j == 1 else header[j]
-            text, num = _fmt(v, is_frequency_key(key))
+            text, num = _fmt(v, is_frequency_key(key) or j in in_hz)
             out.append(f"<td class='num'>{html.escape(text)}</td>" if num
                        else f"<td>{html.escape(text)}</td>")
         out.append("</tr>")
@@ -342,7 +376,8 @@ def write_html_report(
       whether or not they are given.
 
     Floats show 4 significant digits, except frequencies (a column or key naming Hz or a
-    frequency), which keep at least six and 0.01 Hz (:func:`frequency_text`).
+    frequency, or a value column of a row whose unit column says Hz), which keep at least six
+    digits and 0.01 Hz (:func:`frequency_text`).
 
     **Returns:** the path written (inside the staging folder until a staged folder commits).
     """

@@ -402,7 +402,9 @@ def discover(
         results: list[CandidateResult] = []
         for cov, i, matched in ranked:
             e = candidates[i]
-            cr = CandidateResult(e.name, e.group, cov, matched)
+            cr = CandidateResult(e.name, e.group, cov, matched,
+                                 main_name=getattr(e, "main_name", ""),
+                                 main_unit=getattr(e, "main_unit", ""))
             _set_score(cr, scores, i, covering)
             share, on = shortfall_share(matched, shortfall_orders, f_sun, df)
             if share >= SHORTFALL_SHARE:  # the healthy machine shows the same lines
@@ -491,7 +493,9 @@ def discover(
         tried = {c.name: c for c in results}
         for cov, i, matched in screened_out:
             e = candidates[i]
-            cr = CandidateResult(e.name, e.group, cov, matched)
+            cr = CandidateResult(e.name, e.group, cov, matched,
+                                 main_name=getattr(e, "main_name", ""),
+                                 main_unit=getattr(e, "main_unit", ""))
             _set_score(cr, scores, i, covering)
             cr.screened = (f"screened out, score {cr.score:.3g} ({cr.score_df} df), "
                            f"rank {cr.score_rank}")

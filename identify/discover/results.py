@@ -45,16 +45,59 @@ class CandidateResult:
     score_rank: int = 0
     #: "screened out, score …, rank k" for a candidate scored but not refit; None when refit
     screened: str | None = None
+    #: name and physical unit of the main value `main` (the effect's ``main_name`` and
+    #: ``main_unit``, "1" for dimensionless); "" where unknown
+    main_name: str = ""
+    main_unit: str = ""
 
     def to_dict(self) -> dict:
         return dict(name=self.name, group=self.group, coverage=self.coverage,
                     statistic=self.statistic, p_value=self.p_value, gap_after=self.gap_after,
                     identified=self.identified, significant=self.significant,
-                    main=self.main, main_sigma=self.main_sigma,
+                    main=self.main, main_name=self.main_name, main_unit=self.main_unit,
+                    main_sigma=self.main_sigma,
                     main_interval=list(self.main_interval), evidence=self.evidence,
-                    rejected=self.rejected, out_of_range=self.out_of_range, score=self.score, score_df=self.score_df,
+                    rejected=self.rejected, out_of_range=self.out_of_range, score=self.score,
+                    score_df=self.score_df,
                     score_log10p=self.score_log10p, score_rank=self.score_rank,
                     screened=self.screened)
+
+
+def candidate_verdict(c: CandidateResult, step: Step | None, level: float | None
+                      ) -> tuple[str, str]:
+    """Whether candidate `c` was accepted or set aside, and why, in words: the one verdict
+    that the terminal, ``discover.json``, ``discover.md`` and ``report.html`` all print.
+
+    **Arguments:** `c`; `step`, the step that judged it (None for the last step, which accepted
+    nothing); `level`, that step's family-wise level (None where unknown).
+
+    **Returns:** ``(outcome, why)``, outcome ``"accepted"`` or ``"set aside"``. The reasons,
+    in the order they are checked: screened out (scored, not refit), rejected (a calibration
+    shortfall, a failed refit, not kept once simulated in full), not significant (p above the
+    level, or the search's gap not lowered), amplitude not identified (its profile interval
+    includes zero), significant and identified but another candidate closed the gap more.
+    """
+    if step is not None and c.name == step.effect:
+        how = ("amplitude identified (its profile interval excludes zero)"
+               if c.out_of_range is None else
+               "amplitude identified by the linearised fit's profile interval, then refitted "
+               "inside its physical range in full simulation (no interval)")
+        return "accepted", (f"p = {c.p_value:.2g} ≤ {step.level:.2g}, {how}, held-out gap "
+                            "lower simulated in full")
+    if c.screened:
+        return "set aside", c.screened
+    if c.rejected:
+        return "set aside", c.rejected
+    if not c.significant:
+        if level is not None and not c.p_value <= level:
+            return "set aside", f"not significant: p = {c.p_value:.2g} > {level:.2g}"
+        if level is None and c.p_value == c.p_value:
+            return "set aside", f"not significant (p = {c.p_value:.2g})"
+        return "set aside", "did not lower the search's gap"
+    if not c.identified:
+        return "set aside", "amplitude not identified: its interval includes zero"
+    return "set aside", (f"significant and identified, but {step.effect} closed the gap more"
+                         if step is not None else "significant and identified, not confirmed")
 
 
 
@@ -162,5 +205,50 @@ class DiscoveryResult:
             last_candidates=[c.to_dict() for c in self.last_candidates],
             combs=[c.to_dict() for c in self.combs],
             modulation=None if self.modulation is None else self.modulation.to_dict(),
-            respecialised=list(self.respecialised), timing_s=self.timing_s)
+            respecialised=list(self.respecialised), timing_s=self.timing_s,
+            candidate_table=self.candidate_table())
+
+    def candidate_table(self) -> list[dict]:
+        """One row per candidate judged in each step, the last (unaccepted) step included: the
+        single source of what the terminal, ``discover.json``, ``discover.md`` and
+        ``report.html`` say of each candidate.
+
+        Keys: ``step``; ``candidate`` and its ``group``; ``coverage`` (share of the residual
+        lines' excess power on its signature, 0–1); the screening ``score`` at zero amplitude,
+        its degrees of freedom ``score df`` and ``rank`` (NaN, 0, 0 where not scored); the
+        search's gap before the step and with the candidate (``gap before (dB)``, ``gap with
+        it (dB)``, linearised); ``p-value`` against the step's family-wise ``level``;
+        ``identified`` (the candidate's :attr:`CandidateResult.identified`, as decided in the
+        refit); the fitted ``main`` value with its ``main unit`` and its ``interval``
+        (``[low, high]`` in the same unit, None where there is none); ``out of range`` (a
+        linearised fit outside the physical range and how it was refitted, None otherwise);
+        ``outcome`` and ``why`` (:func:`candidate_verdict`)."""
+        rows: list[dict] = []
+
+        def add(number: int, step: Step | None, cands, before: float | None,
+                level: float | None) -> None:
+            for c in cands:
+                outcome, why = candidate_verdict(c, step, level)
+                lo, hi = (float(v) for v in c.main_interval)
+                rows.append({"step": number, "candidate": c.name, "group": c.group,
+                             "coverage": float(c.coverage), "score": float(c.score),
+                             "score df": int(c.score_df), "rank": int(c.score_rank),
+                             "gap before (dB)": before,
+                             "gap with it (dB)": float(c.gap_after),
+                             "p-value": float(c.p_value), "level": level,
+                             "identified": bool(c.identified), "main": float(c.main),
+                             "main unit": c.main_unit,
+                             "interval": [lo, hi] if lo == lo and hi == hi else None,
+                             "out of range": c.out_of_range, "outcome": outcome, "why": why})
+
+        for s in self.steps:
+            add(s.number, s, s.candidates, float(s.gap_before.total), float(s.level))
+        kept = {id(c) for s in self.steps for c in s.candidates}
+        last = [c for c in self.last_candidates if id(c) not in kept]
+        if last:  # the step that accepted nothing: its level as the search set it (alpha / K)
+            before = float(self.steps[-1].gap_confirmed.total) if self.steps else None
+            k = (sum(1 for c in last if not c.screened) if self.settings.screen == "coverage"
+                 else len(last))
+            add(len(self.steps) + 1, None, last, before, self.settings.alpha / max(k, 1))
+        return rows
 

@@ -7,6 +7,7 @@ from typing import ClassVar
 
 import equinox as eqx
 
+from dtwin.kinematics import combination_text
 from dtwin.parts.drive import LoadPart
 from dtwin.parts.loads import FluctuatingLoad
 
@@ -50,7 +51,8 @@ class LoadFluctuationEffect(AbstractEffect):
 
     def signature(self, kin, f_max):
         lines = carrier_grid(kin, f_max)
-        lines.append(SignatureLine(self.order * kin.f_carrier, f"{self.order}fc"))
+        lines.append(SignatureLine(self.order * kin.f_carrier,
+                                   combination_text((("fc", self.order),))))
         return lines
 
     def main(self, theta):

@@ -6,6 +6,7 @@ from typing import ClassVar
 
 import equinox as eqx
 
+from dtwin.kinematics import combination_text
 from dtwin.parts.torque_ripple import TorqueRipple
 
 from .base import AbstractEffect, EffectParameter, SignatureLine, rms
@@ -51,8 +52,8 @@ class TorqueRippleEffect(AbstractEffect):
                 for n in range(-2, 3):
                     f = m * kin.f_mesh + j * g + n * n_pl * kin.f_carrier
                     if 0 < f < f_max:
-                        out.append(SignatureLine(f, f"{m}fm {'+' if j > 0 else '−'} "
-                                                    f"{self.harmonic}fe + {n * n_pl}fc"))
+                        out.append(SignatureLine(f, combination_text(
+                            (("fm", m), ("fe", j * self.harmonic), ("fc", n * n_pl)))))
         return out
 
     def main(self, theta):
