@@ -32,6 +32,10 @@ def _fails(argv, capsys) -> str:
     (["simulate", "--json=3"], "--json", "a flag"),
     (["spec", "check"], "FILE", "a path"),
     (["record", "nope"], "COMMAND", "convert, info"),
+    # an option without its value: what the option takes (before: "a value" for every one)
+    (["simulate", "--preset", "paper-sim", "--duration"], "--duration", "a number"),
+    (["fleet", "identify", "r.h5", "--num-cpus"], "--num-cpus", "an integer"),
+    (["identify", "r.h5", "--runup", "1"], "--runup", "2 numbers"),
 ])
 def test_usage_errors_are_one_error_line(argv, option, accepted, capsys):
     """A wrong option value, an unknown option, a missing argument, an unknown command: the
@@ -39,6 +43,25 @@ def test_usage_errors_are_one_error_line(argv, option, accepted, capsys):
     line = _fails(argv, capsys)
     assert line.startswith(f"error: {option}: "), line
     assert "(accepted: " in line and accepted in line.split("(accepted: ", 1)[1], line
+
+
+@pytest.mark.parametrize("argv,where,accepted", [
+    ([], "dtwin", "calibrate, compare-drives, discover, fleet"),
+    (["--quiet"], "dtwin", "severity, simulate, spec"),
+    (["fleet"], "dtwin fleet", "identify, table, trends"),
+    (["spec"], "dtwin spec", "check, schema"),
+    (["record"], "dtwin record", "convert, info"),
+])
+def test_a_missing_command_is_one_error_line(argv, where, accepted, capsys):
+    """`dtwin` or a command group without its command: the one `error:` line naming the
+    commands it accepts, nothing on stdout (before: typer's help box, exit 2)."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    out, err = capsys.readouterr()
+    assert e.value.code == 2 and out == "", (out, err)
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: COMMAND: missing (accepted: "), err
+    assert accepted in err and f"see {where} --help)" in err, err
 
 
 def test_simulate_refuses_absurd_options_before_any_work(monkeypatch, capsys):

@@ -166,10 +166,33 @@ def _label(param: object, fallback: str) -> str:
     return str(getattr(param, "name", opts[0])).upper()
 
 
-def usage_error_line(e: Exception) -> str:
+def _param_of(args: list[str] | None, option: str) -> object | None:
+    """The parameter `option` of the command that `args` (the command line) names, or None; for
+    the parser's errors, which carry no context."""
+    if not args:
+        return None
+    import typer.main
+
+    cmd = typer.main.get_command(app)
+    for word in args:
+        commands = getattr(cmd, "commands", None)
+        if not commands:
+            break
+        if word in commands:
+            cmd = commands[word]
+        elif not word.startswith("-"):
+            return None
+    for p in getattr(cmd, "params", []):
+        if option in (*getattr(p, "opts", ()), *getattr(p, "secondary_opts", ())):
+            return p
+    return None
+
+
+def usage_error_line(e: Exception, args: list[str] | None = None) -> str:
     """A click usage error as one line ``error: <option>: <what> (accepted: <range>)``, the
     style of every other bad-input message of the CLI (click prints a usage block, typer with
-    rich a box)."""
+    rich a box). `args`: the command line, which names the command of a parser error (an option
+    without its value) that carries no context."""
     ctx = getattr(e, "ctx", None)
     names, c = [], ctx
     while c is not None and getattr(c, "parent", None) is not None:  # the root is the program
@@ -181,6 +204,9 @@ def usage_error_line(e: Exception) -> str:
         message = message[len("value error, "):]
     message = message[:1].lower() + message[1:]
     param = getattr(e, "param", None)
+    if _is(e, "NoArgsIsHelpError") or message == "missing command":  # `dtwin`, `dtwin fleet`
+        cmds = sorted(getattr(getattr(ctx, "command", None), "commands", None) or {})
+        return (f"error: COMMAND: missing (accepted: {', '.join(cmds)}; see {where} --help)")
     if _is(e, "NoSuchOption"):
         close = list(getattr(e, "possibilities", None) or [])
         hint = f"; did you mean {', '.join(close)}?" if close else ""
@@ -203,7 +229,9 @@ def usage_error_line(e: Exception) -> str:
         name = getattr(e, "option_name", "option")
         message = re.sub(rf"^option '{re.escape(name)}' ", "", message)
         m = re.search(r"requires (\d+) arguments", message)
-        accepted = (f"{m.group(1)} values" if m else "a value" if "requires an argument"
+        param = _param_of(args, name) if ("requires" in message) else None
+        accepted = (_accepted(param) if param is not None
+                    else f"{m.group(1)} values" if m else "a value" if "requires an argument"
                     in message else "a flag, no value" if "does not take a value" in message
                     else "see --help")
         return f"error: {name}: {message} (accepted: {accepted})"
@@ -279,8 +307,9 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as e:  # usage errors (click's, bundled in typer): one `error:` line
         if isinstance(e.__cause__ or e.__context__, KeyboardInterrupt) or _SIGNALS:
             raise _interrupt_exit(_SIGNALS[0] if _SIGNALS else signal.SIGINT) from None
-        if _is(e, "UsageError") and not _is(e, "NoArgsIsHelpError"):  # (that one: the help)
-            print(usage_error_line(e), file=sys.stderr)
+        if _is(e, "UsageError"):
+            print(usage_error_line(e, list(sys.argv[1:] if argv is None else argv)),
+                  file=sys.stderr)
             raise SystemExit(2) from None
         show = getattr(e, "show", None)
         code = getattr(e, "exit_code", None)

@@ -21,7 +21,6 @@ app = typer.Typer(
     epilog="Compiled programs are kept in ~/.cache/dtwin/jax ($XDG_CACHE_HOME/dtwin/jax), so a "
            "second command does not compile again; DTWIN_JAX_CACHE=FOLDER keeps them elsewhere, "
            "DTWIN_JAX_CACHE=off not at all.",
-    no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )

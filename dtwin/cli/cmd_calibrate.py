@@ -84,6 +84,7 @@ def calibrate(
         r = opts.read_record(p, sample_rate, tacho)
         opts.check_channel(r, ch)
         opts.checked_record(r, ch, gb.spec, f_sun, fit=True)
+        opts.check_speed_against_lines(r, gb.spec, f_sun, ch, p)
         r.metadata["source"] = p.name
         recs.append(r)
     settings = CalibrationSettings(window_terms=window_terms, n_knots=knots,

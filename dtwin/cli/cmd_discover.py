@@ -231,7 +231,6 @@ def discover(
     from dtwin.identify.discover import discover as run
 
     from ..io.output import to_jsonable
-    from ..reports import input_speed
 
     opts.choice("--kind", kind, ("torsional", "translational"))
     opts.at_least("--max-steps", max_steps, 0)
@@ -251,11 +250,12 @@ def discover(
     record = opts.read_record(record_file, sample_rate, tacho)
     ch = opts.channel_token(channel)
     opts.check_channel(record, ch)
-    speed, source = input_speed(record, gearbox, f_sun, channel=ch)
-    opts.checked_record(record, ch, gearbox, speed, fit=True)
-    # a speed given, from the tachometer or the metadata is discovery's; from the lines or the
-    # spec, discovery weighs its own estimate against the (calibrated) spec's speed
-    given = speed if source not in ("mesh lines", "spec operating.f_sun") else None
+    opts.checked_record(record, ch, gearbox, f_sun, fit=True)
+    # a speed given, from the tachometer or the metadata is discovery's, once checked against
+    # the record's lines (a record without this gearbox's mesh lines is refused here); else
+    # discovery estimates it from the lines and weighs that against the (calibrated) spec's
+    claimed = opts.check_speed_against_lines(record, gearbox, f_sun, ch, record_file)
+    given = None if claimed is None else claimed.f_sun
 
     settings = DiscoverySettings(alpha=alpha, n_boot=n_boot, max_steps=max_steps, seed=seed)
     from .progress import progress, record_size

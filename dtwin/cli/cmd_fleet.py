@@ -36,7 +36,7 @@ from .app import app
 from .logs import is_quiet, note, warn
 
 fleet_app = typer.Typer(help="Fleet runs: many records in batch or on a Ray cluster, the "
-                        "results table and per-machine trends.", no_args_is_help=True)
+                        "results table and per-machine trends.")
 app.add_typer(fleet_app, name="fleet")
 
 #: Most retries of a failed task `--max-retries` accepts.

@@ -19,9 +19,11 @@ Free names come from the parameter registry (``dtwin.registry``); an unknown nam
 unreadable record, NaN samples, a rate under 2.5 × f_mesh or a record too short for the carrier
 sidebands fail with a clear message (exit code 2) before anything is simulated. The input speed
 is ``--f-sun``, else each record's tachometer (``--tacho``), metadata or mesh lines
-(:func:`dtwin.identify.operating_point.resolve_speed`); a ``--f-sun`` more than 1 % off the
-record's lines (or where it shows none) is refused before the fit, a smaller disagreement and a
-tachometer or metadata speed the lines contradict are warned about, naming the lines;
+(:func:`dtwin.identify.operating_point.resolve_speed`); a record that shows no mesh line at
+that speed nor near the spec's, and a ``--f-sun`` more than 1 % off the record's lines, are
+refused before the fit, a smaller disagreement and a tachometer or metadata speed the lines
+contradict are warned about, naming the lines
+(:func:`dtwin.cli.options.check_speed_against_lines`);
 ``--runup LOW HIGH`` (Hz) marks the records as run-ups/coast-downs within that speed range
 (speed profile by order tracking, spectrogram residuals).
 
@@ -63,7 +65,7 @@ def _records(paths: list[Path], sample_rate: float | None, channel: str | int, s
     recs = [opts.read_record(p, sample_rate, tacho) for p in paths]
     for r in recs:
         opts.check_channel(r, channel)
-        opts.checked_record(r, channel, spec, f_sun or _speed_hint(r, spec), fit=True)
+        opts.checked_record(r, channel, spec, f_sun, fit=True)
     return recs
 
 
@@ -128,15 +130,6 @@ def _echo_windows(segs: list) -> None:
     for s in segs:
         if s.windowed:
             typer.echo(s.describe())
-
-
-def _speed_hint(record, spec) -> float | None:
-    """The speed (Hz) the record checks use: the tachometer's, the metadata's or the spec's
-    (the fit resolves it from the lines, and :func:`_check_given_speed` checks it)."""
-    from dtwin.identify.operating_point import resolve_speed
-
-    op = resolve_speed(record, spec, estimate=False, check=False, required=False)
-    return None if op is None else op.f_sun
 
 
 def _unit(recs: list, channel) -> str | None:
@@ -266,7 +259,7 @@ def identify(
     recs = [sg.record for sg in segs]
     if runup is None:
         for p, r in zip(records, recs, strict=True):
-            _check_given_speed(r, gb.spec, f_sun, ch, p)
+            opts.check_speed_against_lines(r, gb.spec, f_sun, ch, p)
     from .progress import progress as shown
     from .progress import record_size
 
@@ -289,38 +282,6 @@ def identify(
               gearbox=gb, parameters={"free": names, "solver": solver, "starts": starts,
                                       "refine": refine, "jac": jac, "model": model,
                                       "fit_window": window.text(), "splits": splits})
-
-
-#: A ``--f-sun`` further than this (relative) from the speed of the record's lines is refused.
-GIVEN_SPEED_TOLERANCE = 0.01
-
-
-def _check_given_speed(record, spec, f_sun: float | None, channel, path) -> None:
-    """Check the speed a fit uses (``--f-sun``, the tachometer or the record's metadata)
-    against the record's mesh lines (:func:`dtwin.identify.operating_point.check_speed`): a
-    ``--f-sun`` more than ``GIVEN_SPEED_TOLERANCE`` off the lines' speed, or where the record
-    shows no mesh line, is refused (a fit at a wrong speed runs for minutes and ends at a
-    bound); a smaller disagreement, or a tachometer or metadata speed the lines contradict, is
-    a warning naming the lines."""
-    from dtwin.identify.operating_point import check_speed, resolve_speed
-
-    from ..errors import RecordError
-    from .logs import warn
-
-    op = resolve_speed(record, spec, f_sun, channel=channel, estimate=False, check=False,
-                       required=False)
-    if op is None or op.method == "spec":
-        return  # the fit takes the speed from the record's lines
-    what = {"given": "--f-sun", "tacho": "the tachometer's speed",
-            "metadata": "the record's metadata f_sun"}[op.method]
-    res = check_speed(record, spec, op.f_sun, channel=channel, what=what)
-    if res.agrees:
-        return
-    if op.method == "given" and (res.f_record is None or abs(res.f_record / op.f_sun - 1)
-                                 > GIVEN_SPEED_TOLERANCE):
-        raise RecordError(f"{path}: {res.message}; drop --f-sun (the speed is then taken from "
-                          "the record) or correct it")
-    warn(f"{path}: {res.message}")
 
 
 @app.command()
@@ -385,7 +346,7 @@ def severity(
     ch = opts.channel_token(channel)
     segs = _segments([record], sample_rate, ch, gb.spec, f_sun, window, tacho)
     rec = segs[0].record
-    _check_given_speed(rec, gb.spec, f_sun, ch, record)
+    opts.check_speed_against_lines(rec, gb.spec, f_sun, ch, record)
     from .progress import progress, record_size
 
     with progress("severity", json_out=json_out, size=record_size(rec)):

@@ -34,8 +34,7 @@ from . import options as opts
 from .app import app
 from .logs import note
 
-record_app = typer.Typer(help="Recorded vibration files: inspect, check, convert.",
-                         no_args_is_help=True)
+record_app = typer.Typer(help="Recorded vibration files: inspect, check, convert.")
 app.add_typer(record_app, name="record")
 
 _SENS_RE = re.compile(r"^\s*(?P<ch>[^=]+?)\s*=\s*(?P<val>[-+0-9.eE]+)\s*(?P<unit>\S.*?)\s*$")

@@ -23,8 +23,7 @@ import typer
 from ..errors import SpecError, UnreadableFileError
 from .app import app
 
-spec_app = typer.Typer(help="Gearbox spec files (TOML): check them, show the schema.",
-                       no_args_is_help=True)
+spec_app = typer.Typer(help="Gearbox spec files (TOML): check them, show the schema.")
 app.add_typer(spec_app, name="spec")
 
 

@@ -482,7 +482,8 @@ def checked_record(record: Any, channel: str | int | Sequence[str | int] | None,
                    f_sun: float | None = None, *, fit: bool = False) -> Any:
     """The shared check of a record before an analysis (:func:`dtwin.io.validate.usable_record`):
     refuse what no analysis can use (and, for fits, what degrades one), warn with figures
-    otherwise. `spec` and `f_sun` (Hz) give the mesh and carrier frequencies of the checks.
+    otherwise. `spec` and `f_sun` (Hz) give the mesh and carrier frequencies of the checks; with
+    `fit` and no `f_sun`, the speed of :func:`speed_hint` (tachometer, metadata or the spec's).
 
     **Returns:** the record, unchanged.
     """
@@ -490,6 +491,8 @@ def checked_record(record: Any, channel: str | int | Sequence[str | int] | None,
     from .logs import warn
 
     f_mesh = f_carrier = None
+    if fit and spec is not None and f_sun is None:  # the rate and length a fit needs
+        f_sun = speed_hint(record, spec)
     if spec is not None and f_sun is not None:
         from ..gears import characteristic_frequencies
 
@@ -503,6 +506,85 @@ def checked_record(record: Any, channel: str | int | Sequence[str | int] | None,
     for p in usable_record(record, channels=chans, f_mesh=f_mesh, f_carrier=f_carrier, fit=fit):
         warn(p.message)
     return record
+
+
+def speed_hint(record: Any, spec: Any) -> float | None:
+    """The speed (Hz) the record checks use when none is given: the tachometer's, the record's
+    metadata ``f_sun`` or the spec's ``operating.f_sun``, without the spectrum estimate (the
+    fits estimate it from the lines, and :func:`check_speed_against_lines` checks the first
+    two)."""
+    from dtwin.identify.operating_point import resolve_speed
+
+    op = resolve_speed(record, spec, estimate=False, check=False, required=False)
+    return None if op is None else op.f_sun
+
+
+#: A ``--f-sun`` further than this (relative) from the speed of the record's lines is refused.
+GIVEN_SPEED_TOLERANCE = 0.01
+
+
+def check_speed_against_lines(record: Any, spec: Any, f_sun: float | None, channel: str | int,
+                              path: Any) -> Any:
+    """The shared check of a fit's record against its spec's mesh lines, before any fit
+    (``identify``, ``severity``, ``calibrate``, ``discover``): the speed the fit would use
+    (``--f-sun``, the tachometer or the record's metadata) is checked against the record's
+    lines (:func:`dtwin.identify.operating_point.check_speed`).
+
+    - The record shows no mesh line at that speed nor near the spec's: refused (no fit can
+      answer: it would run for minutes to "not determined"), except under a tachometer's speed:
+      a speed that varies within the record (which the tachometer follows) smears the lines,
+      so that is a warning.
+    - ``--f-sun`` more than :data:`GIVEN_SPEED_TOLERANCE` off the lines' speed: refused (a fit
+      at a wrong speed runs for minutes and ends at a bound), naming both speeds.
+    - A smaller disagreement, or a tachometer or metadata speed the lines contradict: a
+      warning naming the lines.
+
+    - Without any of those speeds (the fit estimates it from the lines): the record's lines
+      are searched near the spec's speed (:func:`dtwin.identify.operating_point.spectrum_speed`,
+      the fit's own estimate) and a record without any is refused the same way.
+
+    **Returns:** the speed checked (:class:`~dtwin.identify.operating_point.OperatingPoint`:
+    given, tachometer or metadata), or None when the fit is to estimate it.
+    """
+    from dtwin.identify.operating_point import (
+        SpeedDisagreementError,
+        check_speed,
+        nominal_speed,
+        resolve_speed,
+        spectrum_speed,
+    )
+
+    from .logs import warn
+
+    no_line = f"{path}: the record holds no line at the spec's mesh frequency"
+    op = resolve_speed(record, spec, f_sun, channel=channel, estimate=False, check=False,
+                       required=False)
+    if op is None or op.method == "spec":  # the fit takes the speed from the record's lines
+        nominal = nominal_speed(spec)
+        if nominal:
+            try:
+                spectrum_speed(record.channel(channel), record.sample_rate, spec, nominal)
+            except SpeedDisagreementError:
+                pass  # lines there, at odds: the fit's estimate says so, harmonic by harmonic
+            except RecordError as e:
+                if "stands above the noise" not in str(e):
+                    raise RecordError(f"{path}: {e}") from None
+                raise RecordError(f"{no_line}: {e}") from None
+        return None
+    what = {"given": "--f-sun", "tacho": "the tachometer's speed",
+            "metadata": "the record's metadata f_sun"}[op.method]
+    res = check_speed(record, spec, op.f_sun, channel=channel, what=what)
+    if res.agrees:
+        return op
+    if res.f_record is None and op.method != "tacho":
+        fix = {"given": "--f-sun", "metadata": "the record's metadata f_sun"}[op.method]
+        raise RecordError(f"{no_line}: {res.message}; check the spec's tooth numbers and "
+                          f"speed, the channel (--channel) and {fix}")
+    if op.method == "given" and abs(res.f_record / op.f_sun - 1) > GIVEN_SPEED_TOLERANCE:
+        raise RecordError(f"{path}: {res.message}; drop --f-sun (the speed is then taken from "
+                          "the record) or correct it")
+    warn(f"{path}: {res.message}")
+    return op
 
 
 class progress_line:
@@ -707,10 +789,12 @@ def print_table(table: Any) -> None:
 
 __all__ = [
     "MAX_DISCARD_S", "MAX_DURATION_S", "MAX_SEED", "MAX_SOLVER_STEPS", "PRESETS", "Gearbox",
-    "OptionError", "at_least", "band", "channel_option", "channel_token", "check_channel",
+    "GIVEN_SPEED_TOLERANCE", "OptionError", "at_least", "band", "channel_option",
+    "channel_token", "check_channel", "check_speed_against_lines",
     "check_out", "choice", "console", "count", "emit", "existing_file", "finite", "f_sun_option",
     "force_option", "in_range", "input_speed_option", "json_option", "load_gearbox",
     "out_option", "positive", "preset_option", "print_table", "read_record",
-    "sample_rate_option", "simulated_span", "solver_steps", "spec_option", "starts_and_refine",
+    "sample_rate_option", "simulated_span", "solver_steps", "spec_option", "speed_hint",
+    "starts_and_refine",
     "tacho_option", "tacho_reading", "whole_number", "write_outputs",
 ]

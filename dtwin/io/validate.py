@@ -324,7 +324,9 @@ def usable_record(
         head = f"record {src} cannot be used" if src else "the record cannot be used"
         if fit and not any(p.kind in UNUSABLE for p in refuse):
             head += " for a fit"
-        err = RecordError(head + ":\n  " + "\n  ".join(p.message for p in refuse))
+        # one problem: one line (the CLI's `error:` line); several: one line each
+        sep = ": " if len(refuse) == 1 else ":\n  "
+        err = RecordError(head + sep + "\n  ".join(p.message for p in refuse))
         err.problems = refuse  # type: ignore[attr-defined]
         raise err
     return [p for p in mine if p not in refuse]
