@@ -49,30 +49,42 @@ def test_discover_names_the_sun_fault_on_the_bundled_record(calibrated, tmp_path
             assert c["out_of_range"] is None or "outside its physical range" in c["out_of_range"]
 
 
-def _identify_readme_free_list(calibrated, out: Path, *window: str) -> None:
-    code, res, err = _dtwin("identify", str(SAMPLES / "bench_sun_fault.dtwin.h5"), "--spec",
-                            str(calibrated), "--free", "k_sun_planet,zeta_mesh,sun_fault",
-                            "--max-steps", "3", *window, "--out", str(out), "--json")
-    assert code == 0, err
-    assert res is not None, "identify --json printed no result"
-    # every stage ran: the fit, its intervals (where it crashed) and the check against the
-    # calibration
-    assert set(res["values"]) == {"k_sun_planet", "zeta_mesh", "sun_fault"}, res.keys()
-    assert (out / "manifest.json").exists()
+def _identify_readme_free_list(calibrated, out: Path, *window: str):
+    """``dtwin identify`` with the README's free list, cut to 3 solver steps: its exit code,
+    JSON result and stderr."""
+    return _dtwin("identify", str(SAMPLES / "bench_sun_fault.dtwin.h5"), "--spec",
+                  str(calibrated), "--free", "k_sun_planet,zeta_mesh,sun_fault",
+                  "--max-steps", "3", *window, "--out", str(out), "--json")
+
+
+FREE = {"k_sun_planet", "zeta_mesh", "sun_fault"}
 
 
 def test_identify_with_the_readme_free_list_finishes(calibrated, tmp_path):
     """`dtwin identify REC --spec CAL --free k_sun_planet,zeta_mesh,sun_fault` exits 0 (it
     crashed in its uncertainty stage after 17 min: the loss compared with the parameter
     vector); cut to 3 solver steps and a 1 s window of the record here (the uncertainty stage
-    runs whatever the window; the 4 s window in the slow form)."""
-    _identify_readme_free_list(calibrated, tmp_path / "ident", "--fit-window", "1:1")
+    runs whatever the window; the 4 s window in the slow form). Every stage ran: the fit, its
+    intervals (where it crashed) and the check against the calibration."""
+    out = tmp_path / "ident"
+    code, res, err = _identify_readme_free_list(calibrated, out, "--fit-window", "1:1")
+    assert code == 0, err
+    assert res is not None, "identify --json printed no result"
+    assert set(res["values"]) == FREE, res.keys()
+    assert set(res["intervals_95"]) == FREE
+    assert (out / "manifest.json").exists()
 
 
 @pytest.mark.slow
 def test_identify_with_the_readme_free_list_finishes_slow(calibrated, tmp_path):
     """The same on the record's default window (4 s)."""
-    _identify_readme_free_list(calibrated, tmp_path / "ident")
+    out = tmp_path / "ident"
+    code, res, err = _identify_readme_free_list(calibrated, out)
+    assert code == 0, err
+    assert res is not None, "identify --json printed no result"
+    assert set(res["values"]) == FREE, res.keys()
+    assert set(res["intervals_95"]) == FREE
+    assert (out / "manifest.json").exists()
 
 
 # ------------------------------------------------ the calibration's load shares (issue 19)

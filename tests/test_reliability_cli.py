@@ -10,18 +10,11 @@ import sys
 import time
 
 import pytest
+from _cli_errors import one_error_line
 
 from dtwin.cli import main
 
-
-def _fails(argv, capsys) -> str:
-    with pytest.raises(SystemExit) as e:
-        main(argv)
-    err = capsys.readouterr().err
-    assert e.value.code == 2, err
-    lines = err.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
-    return lines[0]
+_fails = one_error_line
 
 
 @pytest.mark.parametrize("argv,option,accepted", [

@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 import pytest
+from _cli_errors import one_error_line
 
 from dtwin.cli import main
 from dtwin.io.readers import write_record
@@ -64,14 +65,9 @@ def fits(monkeypatch):
 def _refused(argv, capsys) -> str:
     """The one ``error:`` line of a command refused before any fit (within seconds)."""
     t0 = time.perf_counter()
-    with pytest.raises(SystemExit) as e:
-        main(argv)
-    err = capsys.readouterr().err
-    assert e.value.code == 2, err
-    lines = err.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    line = one_error_line(argv, capsys)
     assert time.perf_counter() - t0 < 30.0
-    return lines[0]
+    return line
 
 
 def test_severity_refuses_a_record_too_short_for_the_carrier_sidebands(tmp_path, fits, capsys):
