@@ -26,7 +26,7 @@ test test-all: export DTWIN_JAX_CACHE ?= $(TEST_JAX_CACHE)
 # test passed on its rerun).
 XDIST := -n 2 --dist worksteal --reruns 1 --only-rerun "pytest-xdist worker crashed" --max-suite-reruns 5
 
-.PHONY: venv demo test test-all lint bench bench-family notebooks clean
+.PHONY: venv demo test test-all lint bench bench-family notebooks docs clean
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
@@ -59,5 +59,9 @@ bench-family: $(STAMP)
 notebooks: $(STAMP)
 	$(PY) notebooks/render.py notebooks demo-output/notebooks
 
+# The user's documentation and its API reference (from the docstrings) into site/.
+docs: $(STAMP)
+	$(VENV)/bin/mkdocs build --strict
+
 clean:
-	rm -rf $(VENV) demo-output .pytest_cache
+	rm -rf $(VENV) demo-output site .pytest_cache

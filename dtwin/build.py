@@ -125,8 +125,8 @@ FIT_KIND = "torsional"
 #: own kind: the translational twin. A local tooth fault loads one mesh at a time; where the
 #: sun floats on its bearing, as in most planetary gearboxes, it moves under that loss, and the
 #: torsional twin, whose sun and planets cannot move sideways, makes a sun or planet fault
-#: 4–10× louder and so fits it 4–10× too small (docs/identification.md, "Why the earlier fits
-#: were 5–10× small", "The twin of a severity").
+#: 4–10× louder and so fits it 4–10× too small (docs/identification.md, "The twin of a
+#: severity"; the measurements in benchmarks/history.md).
 SEVERITY_KIND = "translational"
 
 

@@ -72,6 +72,7 @@ def _md_table(rows: list[list], header: list[str]) -> str:
 
 
 def step_frequencies(folder: OutputFolder) -> str:
+    from dtwin.io.html_report import frequency_text
     from dtwin.reports import freqs_report
     from dtwin.spec import preset
 
@@ -81,7 +82,8 @@ def step_frequencies(folder: OutputFolder) -> str:
         rep = freqs_report(preset(name), None, "paper", name)
         fr = rep["frequencies_hz"]
         ours = [fr["f_mesh"], fr["f_sun"], fr["f_carrier"], fr["f_sun_fault"], fr["f_planet_fault"]]
-        rows.append([name] + [f"{o:.1f} ({r})" for o, r in zip(ours, ref, strict=True)])
+        rows.append([name] + [f"{frequency_text(o)} ({r})"
+                              for o, r in zip(ours, ref, strict=True)])
         folder.write_json(f"freqs_{name}.json", rep)
     return "## 1. Characteristic frequencies (ours, paper's Tables 2/4 in brackets), Hz\n\n" + _md_table(
         rows, ["gearbox", "f_mesh", "f_sun", "f_carrier", "f_sun_fault", "f_planet_fault"]
@@ -90,6 +92,7 @@ def step_frequencies(folder: OutputFolder) -> str:
 
 def step_modes(folder: OutputFolder) -> str:
     from dtwin.gears import characteristic_frequencies
+    from dtwin.io.html_report import frequency_text
     from dtwin.plotting.modes import plot_modes
     from dtwin.reports import modes_report
     from dtwin.spec import lumped_from_spec, preset
@@ -101,7 +104,7 @@ def step_modes(folder: OutputFolder) -> str:
     folder.write_json("modes_paper-sim.json", rep)
     folder.savefig("modes_paper-sim.png", plot_modes(res, f_mesh=fm, sample_rate=5000.0,
                                                      title="Modes of the simulation gearbox"))
-    rows = [[f"{m['frequency_hz']:.1f}", m["type"], m["multiplicity"],
+    rows = [[frequency_text(m["frequency_hz"]), m["type"], m["multiplicity"],
              f"{m['sensitivity_k_sun_planet']:.3f}", f"{m['sensitivity_k_ring_planet']:.3f}"]
             for m in rep["modes"]]
     return ("## 2. Natural frequencies of the simulation gearbox (translational model)\n\n"
@@ -263,6 +266,8 @@ def step_discovery(folder: OutputFolder, quick: bool = False, spec=None, full: b
                    say=None) -> str:
     """Discovery (``dtwin discover``) on ``bench_sun_fault`` with `spec` (the calibrated spec;
     None: the bench preset): which effect the twin misses, the held-out gap before and after."""
+    from dtwin.io.html_report import frequency_text
+
     from .discover import DiscoverySettings, discover
     from .plotting.discover import plot_gap_bars, plot_step_spectra
     from .tables import discovery_rows
@@ -284,9 +289,12 @@ def step_discovery(folder: OutputFolder, quick: bool = False, spec=None, full: b
     folder.savefig("discover_spectrum.png", plot_step_spectra(res, last, unit=rec.units[0]))
     cols = ("step", "effect", "parameter", "value", "lower_99", "upper_99", "unit",
             "gap_before_db", "gap_after_db", "p_value")
-    rows = [[r[c] if isinstance(r[c], (int, str)) else _num(r[c]) for c in cols]
+    in_unit = ("value", "lower_99", "upper_99")  # in the row's unit (Hz: a frequency)
+    rows = [[r[c] if isinstance(r[c], (int, str))
+             else _num(r[c], r["unit"] if c in in_unit else "") for c in cols]
             for r in discovery_rows(res)]
-    unexplained = ", ".join(f"{r.frequency:.1f} Hz" for r in res.unexplained[:6]) or "none"
+    unexplained = (", ".join(f"{frequency_text(r.frequency)} Hz" for r in res.unexplained[:6])
+                   or "none")
     return "\n".join([
         head,
         f"`dtwin discover data/samples/{path.name} --spec calibrated.toml` with the "
@@ -339,9 +347,13 @@ def step_fleet(folder: OutputFolder, quick: bool = False, spec=None, full: bool 
     ])
 
 
-def _num(v) -> str:
+def _num(v, unit: str = "") -> str:
+    """`v` as table text: three significant digits, a frequency (`unit` Hz) in full
+    (:func:`dtwin.io.html_report.value_text`); "–" for no number."""
+    from dtwin.io.html_report import value_text
+
     try:
-        return f"{float(v):.3g}"
+        return value_text(float(v), unit, 3)
     except (TypeError, ValueError):
         return "–"
 

@@ -136,7 +136,7 @@ def _check_gap(res, name):
 
 
 #: records whose gap target (≤ 3 dB after or ≥ 70 % closed) is not met, with the measured
-#: values (docs/discovery.md, "Independent records"): the target stays as a strict xfail
+#: values (benchmarks/history.md, "Discovery on the independent records"): the target stays as a strict xfail
 GAP_NOT_MET = {
     "planet-fault": "corrected record, default settings (3 steps): 18.57 → 6.91 dB (63 % "
                     "closed), planet_local_fault then carrier_sidebands twice (the earlier "

@@ -120,6 +120,42 @@ def test_discover_html_shows_the_candidate_table(tmp_path):
     assert "## Symbols of the line labels" in md and "| fm |" in md
 
 
+def test_discover_markdown_prints_fitted_frequencies_in_full():
+    """A step whose main value is a frequency (a housing resonance at 2494.8 Hz) keeps it, its
+    interval and its parameter row in full in ``discover.md`` and on the terminal; other values
+    keep four digits."""
+    import dataclasses
+
+    from dtwin.cli.cmd_discover import markdown_report, screen_summary
+
+    result, _ = _discovery_result()
+    step = result.steps[0]
+    hz = {"name": "f_n", "unit": "Hz", "value": 2494.8, "interval": [2491.25, 2497.63],
+          "typical_range": [500.0, 5000.0], "typical_note": "housing modes"}
+    hous = dataclasses.replace(step.candidates[1], main=2494.8, main_unit="Hz",
+                               main_name="f_n", main_interval=(2491.25, 2497.63))
+    result.steps[0] = dataclasses.replace(
+        step, effect="housing_resonance", named="housing_resonance", main=hz,
+        parameters=[hz, {"name": "zeta", "unit": "1", "value": 0.0123456,
+                         "interval": [0.01, 0.015]}],
+        candidates=[step.candidates[0], hous, *step.candidates[2:]])
+    md = markdown_report(result, "rec.dtwin.h5")
+    assert "- f_n: 2494.8 Hz, 99 % interval [2491.25, 2497.63]" in md, md
+    assert "| f_n | 2494.8 | [2491.25, 2497.63] | Hz |" in md
+    assert "| zeta | 0.01235 |" in md
+    assert "2494.8 Hz [2491.25, 2497.63]" in md  # the candidate table's fitted main value
+    assert "2495" not in md and "2.49e+03" not in md
+    assert any("f_n 2494.8 Hz [2491.25, 2497.63]" in ln for ln in screen_summary(result))
+
+
+def test_value_text_keeps_frequencies_and_rounds_the_rest():
+    from dtwin.io.html_report import value_text
+
+    assert value_text(2494.8, "Hz", 3) == "2494.8"
+    assert value_text(0.612345, "1") == "0.6123"
+    assert value_text(2494.8, "m/s^2", 3) == "2.49e+03"
+
+
 def test_export_round_trips_full_precision(tmp_path):
     f = np.linspace(0.0, 2500.0, 10001)
     a = np.abs(np.sin(f / 7.0)) + 1e-9 / 3

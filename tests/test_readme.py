@@ -16,6 +16,7 @@ import re
 import shlex
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -46,14 +47,23 @@ def tour_commands(text: str | None = None) -> list[str]:
             if ln.strip() and not ln.strip().startswith("#")]
 
 
-def readme_dtwin_commands() -> list[list[str]]:
-    """Every ``dtwin …`` line of the README's code blocks, as tokens (comments cut)."""
+def readme_dtwin_commands(path: Path = README) -> list[list[str]]:
+    """Every ``dtwin …`` command of a Markdown page (the README by default), as tokens: the
+    lines of its ``bash``/``sh`` blocks (comments cut) and its inline code spans (```dtwin
+    spectrum … --export FILE```); placeholders (``dtwin COMMAND --help``, ``dtwin ...``) are
+    left out."""
+    text = path.read_text()
+    lines = [ln.split(" #")[0].strip() for b in _blocks(text) for ln in b.splitlines()]
+    lines += re.findall(r"(?<!`)`(dtwin [^`\n]+)`", text)
     out = []
-    for b in _blocks(README.read_text()):
-        for ln in b.splitlines():
-            ln = ln.split(" #")[0].strip()
-            if ln.startswith("dtwin "):
-                out.append(shlex.split(ln))
+    for ln in lines:
+        if not ln.startswith("dtwin ") or "..." in ln or "…" in ln:
+            continue
+        tokens = shlex.split(ln)
+        words = [t for t in tokens[1:] if not t.startswith("-")]
+        if words and words[0].isupper():  # dtwin COMMAND --help
+            continue
+        out.append(tokens)
     return out
 
 
@@ -77,6 +87,14 @@ def _run_tour(tmp_path: Path, skip: tuple[str, ...]) -> tuple[subprocess.Complet
     return proc, skipped
 
 
+def _warnings(stderr: str) -> list[str]:
+    """The lines of `stderr` that warn: dtwin's ``warning:`` lines and any other package's
+    (Python's ``…Warning:``, JAX's ``os.fork()``, Ray's token note); a bundled record run as the
+    README says has nothing to warn about."""
+    return [ln for ln in stderr.splitlines()
+            if re.search(r"warning:|Warning\b|os\.fork|token", ln, re.IGNORECASE)]
+
+
 def test_tour_has_the_workflow():
     """The tour activates the venv first and runs the workflow on shipped files only."""
     commands = tour_commands()
@@ -89,8 +107,14 @@ def test_tour_has_the_workflow():
                 assert (ROOT / tok).is_file(), f"the README's tour uses {tok}, which is not shipped"
 
 
+#: The pages whose ``dtwin`` commands are checked against ``--help``: the README and the
+#: user's guides.
+PAGES = (README, *sorted((ROOT / "docs").glob("*.md")))
+
+
 def test_readme_options_exist_in_help():
-    """Each ``--option`` the README shows for a command is listed by ``dtwin CMD --help``."""
+    """Each command the README and the guides of ``docs/`` show (code blocks and inline code)
+    exists, and each ``--option`` it shows is listed by that command's ``--help``."""
     from typer.testing import CliRunner
 
     from dtwin.cli import _load_commands, app
@@ -98,27 +122,60 @@ def test_readme_options_exist_in_help():
     _load_commands()
     runner = CliRunner()
     helps: dict[tuple[str, ...], str] = {}
-    commands = readme_dtwin_commands()
-    assert commands, "the README shows no dtwin command"
-    for tokens in commands:
-        words = [t for t in tokens[1:] if not t.startswith("-")]
-        path = tuple(words[:2] if words and words[0] in GROUPS else words[:1])
-        if path not in helps:
-            res = runner.invoke(app, [*path, "--help"], env={"COLUMNS": "250"},
-                                terminal_width=250)
-            assert res.exit_code == 0, f"dtwin {' '.join(path)} --help: {res.output}"
-            helps[path] = res.output
-        listed = set(re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", helps[path]))
-        shown = {t.split("=")[0] for t in tokens if t.startswith("--")}
-        missing = shown - listed
-        assert not missing, (f"README: dtwin {' '.join(path)} shows {sorted(missing)}, which "
-                             f"its --help does not list")
+    assert readme_dtwin_commands(), "the README shows no dtwin command"
+    for page in PAGES:
+        name = page.relative_to(ROOT)
+        for tokens in readme_dtwin_commands(page):
+            words = [t for t in tokens[1:] if not t.startswith("-")]
+            path = tuple(words[:2] if words and words[0] in GROUPS else words[:1])
+            if path not in helps:
+                res = runner.invoke(app, [*path, "--help"], env={"COLUMNS": "250"},
+                                    terminal_width=250)
+                assert res.exit_code == 0, (f"{name}: `{shlex.join(tokens)}`: dtwin "
+                                            f"{' '.join(path)} --help: {res.output}")
+                helps[path] = res.output
+            listed = set(re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", helps[path]))
+            shown = {t.split("=")[0] for t in tokens if t.startswith("--")}
+            missing = shown - listed
+            assert not missing, (f"{name}: dtwin {' '.join(path)} shows {sorted(missing)}, "
+                                 f"which its --help does not list")
+
+
+def test_group_help_names_only_its_sub_commands():
+    """A command group's one-line help ends by listing the sub-commands it has, and no other
+    (``dtwin record --help`` once offered a ``check`` that did not exist)."""
+    import typer.main
+
+    from dtwin.cli import _load_commands, app
+
+    _load_commands()
+    group = typer.main.get_group(app)
+    for name in GROUPS:
+        sub = group.commands[name]
+        listed = sub.help.splitlines()[0].rsplit("): ", 1)[-1].rstrip(".")
+        words = {w.strip() for w in listed.split(",")}
+        assert words == set(sub.commands), (f"dtwin {name}: its help lists {sorted(words)}, "
+                                            f"it has {sorted(sub.commands)}")
+
+
+def test_readme_python_runs(tmp_path):
+    """The README's Python blocks run as written, in a fresh interpreter."""
+    blocks = re.findall(r"^```python\n(.*?)^```", README.read_text(), re.M | re.S)
+    assert blocks, "the README shows no Python"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env.setdefault("MPLBACKEND", "Agg")
+    for code in blocks:
+        proc = subprocess.run([sys.executable, "-c", code],
+                              cwd=tmp_path, env=env, capture_output=True, text=True,
+                              timeout=1200)
+        assert proc.returncode == 0, f"README's Python:\n{code}\n{proc.stderr[-3000:]}"
 
 
 def test_readme_tour_quick(tmp_path):
     """CI form: the tour without the commands that take minutes (:data:`SLOW_COMMANDS`)."""
     proc, skipped = _run_tour(tmp_path, SLOW_COMMANDS)
     assert proc.returncode == 0, proc.stderr[-3000:]
+    assert not _warnings(proc.stderr), proc.stderr[-3000:]
     print("left out of the CI form (run by the slow test):\n  " + "\n  ".join(skipped))
     assert skipped and all(c.startswith(SLOW_COMMANDS) for c in skipped)
     # what the quick commands promise: the spectrum's report and its HDF5 export
@@ -138,6 +195,7 @@ def test_readme_tour_full(tmp_path):
     """Every command of the tour, as written (calibration, discovery, severity, the fleet)."""
     proc, skipped = _run_tour(tmp_path, ())
     assert proc.returncode == 0, proc.stderr[-3000:]
+    assert not _warnings(proc.stderr), proc.stderr[-3000:]
     assert not skipped
     tour = tmp_path / "tour"
     assert (tour / "cal" / "calibrated.toml").is_file()

@@ -23,7 +23,7 @@ import typer
 from ..errors import SpecError, UnreadableFileError
 from .app import app
 
-spec_app = typer.Typer(help="Gearbox spec files (TOML): check them, show the schema.")
+spec_app = typer.Typer(help="Gearbox spec files (TOML; what is wrong, the fields): check, schema.")
 app.add_typer(spec_app, name="spec")
 
 

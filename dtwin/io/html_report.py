@@ -34,7 +34,7 @@ from typing import Any
 
 __all__ = ["LABEL_SYMBOLS", "HTMLReport", "figure_png", "frequency_text", "html_report",
            "symbol_glossary_markdown", "symbol_legend", "symbol_legend_markdown",
-           "write_html_report"]
+           "value_text", "write_html_report"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;
@@ -90,6 +90,15 @@ def frequency_text(f: float) -> str:
         return str(f)
     digits = 6 if f == 0 else max(6, int(np.floor(np.log10(abs(f)))) + 3)
     return f"{f:.{digits}g}"
+
+
+def value_text(v: float, unit: str = "", digits: int = 4) -> str:
+    """A value as report text: a frequency (`unit` ``"Hz"``) by :func:`frequency_text`, any
+    other quantity with `digits` significant digits (a fitted housing resonance of 2494.8 Hz
+    stays ``2494.8``; a severity of 0.61234 is ``0.6123``)."""
+    if str(unit).strip() == "Hz":
+        return frequency_text(float(v))
+    return f"{float(v):.{digits}g}"
 
 
 def is_frequency_key(key: str) -> bool:
