@@ -35,6 +35,8 @@ import os
 
 import jax
 
+from . import _maps
+
 MIN_COMPILE_S = 0.5
 """Compilations shorter than this (s) are not followed by a trim."""
 
@@ -111,10 +113,14 @@ def before_first_fit() -> bool:
 
     Only once, so that a later fit in the same process (fleet, discovery) finds the programs
     that the first one compiled. Returns whether the caches were dropped.
+
+    In every process, it is also a safe point of :func:`dtwin._maps.relieve`, which drops the
+    caches when the process nears the kernel's limit on memory mappings.
     """
     global _cleared
+    dropped = _maps.relieve()
     if not _one_shot or _cleared:
-        return False
+        return dropped
     _cleared = True
     jax.clear_caches()
     gc.collect()

@@ -36,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from . import _maps
 from .errors import SolverError
 from .integrator import UnrolledTsit5
 from .io.record import Record
@@ -769,6 +770,7 @@ def simulate(
     solver settings other than the tolerances: another speed, start time, tolerance or
     parameter value reuses the compiled program.
     """
+    _maps.relieve()  # a safe point: drop JAX's caches near the mapping limit (dtwin._maps)
     daq = daq or DAQ()
     solver = solver or SolverOptions()
     if check:

@@ -19,3 +19,10 @@ from _independent import independent_calibrated_spec, independent_calibration  #
 from _xdist_crash import pytest_handlecrashitem  # noqa: E402,F401
 
 import dtwin  # noqa: E402,F401  (configures the compilation cache)
+from dtwin import _maps  # noqa: E402
+
+
+def pytest_runtest_setup(item):
+    """Before each test (no JAX trace running): drop JAX's caches if this worker nears the
+    kernel's limit on memory mappings, which XLA's compiler does not survive (dtwin._maps)."""
+    _maps.relieve()

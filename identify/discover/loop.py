@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from dtwin import _maps
 from dtwin.build import build_twin, daq_from_spec, twin_kind
 from dtwin.errors import DtwinError
 from dtwin.io.record import Record
@@ -401,6 +402,7 @@ def discover(
                                      .sum()) for _, i, _ in ranked])
         results: list[CandidateResult] = []
         for cov, i, matched in ranked:
+            _maps.relieve()  # a safe point between candidates' programs (dtwin._maps)
             e = candidates[i]
             cr = CandidateResult(e.name, e.group, cov, matched,
                                  main_name=getattr(e, "main_name", ""),
