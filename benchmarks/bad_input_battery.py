@@ -13,8 +13,14 @@ when the process
   130 for an interrupt with one ``interrupted`` line and no ``manifest.json`` in ``--out``;
   0 where the input is usable and the command says what it found (a warning, a problem).
 
-It prints a table (case, exit code, seconds, ok or the reason) and the failures with the last
-line of stderr, and writes the results as JSON.
+It prints a table (case, exit code, seconds, ok or the reason), the failures with the last
+line of stderr and a markdown matrix, command × kind of bad input (:data:`KINDS`: missing,
+empty, truncated, wrong format, wrong rate, huge, contradicting the spec or the record's
+speed, interrupt), each cell ``ok/cases``; and writes the results as JSON.
+
+An interrupt case that ends before its SIGINT is due is a failure ("ended before the
+interrupt"); a SIGINT in the first ~50 ms, before the interpreter has its own handler, ends
+the process silently with -2 (a shell shows 130), which is ok.
 
 Usage: ``python benchmarks/bad_input_battery.py [--only SUBSTRING ...] [--timeout 30]
 [--json FILE] [--work DIR] [--list]``. ``--only`` keeps the cases whose name holds one of the
@@ -152,6 +158,11 @@ def make_inputs(w: Path) -> None:
     (w / "impossible.toml").write_text(
         'name = "impossible"\n[gears]\nz_sun = 20\nz_planet = 30\nz_ring = 100\nn_planets = 3\n'
         "module = 0.002\nface_width = 0.02\n")
+    (w / "truncated.toml").write_text(  # a spec cut in the middle of a string
+        '[gears]\nz_sun = 20\nz_planet = 30\nz_ring = 80\nn_planets = 3\nname = "cu')
+    (w / "huge.toml").write_text(  # consistent tooth counts (z_r = z_s + 2 z_p), absurd sizes
+        'name = "huge"\n[gears]\nz_sun = 1000000000\nz_planet = 1000000000\n'
+        "z_ring = 3000000000\nn_planets = 3\nmodule = 0.002\nface_width = 0.02\n")
     (w / "crowded.toml").write_text(
         'name = "crowded"\n[gears]\nz_sun = 20\nz_planet = 30\nz_ring = 80\nn_planets = 7\n'
         "module = 0.002\nface_width = 0.02\n")
@@ -167,6 +178,26 @@ def make_simulated(w: Path, timeout: float = 600.0) -> None:
                     "paper-bench", "--duration", "4", "--out", str(out), "--force"], cwd=w,
                    check=True, timeout=timeout, capture_output=True)
     shutil.copy(out / "record.dtwin.h5", w / "sim.dtwin.h5")
+
+
+def make_big(w: Path, duration: float = 60.0, rate: float = 25600.0) -> None:
+    """``big.wav``: `duration` s of the bench at `rate` Hz (16-bit; the big record of issue
+    53's memory row: calibrate needed > 12 GB on it), doubled until calibrating on it would
+    need more than twice the memory available here (at most an hour), so that calibrate must
+    refuse it on any machine."""
+    if (w / "big.wav").exists():
+        return
+    import numpy as np
+    from scipy.io import wavfile
+
+    from dtwin.memory import available_bytes, calibration_bytes
+
+    avail = available_bytes() or 0
+    while calibration_bytes(duration * rate) <= 2 * avail and duration < 3600:
+        duration *= 2
+    _, x = _bench_signal(duration, rate)
+    wavfile.write(w / "big.wav", int(rate), np.round(x / np.abs(x).max() * 30000)
+                  .astype(np.int16))
 
 
 # -------------------------------------------------------------------------------------- cases
@@ -186,12 +217,15 @@ def _reading(cmd: str, extra: Sequence[str] = (), *, spec_needed: bool = True,
              "bitdepth": ("bitdepth.wav", ("bitdepth.wav",)),
              "format": ("text.wav", ("text.wav",)),
              "rate": ("lowrate.csv", ("lowrate.csv",)), "huge": ("huge.csv", ("huge.csv",)),
-             "contradicting": ("tone.csv", ("tone.csv",))}
+             "contradicting": ("tone.csv", ("tone.csv",)),
+             "wrong-speed": ("good.csv", ("good.csv",))}
     out_cases = []
     for k in kinds:
         f, ins = files[k]
-        doubtful = k in ("rate", "contradicting")  # usable with a warning, or refused
-        out_cases.append(Case(f"{name}.{k}", (*cmd.split(), "{w}/" + f, *spec, *extra, *tail),
+        doubtful = k in ("rate", "contradicting", "wrong-speed")  # a warning, or refused
+        speed = ["--f-sun", "20"] if k == "wrong-speed" else []  # the record's lines: 29.7 Hz
+        out_cases.append(Case(f"{name}.{k}", (*cmd.split(), "{w}/" + f, *spec, *speed, *extra,
+                                              *tail),
                               ins, (0, 2) if doubtful else (2,), warn=doubtful))
     return out_cases
 
@@ -208,14 +242,19 @@ def _spec_cases(cmd: str, extra: Sequence[str] = ()) -> list[Case]:
              ("impossible.toml",)),
         Case(f"{name}.crowded", (*cmd.split(), "--spec", "{w}/crowded.toml", *extra),
              ("crowded.toml",)),
+        Case(f"{name}.truncated-spec", (*cmd.split(), "--spec", "{w}/truncated.toml", *extra),
+             ("truncated.toml",)),
+        Case(f"{name}.huge-spec", (*cmd.split(), "--spec", "{w}/huge.toml", *extra),
+             ("huge.toml",)),
     ]
 
 
 def _interrupt(cmd: str, argv: Sequence[str], after: float, inputs: Sequence[str] = (),
-               needs: Sequence[str] = ()) -> Case:
-    out = "{w}/int_" + cmd
-    return Case(f"{cmd}.interrupt", (*argv, "--out", out), tuple(inputs), (130,), after, out,
-                tuple(needs))
+               needs: Sequence[str] = (), out: bool = True) -> Case:
+    """SIGINT `after` s into ``dtwin ARGV`` (with ``--out`` unless not `out`): exit 130."""
+    folder = "{w}/int_" + cmd if out else None
+    return Case(f"{cmd}.interrupt", (*argv, *(("--out", folder) if out else ())), tuple(inputs),
+                (130,), after, folder, tuple(needs))
 
 
 def cases() -> list[Case]:
@@ -246,13 +285,28 @@ def cases() -> list[Case]:
     c.append(Case("record-convert.onto-input-link", ("record", "convert", "{w}/in.dtwin.h5",
                                                      "{w}/link.dtwin.h5", "--force"),
                   ("in.dtwin.h5",), needs=("in",)))
+    c += [Case("record-info.contradicting", ("record", "info", "{w}/tone.csv", "--preset",
+                                             "paper-bench", "--strict"), ("tone.csv",)),
+          Case("record-info.wrong-speed", ("record", "info", "{w}/good.csv", "--preset",
+                                           "paper-bench", "--f-sun", "20", "--strict"),
+               ("good.csv",)),
+          _interrupt("record-info", ("record", "info", "{w}/good.csv", "--preset",
+                                     "paper-bench"), 1.5, ("good.csv",)),
+          _interrupt("record-convert", ("record", "convert", "{w}/good.csv",
+                                        "{w}/int_conv.dtwin.h5"), 1.5, ("good.csv",),
+                     out=False)]
     # spec check
     c += [Case("spec-check.missing", ("spec", "check", "{w}/nonexistent.toml")),
           Case("spec-check.empty", ("spec", "check", "{w}/empty.toml"), ("empty.toml",)),
           Case("spec-check.format", ("spec", "check", "{w}/binary.toml"), ("binary.toml",)),
           Case("spec-check.contradicting", ("spec", "check", "{w}/impossible.toml"),
                ("impossible.toml",)),
-          Case("spec-check.crowded", ("spec", "check", "{w}/crowded.toml"), ("crowded.toml",))]
+          Case("spec-check.crowded", ("spec", "check", "{w}/crowded.toml"), ("crowded.toml",)),
+          Case("spec-check.truncated", ("spec", "check", "{w}/truncated.toml"),
+               ("truncated.toml",)),
+          Case("spec-check.huge", ("spec", "check", "{w}/huge.toml"), ("huge.toml",)),
+          _interrupt("spec-check", ("spec", "check", "{w}/crowded.toml"), 1.5,
+                     ("crowded.toml",), out=False)]
     # commands of a gearbox only
     for cmd in ("freqs", "modes", "stiffness"):
         c += _spec_cases(cmd)
@@ -260,6 +314,10 @@ def cases() -> list[Case]:
     c.append(Case("modes.huge", ("modes", "--preset", "paper-bench", "--planets", "100000")))
     c.append(Case("stiffness.huge", ("stiffness", "--preset", "paper-bench", "--cycles",
                                      "1e12")))
+    c += _spec_cases("compare-drives", ["--duration", "0.2"])
+    for cmd in ("modes", "stiffness"):
+        c.append(_interrupt(cmd, (cmd, "--preset", "paper-bench"), 1.5))
+    c.append(_interrupt("compare-drives", ("compare-drives", "--preset", "paper-bench"), 12.0))
     c.append(Case("freqs.interrupt-import", ("freqs", "--preset", "paper-bench", "--out",
                                              "{w}/int_freqs"), (), (130,), 1.0,
                   "{w}/int_freqs"))
@@ -288,7 +346,20 @@ def cases() -> list[Case]:
     c += _reading("spectrum", out=False)
     c.append(Case("spectrum.huge-floor-width", ("spectrum", "{w}/good.csv", "--floor-width",
                                                 "1e9"), ("good.csv",)))
-    c += _reading("view", kinds=("missing", "empty", "truncated", "format", "huge"))
+    c += _reading("spectrum", kinds=("truncated-tdms", "wrong-speed"))
+    c += _reading("view", ["--kind", "order"], kinds=(
+        "missing", "empty", "truncated", "bitdepth", "format", "rate", "huge", "contradicting",
+        "wrong-speed"))
+    c.append(Case("view.missing-kind", ("view", "{w}/good.csv"), ("good.csv",)))
+    c += [_interrupt(cmd, (cmd, "{w}/sim.dtwin.h5", "--preset", "paper-bench", *extra), 10.0,
+                     ("sim.dtwin.h5",), ("sim",))
+          for cmd, extra in (("spectrum", ()), ("view", ("--kind", "kurtogram")))]
+    for cmd, extra in (("severity", ["--location", "sun"]), ("identify", ["--free", "sun_fault"]),
+                       ("calibrate", []), ("discover", [])):
+        c += _reading(cmd, extra, kinds=("wrong-speed",), out=cmd == "calibrate")
+    c += [Case("calibrate.huge-record", ("calibrate", "{w}/big.wav", "--preset", "paper-bench",
+                                         "--out", "{w}/o_cal_big"), ("big.wav",),
+               needs=("big",))]
     c += _reading("severity", ["--location", "sun"])
     c += _reading("identify", ["--free", "sun_fault"])
     c += _reading("calibrate", out=True)
@@ -313,9 +384,38 @@ def cases() -> list[Case]:
                                           "--preset", "paper-bench", "--out", "{w}/o_fleet")),
           Case("fleet-identify.empty", ("fleet", "identify", "{w}/empty.csv", "--preset",
                                         "paper-bench", "--out", "{w}/o_fleet2"),
-               ("empty.csv",), (1, 2)),
+               ("empty.csv",)),
+          Case("fleet-identify.truncated", ("fleet", "identify", "{w}/truncated.wav",
+                                            "--preset", "paper-bench", "--out", "{w}/o_fleet3"),
+               ("truncated.wav",)),
+          Case("fleet-identify.format", ("fleet", "identify", "{w}/text.wav", "--preset",
+                                         "paper-bench", "--out", "{w}/o_fleet4"),
+               ("text.wav",)),
+          Case("fleet-identify.contradicting", ("fleet", "identify", "{w}/tone.csv",
+                                                "--preset", "paper-bench", "--out",
+                                                "{w}/o_fleet5"), ("tone.csv",)),
+          Case("fleet-identify.missing-spec", ("fleet", "identify", "{w}/good.csv", "--spec",
+                                               "{w}/nonexistent.toml", "--out", "{w}/o_fleet6"),
+               ("good.csv",)),
+          Case("fleet-identify.huge", ("fleet", "identify", "{w}/good.csv", "--preset",
+                                       "paper-bench", "--num-cpus", "1e9", "--out",
+                                       "{w}/o_fleet7"), ("good.csv",)),
+          _interrupt("fleet-identify", ("fleet", "identify", "{w}/sim.dtwin.h5", "--preset",
+                                        "paper-bench"), 12.0, ("sim.dtwin.h5",), ("sim",)),
+          Case("fleet-table.missing", ("fleet", "table", "{w}/nonexistent")),
+          Case("fleet-table.empty", ("fleet", "table", "{w}/emptydir"), needs=("emptydir",)),
           Case("fleet-trends.missing", ("fleet", "trends", "{w}/nonexistent")),
-          Case("fleet-trends.empty", ("fleet", "trends", "{w}/emptydir"), needs=("emptydir",))]
+          Case("fleet-trends.empty", ("fleet", "trends", "{w}/emptydir"), needs=("emptydir",)),
+          Case("fleet-trends.format", ("fleet", "trends", "{w}/badresults"),
+               ("badresults/records/r1.json",), needs=("badresults",)),
+          Case("fleet-trends.huge", ("fleet", "trends", "{w}/badresults", "--horizon", "1e300"),
+               ("badresults/records/r1.json",), needs=("badresults",))]
+    # Ctrl-C while the command is still starting (the interpreter, then dtwin's imports): one
+    # 'interrupted' line and 130, or the signal's default end before Python handles it
+    # (-2, what a shell reports as 130); never a traceback
+    for after in (0.05, 0.2, 0.5):
+        c.append(Case(f"freqs.interrupt-{after:g}s", ("freqs", "--preset", "paper-bench"), (),
+                      (130, -2), after))
     return c
 
 
@@ -343,6 +443,20 @@ def _prepare(case: Case, w: Path) -> None:
                 link.symlink_to(w / "in.dtwin.h5")
         elif n == "emptydir":
             (w / "emptydir").mkdir(exist_ok=True)
+        elif n == "big":
+            make_big(w)
+        elif n == "badresults":
+            rec = w / "badresults" / "records"
+            rec.mkdir(parents=True, exist_ok=True)
+            if not (rec / "r1.json").exists():
+                (rec / "r1.json").write_text('{"status": "ok", "machine": "m1", "values": {')
+
+
+def _default_sigint() -> None:
+    """In the child, before Python starts: SIGINT's default action, as in a terminal. A script
+    started in the background (``cmd &`` without job control) inherits SIGINT ignored, and an
+    interrupt before dtwin installs its handler would be lost unseen."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def run_case(case: Case, w: Path, timeout: float = 30.0) -> Result:
@@ -358,12 +472,14 @@ def run_case(case: Case, w: Path, timeout: float = 30.0) -> Result:
     t0 = time.perf_counter()
     p = subprocess.Popen([sys.executable, "-m", "dtwin", *argv], cwd=w, env=env,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)
+                         start_new_session=True, preexec_fn=_default_sigint)
     hung = False
+    early = False  # ended before the interrupt was due
     try:
         if case.interrupt_after is not None:
             try:
                 p.wait(case.interrupt_after)
+                early = True
             except subprocess.TimeoutExpired:
                 p.send_signal(signal.SIGINT)
         _, err = p.communicate(timeout=max(timeout - (time.perf_counter() - t0), 1.0))
@@ -383,6 +499,10 @@ def run_case(case: Case, w: Path, timeout: float = 30.0) -> Result:
         reason = "traceback on stderr"
     elif code == 70 or any(line.startswith("internal error") for line in lines):
         reason = "crash: internal error (exit 70)"
+    elif early:
+        reason = f"ended (exit {code}) before the interrupt at {case.interrupt_after:g} s"
+    elif code == -signal.SIGINT and code in case.expect and not lines:
+        pass  # SIGINT before the interpreter handles it: the default end, silent (shell: 130)
     elif code is not None and (code < 0 or code in (137, 139)):
         reason = f"crash: killed (exit {code})"
     elif changed:
@@ -424,6 +544,54 @@ def summary(results: Sequence[Result]) -> str:
     return "\n".join(out)
 
 
+#: The table's columns (the issue's kinds of bad input) and the case-name suffixes each holds.
+KINDS = {
+    "missing": ("missing",),
+    "empty": ("empty",),
+    "truncated": ("truncated", "cut-tdms-header"),
+    "wrong format": ("format", "wrong-format", "binary-spec", "bitdepth", "usage",
+                     "unknown-option"),
+    "wrong rate": ("rate", "wrong-rate"),
+    "huge": ("huge", "n-boot-1e9"),
+    "contradicting": ("contradicting", "crowded", "wrong-speed", "onto-input"),
+    "interrupt": ("interrupt",),
+}
+
+
+def kind_of(name: str) -> str:
+    """The column of case `name` (``command.kind``) in :func:`matrix`."""
+    suffix = name.split(".", 1)[1]
+    for kind, keys in KINDS.items():
+        if any(suffix.startswith(k) for k in keys):
+            return kind
+    return "other"
+
+
+def matrix(results: Sequence[Result]) -> str:
+    """A markdown table: one row per command, one column per kind of bad input; each cell
+    ``ok/cases`` (bold when a case failed), ``–`` where the battery has no case."""
+    cmds: dict[str, dict[str, list[Result]]] = {}
+    for r in results:
+        cmds.setdefault(r.name.split(".", 1)[0], {}).setdefault(kind_of(r.name), []).append(r)
+    cols = [*KINDS, "other"]
+    if not any("other" in row for row in cmds.values()):
+        cols.remove("other")
+    out = ["| command | " + " | ".join(cols) + " | all |",
+           "|---|" + "---:|" * (len(cols) + 1)]
+    for cmd, row in cmds.items():
+        cells = []
+        for k in cols:
+            rs = row.get(k, [])
+            ok = sum(r.ok for r in rs)
+            cells.append("–" if not rs else (f"{ok}/{len(rs)}" if ok == len(rs)
+                                             else f"**{ok}/{len(rs)}**"))
+        every = [r for rs in row.values() for r in rs]
+        ok = sum(r.ok for r in every)
+        cells.append(f"{ok}/{len(every)}" if ok == len(every) else f"**{ok}/{len(every)}**")
+        out.append(f"| {cmd} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", default=None, help="substrings of case names to run")
@@ -449,6 +617,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{'case':<36} {'exit':>5} {'time':>9}  result")
         results = run(selected, w, timeout=args.timeout)
         print(summary(results))
+        print()
+        print(matrix(results))
         path = args.json or (Path.cwd() / "bad_input_battery.json")
         path.write_text(json.dumps({"timeout_s": args.timeout, "cases": len(results),
                                     "ok": sum(r.ok for r in results),

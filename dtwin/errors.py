@@ -12,17 +12,30 @@ class DtwinError(Exception):
     """Base class of all dtwin errors."""
 
 
+def _is_command_line(path: str) -> bool:
+    """Whether a problem's path names a command-line option (``--fault``, ``--preset/--spec``)
+    or argument (``RESULTS``, ``FILE``) rather than a spec field (``gears.z_ring``)."""
+    return path.startswith("-") or (path.replace("_", "").isalpha() and path.isupper())
+
+
 class SpecError(DtwinError, ValueError):
-    """A gearbox spec (TOML or dict) is invalid. ``problems`` lists (path, message) pairs."""
+    """A gearbox spec (TOML or dict) is invalid. ``problems`` lists (path, message) pairs.
+
+    The message opens with "invalid spec:" unless every path names a command-line option or
+    argument (a bad setting, not a bad spec): then it is ``OPTION: message``."""
 
     def __init__(self, problems: list[tuple[str, str]] | str):
         if isinstance(problems, str):
             problems = [("", problems)]
         self.problems = list(problems)
         lines = [f"{p}: {m}" if p else m for p, m in self.problems]
-        super().__init__(
-            "invalid spec:\n  " + "\n  ".join(lines) if len(lines) > 1 else "invalid spec: " + lines[0]
-        )
+        head = ("invalid command line:" if all(_is_command_line(p) for p, _ in self.problems)
+                else "invalid spec:")
+        if len(lines) == 1 and head != "invalid spec:":
+            super().__init__(lines[0])
+        else:
+            super().__init__(f"{head}\n  " + "\n  ".join(lines) if len(lines) > 1
+                             else f"{head} " + lines[0])
 
 
 class GeometryError(SpecError):

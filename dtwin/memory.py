@@ -14,8 +14,8 @@ import os
 
 from .errors import DtwinError
 
-__all__ = ["MemoryLimitError", "available_bytes", "format_bytes", "require",
-           "simulation_bytes"]
+__all__ = ["MemoryLimitError", "available_bytes", "calibration_bytes", "discovery_bytes",
+           "format_bytes", "require", "simulation_bytes"]
 
 #: Bytes of one float64.
 FLOAT64 = 8
@@ -94,3 +94,37 @@ def simulation_bytes(duration: float, sample_rate: float, n_dof: int, *, oversam
     """
     points = float(duration) * float(sample_rate) * oversample
     return points * (2 * n_dof + n_observables) * FLOAT64 * SIMULATION_COPIES
+
+
+#: Bytes a calibration holds per point of a record's oversampled grid besides its tangents:
+#: the linearised solve's own record of the simulation. Measured (peak RSS, paper-bench, the
+#: bundled bench_healthy at 5 kHz): 1.89 GB for 2 s and 1.94 GB for 4 s, the tangents filling
+#: their 1 GiB budget in both (17 and 8 at once), so ≈ 2.7 kB a point; rounded up.
+CALIBRATION_BYTES_PER_POINT = 3000
+#: What one tangent of the response takes per point, and the budget the tangents are formed
+#: within (`dtwin.identify.calibrate`: ``_TANGENT_BYTES_PER_SAMPLE``, ``_TANGENT_BUDGET``): at
+#: least one tangent is formed at once, whatever its size.
+TANGENT_BYTES_PER_POINT, TANGENT_BUDGET = 1500, 2**30
+#: Columns (fitted parameters) of a record's Jacobian a calibration or a discovery keeps, at
+#: most (each a float64 per sample).
+JACOBIAN_COLUMNS = 100
+
+
+def calibration_bytes(n_samples: int, *, oversample: int = 4) -> float:
+    """Peak memory (bytes) of calibrating on one record of `n_samples` samples: the linearised
+    solve (:data:`CALIBRATION_BYTES_PER_POINT` per point of the oversampled grid), one batch of
+    tangents (the budget, or one tangent when a single one exceeds it) and the record's
+    Jacobian (:data:`JACOBIAN_COLUMNS` columns)."""
+    points = float(n_samples) * oversample
+    return (points * CALIBRATION_BYTES_PER_POINT
+            + max(float(TANGENT_BUDGET), TANGENT_BYTES_PER_POINT * points)
+            + float(n_samples) * JACOBIAN_COLUMNS * FLOAT64)
+
+
+def discovery_bytes(duration: float, sample_rate: float, n_dof: int, *,
+                    oversample: int = 4) -> float:
+    """Peak memory (bytes) of a discovery on one record: the twin simulated over the whole
+    record (:func:`simulation_bytes`, as when its response is not periodic) and the responses
+    of the candidates' parameters (:data:`JACOBIAN_COLUMNS` signals of the record's length)."""
+    return (simulation_bytes(duration, sample_rate, n_dof, oversample=oversample)
+            + float(duration) * float(sample_rate) * JACOBIAN_COLUMNS * FLOAT64)

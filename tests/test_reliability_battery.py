@@ -49,3 +49,36 @@ def test_battery_reports_a_changed_input_and_a_hang(battery, tmp_path):
                         (), (0,))
     r = battery.run_case(hang, tmp_path, timeout=3.0)
     assert not r.ok and r.reason.startswith("hang: still running after 3 s"), r
+
+
+def test_battery_table_covers_each_kind_of_bad_input(battery):
+    """The issue's table: every case falls in one of the eight kinds (missing, empty,
+    truncated, wrong format, wrong rate, huge, contradicting, interrupt); every command that
+    reads a record has a case of each, every command an interrupt; a failed cell is bold."""
+    cases = battery.cases()
+    kinds = {c.name: battery.kind_of(c.name) for c in cases}
+    assert set(kinds.values()) == set(battery.KINDS), {k for k in kinds.values()}
+    cells = {}
+    for name, kind in kinds.items():
+        cells.setdefault(name.split(".", 1)[0], set()).add(kind)
+    for cmd in ("record-info", "spectrum", "view", "severity", "identify", "calibrate",
+                "discover"):
+        assert cells[cmd] == set(battery.KINDS), (cmd, set(battery.KINDS) - cells[cmd])
+    for cmd in ("record-convert", "spec-check", "freqs", "modes", "stiffness", "simulate",
+                "compare-drives", "fleet-identify"):
+        assert "interrupt" in cells[cmd], cmd
+    results = [battery.Result(c.name, True, "ok", 2, 1.0, "") for c in cases]
+    results[0] = battery.Result(results[0].name, False, "traceback on stderr", 1, 1.0, "")
+    table = battery.matrix(results).splitlines()
+    assert table[0].startswith("| command | missing | empty | truncated | wrong format |")
+    first = cases[0].name.split(".", 1)[0]
+    assert any(line.startswith(f"| {first} |") and "**" in line for line in table)
+
+
+def test_battery_interrupt_case_that_ends_first_is_a_failure(battery, tmp_path):
+    """An interrupt case whose command ends before its SIGINT is due did not test the
+    interrupt: a failure with that reason, not an ok."""
+    battery.make_inputs(tmp_path)
+    case = battery.Case("x.interrupt", ("--version",), (), (130,), 60.0)
+    r = battery.run_case(case, tmp_path, timeout=90.0)
+    assert not r.ok and r.reason.startswith("ended (exit 0) before the interrupt at 60 s"), r

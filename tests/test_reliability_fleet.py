@@ -73,3 +73,52 @@ def test_fleet_trends_screen_shows_each_state(tmp_path, capsys):
     assert "0.51 is above 0.4" in table["two_above"]
     written = json.loads((res / "trends" / "trends.json").read_text())
     assert written["machines"]["two_below"]["state"] == "too_few"
+
+
+def test_a_fleet_none_of_whose_records_can_be_fitted_is_refused_at_once(tmp_path, monkeypatch,
+                                                                       capsys):
+    """Issue 53's battery: `fleet identify` on one truncated (or unreadable, or empty) record
+    started Ray (half a minute) to end in "1 failed". Now the records are checked first, in the
+    command, until one can be fitted: none can, one error line naming each, exit 2, no results
+    folder; one that can, and the run starts (its tasks report the others, as before)."""
+    from _cli_errors import one_error_line
+    from scipy.io import wavfile
+
+    import dtwin.identify.fleet
+    from dtwin.cli import main
+    from dtwin.io.readers import write_record
+    from dtwin.io.record import Record
+    from dtwin.kinematics import Kinematics
+    from dtwin.spec import preset
+
+    class Started(Exception):
+        pass
+
+    def started(*a, **k):
+        raise Started
+
+    monkeypatch.setenv("DTWIN_DEBUG", "1")
+    monkeypatch.setattr(dtwin.identify.fleet, "run_fleet", started)
+    wav = tmp_path / "cut.wav"
+    wavfile.write(wav, 5000, np.zeros(4000, np.int16))
+    wav.write_bytes(wav.read_bytes()[:3000])
+    text = tmp_path / "text.wav"
+    text.write_text("not a WAV file\n")
+    out = tmp_path / "results"
+    line = one_error_line(["fleet", "identify", str(wav), str(text), "--preset", "paper-bench",
+                           "--out", str(out)], capsys)
+    assert "none of the 2 record(s) can be fitted" in line, line
+    assert "cut.wav: WAV file is truncated" in line and "text.wav: not a WAV file" in line, line
+    assert not out.exists()
+    # a record with the spec's mesh lines among them: the run starts
+    kin = Kinematics.from_gear_set(preset("paper-bench").gear_set(), 29.7)
+    t = np.arange(20000) / 5000.0
+    x = 0.05 * np.random.default_rng(0).standard_normal(t.size)
+    for m in range(1, 4):
+        for n in range(-2, 3):
+            x += np.cos(2 * np.pi * (m * kin.f_mesh + n * kin.f_carrier) * t) / (m * (1 + abs(n)))
+    good = tmp_path / "good.dtwin.h5"
+    write_record(Record(x[None, :], 5000.0, ("acc",), ("m/s^2",), metadata={"f_sun": 29.7}), good)
+    with pytest.raises(Started):
+        main(["fleet", "identify", str(wav), str(good), "--preset", "paper-bench", "--out",
+              str(out)])

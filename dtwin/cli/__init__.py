@@ -218,7 +218,12 @@ def usage_error_line(e: Exception, args: list[str] | None = None) -> str:
         return (f"error: COMMAND: no such command {name!r} of {where} (accepted: "
                 f"{', '.join(cmds)})")
     if _is(e, "MissingParameter"):
-        return (f"error: {_label(param, 'ARGUMENT')}: missing (accepted: {_accepted(param)}; "
+        accepted = _accepted(param)
+        help_text = " ".join(str(getattr(param, "help", None) or "").split())
+        if accepted == "text" and help_text:  # the help names what a text option takes
+            accepted = help_text.split(". ")[0].rstrip(".")
+            accepted = accepted[:1].lower() + accepted[1:]
+        return (f"error: {_label(param, 'ARGUMENT')}: missing (accepted: {accepted}; "
                 f"see {where} --help)")
     if _is(e, "BadParameter"):
         hint = str(getattr(e, "param_hint", None) or "value").strip("'\"")

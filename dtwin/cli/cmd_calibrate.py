@@ -83,6 +83,7 @@ def calibrate(
     for p in records:
         r = opts.read_record(p, sample_rate, tacho)
         opts.check_channel(r, ch)
+        opts.check_fit_memory(r, gb.spec, p, command="calibrate", records=recs)
         opts.checked_record(r, ch, gb.spec, f_sun, fit=True)
         opts.check_speed_against_lines(r, gb.spec, f_sun, ch, p)
         r.metadata["source"] = p.name

@@ -38,6 +38,29 @@ def _parse_list(text: str, name: str) -> list[float]:
     return vals
 
 
+#: The comparison's peak over :func:`dtwin.memory.simulation_bytes` per simulation: XLA asked
+#: for 984 GB in one allocation for 5 severities × 3000.1 s with sensitivities, where the
+#: estimate gives 749 GB (1.31×: the coupled drive's states and the solver's stages); rounded up.
+COMPARE_OVERHEAD = 2.0
+
+
+def _check_memory(spec, daq, n_severities: int, span: float, sensitivity: bool) -> None:
+    """Refuse a comparison that would not fit in the memory available (:mod:`dtwin.memory`):
+    each model simulates every severity at once (one compiled call), the translational twin's
+    state plus the drive's saved at the DAQ's oversampled rate, twice with the sensitivity's
+    tangents (issue 53: ``--duration 3000`` asked XLA for 984 GB, an internal error)."""
+    from ..memory import require, simulation_bytes
+
+    n_dof = 3 * (int(spec["gears"]["n_planets"]) + 3) + 4
+    copies = n_severities * (2 if sensitivity else 1)
+    need = COMPARE_OVERHEAD * copies * simulation_bytes(span, daq.sample_rate, n_dof,
+                                                       oversample=daq.oversample)
+    require(need, what=f"{n_severities} severities × {span:g} s at {daq.sample_rate:g} Hz "
+            f"(simulated at once, {daq.oversample} × that rate"
+            + (", with their sensitivities)" if sensitivity else ")"), option="--duration",
+            fix="lower --duration (the RMS settles within a second) or pass fewer --severities")
+
+
 @app.command("compare-drives")
 def compare_drives_cmd(
     preset: str = opts.preset_option(),
@@ -75,6 +98,7 @@ def compare_drives_cmd(
     gb = opts.load_gearbox(preset, spec_file)
     spec = gb.spec
     daq = daq_from_spec(spec, **({"quantity": quantity} if quantity else {}))
+    _check_memory(spec, daq, len(sev), duration + discard, not no_sensitivity)
     parameters = {
         "severities": sev, "duration_s": duration, "discard_s": discard, "kind": kind,
         "quantity": daq.quantity, "k_shaft": k_shaft, "speed_bandwidth_hz": speed_bandwidth,

@@ -34,7 +34,7 @@ from . import options as opts
 from .app import app
 from .logs import note
 
-record_app = typer.Typer(help="Recorded vibration files: inspect, check, convert.")
+record_app = typer.Typer(help="Recorded vibration files (channels, rate, problems found; to *.dtwin.h5): info, convert.")
 app.add_typer(record_app, name="record")
 
 _SENS_RE = re.compile(r"^\s*(?P<ch>[^=]+?)\s*=\s*(?P<val>[-+0-9.eE]+)\s*(?P<unit>\S.*?)\s*$")
@@ -103,8 +103,8 @@ def _frequencies(gb: opts.Gearbox | None, f_sun: float | None,
         freqs = {k: float(v) for k, v in
                  characteristic_frequencies(spec_obj.gear_set(), float(fs_in)).items()}
     elif f_sun is not None:
-        raise SpecError([("--f-sun", "needs a gearbox: add --preset NAME or --spec FILE, or "
-                          "give --f-mesh and --f-carrier directly")])
+        raise opts.OptionError("--f-sun", "needs a gearbox: add --preset NAME or --spec FILE, or "
+                               "give --f-mesh and --f-carrier directly")
     if f_mesh is not None:
         freqs["f_mesh"] = float(f_mesh)
     if f_carrier is not None:
@@ -200,6 +200,8 @@ def info(
     rec = _read(file, channels, sample_rate, time_column, units, sensitivity, tacho, tacho_ppr,
                 tacho_shaft, group, fmt)
     problems = check_record(rec, f_mesh=freqs.get("f_mesh"), f_carrier=freqs.get("f_carrier"))
+    if gb is not None and f_mesh is None and not problems:
+        problems += _speed_problems(rec, gb.spec, f_sun)
     with np.errstate(over="ignore"):  # an absurd sample (a problem above) overflows the RMS
         report = to_jsonable(record_report(rec, problems, freqs))
     opts.emit(report, json_out=json_out, table=lambda: _print_report(report), out=out,
@@ -212,6 +214,37 @@ def info(
         print(f"error: {file}: {len(problems)} problem(s) found with --strict "
               f"({', '.join(kinds)}){'' if json_out else ', listed above'}", file=sys.stderr)
         raise SystemExit(2)
+
+
+def _speed_problems(rec: Any, spec: Any, f_sun: float | None) -> list[Any]:
+    """The speed the frequencies above come from (``--f-sun``, the tachometer, the record's
+    metadata ``f_sun`` or the spec's ``operating.f_sun``), checked against the gear lines of the
+    record's first channel (:func:`dtwin.identify.operating_point.check_speed`, as every
+    command that analyses a record does): a speed the lines contradict, or lines absent where
+    it puts them, is a problem of kind ``speed`` (issue 53: it passed silently)."""
+    from dtwin.identify.operating_point import check_speed, resolve_speed
+
+    from ..io.validate import Problem
+
+    if rec.n_samples == 0 or not rec.channels:
+        return []
+    op = resolve_speed(rec, spec, f_sun, channel=0, estimate=False, check=False,
+                       required=False)
+    if op is None:
+        return []
+    what = {"given": "--f-sun", "tacho": "the tachometer's speed",
+            "metadata": "the record's metadata f_sun", "spec": "the spec's operating.f_sun"
+            }.get(op.method, "the speed")
+    res = check_speed(rec, spec, op.f_sun, channel=0, what=what)
+    if res.agrees:
+        return []
+    fix = ("correct --f-sun or drop it (the analyses then take the speed from the record)"
+           if op.method == "given" else
+           "pass the record's speed (--f-sun HZ) or check the spec's tooth numbers and the "
+           "channel")
+    return [Problem("speed", f"{res.message}; the frequencies above are at {op.f_sun:g} Hz: "
+                             f"{fix}", rec.channels[0], None,
+                    None if res.f_record is None else float(res.f_record))]
 
 
 #: Units a record channel may be given in (``--units``): the vibration units of

@@ -22,7 +22,6 @@ from typing import Any
 
 import typer
 
-from ..errors import SpecError
 from ..reports import stiffness_curves, stiffness_report
 from . import options as opts
 from .app import app
@@ -59,12 +58,13 @@ def stiffness(
     n_harm = int(spec_obj["mesh"].get("n_harmonics", 12))
     for f in faults:  # boundary checks (tooth, planet) before any computation
         if f.location == "planet" and f.planet >= lp.n_planets:
-            raise SpecError([("--fault", f"planet {f.planet} does not exist; the gear set has "
-                              f"planets 0..{lp.n_planets - 1}")])
+            raise opts.OptionError("--fault", f"planet {f.planet} does not exist; the gear set "
+                                   f"has planets 0..{lp.n_planets - 1}")
     if planet is None:
         planet = next((f.planet for f in faults if f.location == "planet"), 0)
     if not 0 <= planet < lp.n_planets:
-        raise SpecError([("--planet", f"planets are numbered 0..{lp.n_planets - 1}, got {planet}")])
+        raise opts.OptionError("--planet", f"planets are numbered 0..{lp.n_planets - 1}, got "
+                               f"{planet}")
     curves = stiffness_curves(lp, faults, n_cycles=cycles, n_harmonics=n_harm, planet=planet)
     report = stiffness_report(lp, faults, curves)
     report["source"] = source

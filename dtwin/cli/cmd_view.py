@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 import typer
 
-from ..errors import RecordError, SpecError
+from ..errors import RecordError
 from ..io.export import Columns, Grid
 from ..reports import channel_unit, gear_frequencies, input_speed
 from . import options as opts
@@ -81,9 +81,9 @@ def shaft_angles(record, x: np.ndarray, gearbox, f_sun: float | None,
         return {"sun": ang, "carrier": ang / ratio if ratio else None,
                 "source": "tachometer on the sun", "absolute_carrier": False}
     if gs is None or f_sun is None:
-        raise SpecError([("--preset/--spec", "this view needs the shaft angle: the record has no "
-                          "tachometer, so give the gearbox (--preset or --spec) and its input "
-                          "speed (--f-sun) to track the mesh phase")])
+        raise opts.OptionError("--preset/--spec", "this view needs the shaft angle: the record "
+                               "has no tachometer, so give the gearbox (--preset or --spec) and "
+                               "its input speed (--f-sun) to track the mesh phase")
     mo = gs.z_sun * gs.z_ring / (gs.z_sun + gs.z_ring)
     co = gs.z_sun / (gs.z_sun + gs.z_ring)
     rng = speed_range or (0.8 * f_sun, 1.2 * f_sun)
@@ -99,8 +99,8 @@ def _order_view(record, x, unit, gearbox, freqs, f_sun, speed_range, scale="db")
 
     ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
     if ang["sun"] is None:
-        raise SpecError([("--preset/--spec", "the tachometer is on the carrier: give the gearbox "
-                          "to convert its angle to the input shaft")])
+        raise opts.OptionError("--preset/--spec", "the tachometer is on the carrier: give the "
+                               "gearbox to convert its angle to the input shaft")
     speed = shaft_speed(ang["sun"], record.sample_rate)
     f_lo, f_hi = float(np.percentile(speed, 1)), float(np.percentile(speed, 99))
     if f_lo <= 0:
@@ -149,8 +149,8 @@ def _ordermap_view(record, x, unit, gearbox, freqs, f_sun, speed_range, revs, sc
 
     ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
     if ang["sun"] is None:
-        raise SpecError([("--preset/--spec", "the tachometer is on the carrier: give the gearbox "
-                          "to convert its angle to the input shaft")])
+        raise opts.OptionError("--preset/--spec", "the tachometer is on the carrier: give the "
+                               "gearbox to convert its angle to the input shaft")
     if revs is not None:  # given: at most the revolutions the input shaft makes in the record
         turns = int(abs(float(ang["sun"][-1]) - float(ang["sun"][0])) / (2.0 * np.pi))
         opts.count("--revs", revs, 1, max(turns, 1), "the revolutions of the input shaft in "
@@ -192,7 +192,7 @@ def _tsa_view(record, x, unit, gearbox, freqs, f_sun, speed_range):
     from ..tsa import planet_separation, sun_relative_angle, time_synchronous_average
 
     if gearbox is None:
-        raise SpecError([("--preset/--spec", "the TSA views need the gearbox's tooth counts")])
+        raise opts.OptionError("--preset/--spec", "the TSA views need the gearbox's tooth counts")
     gs = gearbox.gear_set()
     ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
     carrier = ang["carrier"]

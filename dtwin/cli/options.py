@@ -478,6 +478,39 @@ def check_channel(record: Any, channel: str | int) -> None:
                           f"{len(record.channels) - 1})") from None
 
 
+def check_fit_memory(record: Any, spec: Any, path: Any, *, command: str,
+                     records: Sequence[Any] = ()) -> None:
+    """Refuse, before any work, a record whose calibration or discovery would not fit in the
+    memory available (:mod:`dtwin.memory`; issue 53: calibrate on 60 s at 25.6 kHz took more
+    than 12 GB and was killed). `command`: ``calibrate`` (the linearised solve and its
+    tangents, :func:`dtwin.memory.calibration_bytes`, plus the Jacobians of the `records`
+    read before) or ``discover`` (:func:`dtwin.memory.discovery_bytes`).
+
+    **Raises:** :class:`dtwin.memory.MemoryLimitError` naming the record, both figures and
+    what to change."""
+    from ..memory import FLOAT64, JACOBIAN_COLUMNS, calibration_bytes, discovery_bytes, require
+
+    try:
+        oversample = int(spec["sensor"]["oversample"])
+    except (KeyError, TypeError, ValueError):
+        oversample = 4
+    n, fs = int(record.n_samples), float(record.sample_rate)
+    if command == "calibrate":
+        need = calibration_bytes(n, oversample=oversample) + sum(
+            float(r.n_samples) * JACOBIAN_COLUMNS * FLOAT64 for r in records)
+        what = (f"calibrating on {n / fs:.4g} s at {fs:g} Hz ({n * oversample:.3g} points of "
+                f"the twin's {oversample}× oversampled grid: the linearised solve and its "
+                "tangents)")
+    else:
+        n_dof = 3 * (int(spec["gears"]["n_planets"]) + 3) + 4
+        need = discovery_bytes(n / fs, fs, n_dof, oversample=oversample)
+        what = (f"discovering on {n / fs:.4g} s at {fs:g} Hz (the twin simulated over the whole "
+                f"record, {n * oversample:.3g} points, and the candidates' responses)")
+    require(need, what=what, option=str(path),
+            fix=f"{command} on a shorter cut of the record (a few seconds are enough: 8 carrier "
+                "periods or more) or on one resampled to a lower rate")
+
+
 def checked_record(record: Any, channel: str | int | Sequence[str | int] | None, spec: Any = None,
                    f_sun: float | None = None, *, fit: bool = False) -> Any:
     """The shared check of a record before an analysis (:func:`dtwin.io.validate.usable_record`):
@@ -790,7 +823,7 @@ def print_table(table: Any) -> None:
 __all__ = [
     "MAX_DISCARD_S", "MAX_DURATION_S", "MAX_SEED", "MAX_SOLVER_STEPS", "PRESETS", "Gearbox",
     "GIVEN_SPEED_TOLERANCE", "OptionError", "at_least", "band", "channel_option",
-    "channel_token", "check_channel", "check_speed_against_lines",
+    "channel_token", "check_channel", "check_fit_memory", "check_speed_against_lines",
     "check_out", "choice", "console", "count", "emit", "existing_file", "finite", "f_sun_option",
     "force_option", "in_range", "input_speed_option", "json_option", "load_gearbox",
     "out_option", "positive", "preset_option", "print_table", "read_record",

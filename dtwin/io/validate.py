@@ -70,7 +70,8 @@ class Problem:
     """One defect of a record.
 
     **Fields:** `kind` (``nan``, ``absurd``, ``empty``, ``constant``, ``clipping``, ``sample_rate``,
-    ``too_short``, ``time_column``, ``unknown_channel``, ``tacho``); `message` (what is wrong
+    ``too_short``, ``time_column``, ``unknown_channel``, ``tacho``; ``speed``: `dtwin record
+    info`'s speed the record's gear lines contradict); `message` (what is wrong
     and what to change); `channel` (name, or None for the whole record); `sample` (first
     sample index concerned, or None); `value` (a number characterising it: count, fraction,
     needed rate in Hz or needed duration in s).
