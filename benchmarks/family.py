@@ -31,7 +31,9 @@ Usage::
 
 ``--reuse`` takes a calibrated spec already in ``--out`` instead of calibrating again;
 ``--quick`` runs discover with one step and fewer bootstrap draws (``--max-steps 1 --n-boot
-200``), the reduced form the CI test uses.
+200``) and without its depth fit (``--no-depth``: the severity step fits the same problem),
+the reduced form the CI test uses. Otherwise a discover row also shows the depth (peak
+stiffness loss) of a tooth fault it named, which must equal the severity row's.
 """
 
 from __future__ import annotations
@@ -135,8 +137,10 @@ def score_discover(truth_effects: list[dict], res: dict | None) -> dict:
             right = bool(groups) and groups[0] == want and all(g == want for g in groups)
             why = "" if right else (f"named nothing (wanted {want})" if not groups else
                                     f"named {groups} (wanted only {want})")
+    depths = [s["depth"]["peak_stiffness_loss"] for s in res.get("steps", [])
+              if s.get("depth")]
     return dict(named=named, groups=groups, gap_before=before, gap_after=after, right=right,
-                why=why)
+                why=why, depth=depths[0] if depths else None)
 
 
 def score_severity(truth_effects: list[dict], res: dict | None) -> dict:
@@ -194,8 +198,8 @@ def run_machine(name: str, folder: Path, out: Path, records: list[str] | None, s
         path = str(folder / f"{rec}.csv")
         if "discover" in steps:
             args = ["discover", path, "--spec", str(cal_spec)]
-            if quick:
-                args += ["--max-steps", "1", "--n-boot", "200"]
+            if quick:  # the depth is the severity step's (one path): not fitted twice
+                args += ["--max-steps", "1", "--n-boot", "200", "--no-depth"]
             code, res, err, wall = run_cli(args)
             row = dict(machine=name, record=rec, step="discover", wall_s=wall, code=code,
                        **score_discover(effects, res if code == 0 else None))
@@ -240,6 +244,8 @@ def markdown(rows: list[dict], meta: dict) -> str:
                 else ("profile" if r["truth"] is None else _f(r["truth"], ".2f"))
         elif r["step"] == "discover":
             what = ", ".join(r["groups"]) or "nothing"
+            if r.get("depth") is not None:
+                what += f" (depth {_f(r['depth'], '.3f')})"
             gap = f"{_f(r['gap_before'])} → {_f(r['gap_after'])}"
             truth = ""
         else:

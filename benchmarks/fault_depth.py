@@ -11,7 +11,10 @@ and evaluates, with nothing else refitted:
   stiffness loss relative to the mean mesh stiffness: the truth's terms), and where it is
   least;
 - the same loss per band of the observation (band 0: the low band; band m: the m-th mesh
-  band), so that one can read which lines pull the depth where.
+  band), so that one can read which lines pull the depth where;
+- with ``--splits``, all of it again for the other end of the calibration's
+  excitation/response split (:func:`dtwin.identify.split.stiffness_split`), which ``dtwin
+  severity`` fits too.
 
 A kind whose least loss lies far from the truth while the other's lies near it is a model-form
 cause (the twin's dynamics), not an estimator's; both far from it points at the excitation or
@@ -86,6 +89,9 @@ def main(argv=None) -> int:
     p.add_argument("--spec", required=True, help="the machine's calibrated spec")
     p.add_argument("--kinds", nargs="*", default=["torsional", "translational"])
     p.add_argument("--points", type=int, default=12)
+    p.add_argument("--splits", action="store_true",
+                   help="also the other end of the calibration's excitation/response split "
+                        "(dtwin.identify.split.stiffness_split), as dtwin severity fits both")
     args = p.parse_args(argv)
     from dtwin.io.readers import read_record
 
@@ -99,8 +105,16 @@ def main(argv=None) -> int:
     record = read_record(folder / f"{args.record}.csv")
     out = dict(machine=args.machine, record=args.record, location=location,
                true_peak=true_peak, kinds=[])
+    from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS, stiffness_split
+
+    specs = [(SPLIT_CALIBRATED, args.spec)]
+    if args.splits and stiffness_split(args.spec) is not None:
+        specs.append((SPLIT_STIFFNESS, stiffness_split(args.spec)))
     for kind in args.kinds:
-        out["kinds"].append(_loss_profile(record, args.spec, location, kind, peaks))
+        for split, spec in specs:
+            print(f"-- {kind}, {split}", file=sys.stderr, flush=True)
+            row = _loss_profile(record, spec, location, kind, peaks)
+            out["kinds"].append(dict(row, split=split))
     print(json.dumps(out, indent=1))
     return 0
 

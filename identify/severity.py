@@ -126,7 +126,7 @@ from .split import (
 from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, band_jackknife
 
 __all__ = ["RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity",
-           "severity_series"]
+           "fault_location", "severity_series"]
 
 #: Shapes of the loss tried with ``ramps="grid"``: edge widths (mesh cycles) from a sharp
 #: loss over the tooth's contact (0.05, the default fault's: 10–90 % in 0.22 cycles) to one
@@ -147,6 +147,20 @@ _LOCATIONS = ("sun", "planet", "ring")
 #: and the ring's low comb lies where the records put it; a planet fault's the twin places
 #: beside ``k f_p`` (docs/identification.md, "The low band").
 LOW_BAND_LOCATIONS = ("sun", "ring")
+
+
+def fault_location(names: Sequence[str]) -> str | None:
+    """The location (``sun``, ``planet``, ``ring``) of the one tooth fault's severity among the
+    registry `names`, or None when they hold none or more than one.
+
+    This is the rule by which every command that fits a tooth fault's depth takes one path
+    (:func:`estimate_severity`): ``dtwin identify --free …,sun_fault`` on one steady record,
+    ``dtwin fleet`` with a tooth fault free, and ``dtwin discover`` when it names a local tooth
+    fault fit the problem ``dtwin severity`` fits — the same twin, the same ends of a
+    calibration's excitation/response split, the same bands — and so give the same depth."""
+    found = [n[: -len("_fault")] for n in names if n.endswith("_fault")
+             and n[: -len("_fault")] in _LOCATIONS]
+    return found[0] if len(found) == 1 else None
 
 
 def _name(location: str) -> str:

@@ -65,7 +65,9 @@ def discovery_rows(result: Any) -> list[dict[str, Any]]:
     """One row per step of a discovery (:class:`dtwin.identify.discover.DiscoveryResult`):
     effect named, main parameter with its 99 % interval and unit, held-out gap before and
     after (dB; as reported, the twin with the effect simulated in full), the search's gaps
-    (bins `threshold_db` over the floor; after: linearised), p-value."""
+    (bins `threshold_db` over the floor; after: linearised), p-value; for a local tooth fault,
+    its peak stiffness loss with its 95 % interval and status as ``dtwin severity`` fits it
+    (:attr:`~dtwin.identify.discover.Step.depth`; NaN otherwise)."""
     rows = []
     for s in result.steps:
         unit = s.main.get("unit", "")
@@ -79,6 +81,14 @@ def discovery_rows(result: Any) -> list[dict[str, Any]]:
                      "search_gap_before_db": float(s.gap_before.total),
                      "search_gap_after_db": float(s.gap_after.total),
                      "p_value": float(s.p_value)})
+        # a tooth fault's depth, as `dtwin severity` fits it (NaN: not a tooth fault, or
+        # not fitted)
+        d = s.depth or {}
+        lo, hi = d.get("peak_stiffness_loss_interval_95", (float("nan"), float("nan")))
+        rows[-1].update(peak_stiffness_loss=float(d.get("peak_stiffness_loss", float("nan"))),
+                        peak_stiffness_loss_lower_95=float(lo),
+                        peak_stiffness_loss_upper_95=float(hi),
+                        depth_status=d.get("status", ""))
     return rows
 
 

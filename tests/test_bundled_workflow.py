@@ -32,7 +32,8 @@ def test_discover_names_the_sun_fault_on_the_bundled_record(calibrated, tmp_path
     gap 19.3 → 5.2 dB, sun_local_fault (group sun_rotation) named, its severity refitted
     inside its range at 0.55 (truth 0.6)."""
     code, res, err = _dtwin("discover", str(SAMPLES / "bench_sun_fault.dtwin.h5"), "--spec",
-                            str(calibrated), "--out", str(tmp_path / "diag"), "--json")
+                            str(calibrated), "--no-depth", "--out", str(tmp_path / "diag"),
+                            "--json")  # its depth is severity's: tests/test_one_fault_depth.py
     assert code == 0, err
     steps = res["steps"]
     assert steps and steps[0]["group"] == "sun_rotation", [s["named"] for s in steps]

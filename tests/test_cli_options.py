@@ -425,13 +425,15 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
 
 
 def test_identify_and_fleet_splits_reach_the_library(files, tmp_path, monkeypatch, capsys):
-    """`dtwin identify --splits/--no-splits` hands ``splits`` to dtwin.identify.fit.fit and
-    `dtwin fleet identify --splits/--no-splits` to FleetSettings (both ends of a calibrated
-    spec's excitation/response split, dtwin.identify.split); without them None (where a fault
-    severity is free)."""
+    """`dtwin identify --splits/--no-splits` hands ``splits`` to the library (for a tooth
+    fault's depth on one record, dtwin.identify.severity.estimate_severity; otherwise
+    dtwin.identify.fit.fit) and `dtwin fleet identify --splits/--no-splits` to FleetSettings
+    (both ends of a calibrated spec's excitation/response split, dtwin.identify.split);
+    without them None (where a fault severity is free)."""
     from importlib import import_module
 
     fit_module = import_module("dtwin.identify.fit")
+    severity_module = import_module("dtwin.identify.severity")
     fleet = import_module("dtwin.identify.fleet")
     seen = []
 
@@ -447,11 +449,14 @@ def test_identify_and_fleet_splits_reach_the_library(files, tmp_path, monkeypatc
         raise Stop
 
     monkeypatch.setattr(fit_module, "fit", capture_fit)
+    monkeypatch.setattr(severity_module, "estimate_severity", capture_fit)
     monkeypatch.setattr(fleet, "run_fleet", capture_fleet)
     for extra, want in (([], None), (["--splits"], True), (["--no-splits"], False)):
-        with pytest.raises(SystemExit):  # the stand-ins stop the commands once called
-            main(["identify", files["rec"], "--preset", "paper-sim", "--free", "sun_fault",
-                  *extra])
+        for free in ("sun_fault", "sun_fault,k_sun_planet", "zeta_mesh"):
+            with pytest.raises(SystemExit):  # the stand-ins stop the commands once called
+                main(["identify", files["rec"], "--preset", "paper-sim", "--free", free,
+                      *extra])
+            assert seen[-1] == ("identify", want), free
         with pytest.raises(SystemExit):
             main(["fleet", "identify", files["rec"], "--preset", "paper-sim", "--out",
                   str(tmp_path / "fleet"), *extra])
@@ -561,23 +566,30 @@ def test_a_warning_text_is_shown_once_per_command(capsys):
 
 def test_identify_warns_when_a_tooth_fault_is_fitted_with_the_torsional_twin(files, monkeypatch,
                                                                              capsys):
-    """`dtwin identify --free sun_fault` follows the spec's kind (torsional for a preset that is
-    not calibrated) and warns that a torsional twin reads tooth-fault severities small
-    (dtwin.build.warn_torsional_tooth_fault); with --model translational, or no fault free,
-    it does not."""
+    """`dtwin identify --free sun_fault --model torsional` warns that a torsional twin reads
+    tooth-fault severities small (dtwin.build.warn_torsional_tooth_fault); without --model a
+    tooth fault's depth on one record is fitted with severity's (translational) twin, and
+    with --model translational or no fault free there is nothing to warn of."""
     from importlib import import_module
 
     class Stop(Exception):
         pass
 
+    kinds = []
+
     def capture(*a, **k):
+        kinds.append(k.get("kind"))
         raise Stop
 
     monkeypatch.setattr(import_module("dtwin.identify.fit"), "fit", capture)
-    for extra, warned in ((["--free", "sun_fault"], True),
+    monkeypatch.setattr(import_module("dtwin.identify.severity"), "estimate_severity", capture)
+    for extra, warned in ((["--free", "sun_fault", "--model", "torsional"], True),
+                          (["--free", "sun_fault"], False),
                           (["--free", "sun_fault", "--model", "translational"], False),
                           (["--free", "zeta_mesh"], False)):
         with pytest.raises(SystemExit):
             main(["identify", files["rec"], "--preset", "paper-sim", *extra])
         err = capsys.readouterr().err
         assert ("sun_fault fitted with the torsional twin" in err) == warned, err
+    # the depth of the sun fault alone: severity's own twin unless one is asked for
+    assert kinds[:3] == ["torsional", None, "translational"], kinds

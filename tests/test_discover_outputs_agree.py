@@ -157,8 +157,8 @@ def test_screen_json_and_reports_agree_on_each_candidate(tmp_path, monkeypatch, 
     monkeypatch.setattr(disc, "discover", lambda *a, **k: result)
     rec = _record(tmp_path / "rec.wav")
     out = tmp_path / "out"
-    main(["discover", str(rec), "--preset", "paper-bench", "--f-sun", "29.7", "--out",
-          str(out)])
+    main(["discover", str(rec), "--preset", "paper-bench", "--f-sun", "29.7", "--no-depth",
+          "--out", str(out)])
     screen = capsys.readouterr().out
     rows = result.candidate_table()
     assert len(rows) == 7

@@ -42,8 +42,10 @@ TOL = 1e-3  # LM rtol (atol = TOL/100): above the residuals' ODE-tolerance jitte
 def _settings(**kw):
     from dtwin.identify.fleet import FleetSettings
 
-    base = dict(free=("sun_fault",), initial={"sun_fault": 0.3}, max_steps=40, tol=TOL,
-                max_retries=1)
+    # the records are the torsional twin's: fitted with it (a tooth fault's default twin is
+    # severity's, translational: dtwin.identify.fleet, "A tooth fault's depth")
+    base = dict(free=("sun_fault",), kind="torsional", initial={"sun_fault": 0.3},
+                max_steps=40, tol=TOL, max_retries=1)
     base.update(kw)
     return FleetSettings(**base)
 

@@ -49,9 +49,13 @@ def _main_text(row: dict) -> str:
     refit)."""
     if row["main"] != row["main"]:
         return ""
-    unit = "" if row["main unit"] in ("", "-") else f" {_unit_text(row['main unit'])}"
+    from ..io.html_report import value_text
+
+    u = row["main unit"]
+    unit = "" if u in ("", "-") else f" {_unit_text(u)}"
     iv = row["interval"]
-    return f"{row['main']:.4g}{unit}" + ("" if iv is None else f" [{iv[0]:.3g}, {iv[1]:.3g}]")
+    return (value_text(row["main"], u) + unit
+            + ("" if iv is None else f" [{value_text(iv[0], u, 3)}, {value_text(iv[1], u, 3)}]"))
 
 
 def _candidate_markdown(rows: list[dict]) -> list[str]:
@@ -74,11 +78,13 @@ def screen_summary(result) -> list[str]:
     :meth:`~dtwin.identify.discover.DiscoveryResult.candidate_table`, which the JSON and both
     reports print too), the candidates screened out, why the search stopped and the
     unexplained lines."""
+    from ..io.html_report import value_text
+
     out = [f"base model: held-out gap {result.initial_gap.total:.2f} dB"]
     for s in result.steps:
         out.append(f"step {s.number}: {s.named:28s} gap {_total(s.heldout_before):>6s} → "
                    f"{_total(s.heldout_after):>6s} dB  p={s.p_value:.2g}  {s.main['name']} "
-                   f"{s.main['value']:.3g}"
+                   f"{value_text(s.main['value'], s.main['unit'], 3)}"
                    + ("" if s.main['unit'] in ("1", "", "-") else f" {s.main['unit']}")
                    + _interval_text(s.main)
                    + (" (dimensionless)" if s.main['unit'] == "1" else "")
@@ -86,6 +92,9 @@ def screen_summary(result) -> list[str]:
     for s in result.steps:
         if s.summary:
             out.append(f"step {s.number}: {s.summary}")
+        if s.depth is not None:
+            out.append(f"step {s.number}: depth (as `dtwin severity` fits it): "
+                       f"{s.depth['summary']}")
     for k in result.respecialised:
         out.append(f"before step {k}: candidates specialised again from the current "
                    "model's residual")
@@ -128,7 +137,11 @@ def _gap_rule(settings) -> str:
 
 
 def markdown_report(result, record_name: str) -> str:
-    """The readable report (Markdown) of a :class:`dtwin.identify.discover.DiscoveryResult`."""
+    """The readable report (Markdown) of a :class:`dtwin.identify.discover.DiscoveryResult`;
+    frequencies (values in Hz) in full (:func:`dtwin.io.html_report.value_text`), other values
+    with four significant digits."""
+    from ..io.html_report import symbol_legend_markdown, value_text
+
     out = [f"# Discrepancy discovery: {record_name}", "",
            f"Input speed {result.f_sun:.4f} Hz (from the data); fm {result.kinematics.f_mesh:.2f} "
            f"Hz, fc {result.kinematics.f_carrier:.3f} Hz. Family-wise level per step "
@@ -148,6 +161,8 @@ def markdown_report(result, record_name: str) -> str:
                 "model's residual and its responses linearised about it"
                 if s.number in result.respecialised else "",
                 f"- what: {s.summary}" if s.summary else "",
+                f"- depth, fitted as `dtwin severity` fits it: {s.depth['summary']}"
+                if s.depth is not None else "",
                 f"- effect fitted: `{s.effect}` (group `{s.group}`"
                 + (f"; not told apart from {', '.join(s.indistinguishable_from)}"
                    if s.indistinguishable_from else "") + ")",
@@ -158,7 +173,8 @@ def markdown_report(result, record_name: str) -> str:
                 f"the search's (bins {result.settings.threshold_db:g} dB over the floor) "
                 f"{s.gap_before.total:.2f} → {s.gap_after.total:.2f} dB (full model confirmed: "
                 f"{s.gap_confirmed.total:.2f} dB); p = {s.p_value:.2g} ≤ {s.level:.2g}",
-                f"- {s.main['name']}: {s.main['value']:.4g} {_unit_text(s.main['unit'])},"
+                f"- {s.main['name']}: {value_text(s.main['value'], s.main['unit'])} "
+                f"{_unit_text(s.main['unit'])},"
                 f"{_interval_text(s.main, ' 99 % interval')} (typical on real "
                 f"machines {s.main['typical_range'][0]:g}–{s.main['typical_range'][1]:g}: "
                 f"{s.main['typical_note']})"
@@ -167,8 +183,10 @@ def markdown_report(result, record_name: str) -> str:
                    if s.named != s.effect else ""), "",
                 "| parameter | value | 99 % interval | unit |", "|---|---|---|---|"]
         for p in s.parameters:
-            out.append(f"| {p['name']} | {p['value']:.4g} | [{p['interval'][0]:.3g}, "
-                       f"{p['interval'][1]:.3g}] | {_unit_text(p['unit'])} |")
+            u = p["unit"]
+            out.append(f"| {p['name']} | {value_text(p['value'], u)} | "
+                       f"[{value_text(p['interval'][0], u, 3)}, "
+                       f"{value_text(p['interval'][1], u, 3)}] | {_unit_text(u)} |")
         out += [""] + _candidate_markdown([r for r in rows if r["step"] == s.number])
         out += ["", f"![step {s.number}](spectrum_step{s.number}.png)", ""]
     last = [r for r in rows if r["step"] > len(result.steps)]
@@ -190,8 +208,6 @@ def markdown_report(result, record_name: str) -> str:
     if result.extra_in_model:
         out += ["", "Lines in the model but not in the measurement: "
                 + _fmt_lines(result.extra_in_model, 20)]
-    from ..io.html_report import symbol_legend_markdown
-
     legend = symbol_legend_markdown(out, _label_frequencies(result.kinematics))
     if legend:
         out += ["", "## Symbols of the line labels", "", legend]
@@ -223,11 +239,16 @@ def discover(
     seed: int = typer.Option(0, "--seed", parser=opts.whole_number,
                              help="Seed of the bootstrap."),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON on stdout."),
+    depth: bool = typer.Option(
+        True, "--depth/--no-depth",
+        help="For a local tooth fault named, fit its depth as `dtwin severity` does (same "
+             "twin, calibration split and bands: the same number) and report it with its "
+             "95 % interval; one severity fit more."),
     out: Path | None = typer.Option(None, "--out", help="Write discover.json/.md, PNGs."),
     force: bool = typer.Option(False, "--force", help="Overwrite results in --out."),
 ) -> None:
     """Find where twin and measurement disagree, name the missing effect, add it, refit."""
-    from dtwin.identify.discover import DiscoverySettings
+    from dtwin.identify.discover import DiscoverySettings, fault_depths
     from dtwin.identify.discover import discover as run
 
     from ..io.output import to_jsonable
@@ -250,6 +271,7 @@ def discover(
     record = opts.read_record(record_file, sample_rate, tacho)
     ch = opts.channel_token(channel)
     opts.check_channel(record, ch)
+    opts.check_fit_memory(record, gearbox, record_file, command="discover")
     opts.checked_record(record, ch, gearbox, f_sun, fit=True)
     # a speed given, from the tachometer or the metadata is discovery's, once checked against
     # the record's lines (a record without this gearbox's mesh lines is refused here); else
@@ -263,6 +285,9 @@ def discover(
     with progress("discover", json_out=json_out, size=record_size(record)) as stage:
         result = run(record.channel(ch), gearbox, sample_rate=record.sample_rate, f_sun=given,
                      kind=kind, settings=settings, log=stage)
+        if depth:  # the depth `dtwin severity` reports for a named tooth fault
+            fault_depths(result, record, gearbox, f_sun=f_sun, channel=ch,
+                         progress=stage.enabled)
     report = {"record": str(record_file), "channel": str(channel), **result.to_dict()}
 
     def table() -> None:
@@ -276,7 +301,7 @@ def discover(
     opts.emit(to_jsonable(report), json_out=json_out, table=table, out=out, force=force,
               files=files, inputs=[record_file], gearbox=gb,
               parameters={"channel": str(channel), "kind": kind, "max_steps": max_steps,
-                          "alpha": alpha, "n_boot": n_boot, "seed": seed})
+                          "alpha": alpha, "n_boot": n_boot, "seed": seed, "depth": depth})
 
 
 def discover_files(result, report: dict, record_file: Path, channel, unit: str | None) -> dict:
@@ -338,8 +363,11 @@ def discover_files(result, report: dict, record_file: Path, channel, unit: str |
 def _interval_text(main: dict, label: str = "") -> str:
     """The step's interval of its main value, or, where the linearised fit left the parameter's
     range and was refitted inside it in full (no interval), why there is none."""
+    from ..io.html_report import value_text
+
     lo, hi = main["interval"]
     if lo == lo and hi == hi:  # not NaN
-        return f"{label} [{lo:.3g}, {hi:.3g}]"
+        u = main.get("unit", "")
+        return f"{label} [{value_text(lo, u, 3)}, {value_text(hi, u, 3)}]"
     return (" (no interval: the linearised fit left the range and was refitted inside it; "
             "`dtwin severity` gives the depth with its interval)")

@@ -30,13 +30,12 @@ from pathlib import Path
 
 import typer
 
-from ..errors import SpecError
 from . import options as opts
 from .app import app
 from .logs import is_quiet, note, warn
 
-fleet_app = typer.Typer(help="Fleet runs: many records in batch or on a Ray cluster, the "
-                        "results table and per-machine trends.")
+fleet_app = typer.Typer(help="Fleet runs (many records, in batch or on a Ray cluster; the "
+                        "results table; per-machine trends): identify, table, trends.")
 app.add_typer(fleet_app, name="fleet")
 
 #: Most retries of a failed task `--max-retries` accepts.
@@ -49,6 +48,42 @@ def _echo_json(obj) -> None:
     typer.echo(json.dumps(to_jsonable(obj), indent=2))
 
 
+def _refuse_unusable_fleet(files, gearbox, settings) -> None:
+    """Before any worker starts (a local Ray takes half a minute): the records are checked one
+    after the other, as each task will check its own (read, the channel, the record's usability,
+    a steady record's mesh lines against its speed), until one passes; a fleet none of whose
+    records could be fitted is refused at once, naming each record's problem (issue 53: one
+    truncated record took 50 s, Ray's start, to end in "1 failed"). Checking stops at the first
+    usable record: the others are checked by their tasks, as before."""
+    from dtwin.identify.fleet.tasks import runup_range
+    from dtwin.io.readers import read_record
+
+    from ..errors import DtwinError, RecordError
+    from .logs import set_quiet
+
+    problems = []
+    quiet = is_quiet()
+    set_quiet(True)  # each task warns about its own record
+    try:
+        for path in files:
+            try:
+                rec = read_record(path, **settings.record_reading())
+                opts.check_channel(rec, settings.channel)
+                opts.checked_record(rec, settings.channel)
+                if runup_range(rec, gearbox, settings.channel) is None:
+                    opts.check_speed_against_lines(rec, gearbox, settings.f_sun,
+                                                   settings.channel, path)
+                return
+            except DtwinError as e:
+                text = str(e).splitlines()[0] if str(e) else type(e).__name__
+                problems.append(text if str(path) in text else f"{path}: {text}")
+    finally:
+        set_quiet(quiet)
+    shown = "; ".join(problems[:3]) + (f"; and {len(problems) - 3} more" if len(problems) > 3
+                                       else "")
+    raise RecordError(f"none of the {len(problems)} record(s) can be fitted: {shown}")
+
+
 @fleet_app.command("identify")
 def fleet_identify(
     records: list[str] = typer.Argument(..., help="Record files or quoted glob patterns "
@@ -59,7 +94,8 @@ def fleet_identify(
     free: str = typer.Option("sun_fault", "--free", help="Comma-separated registry names."),
     model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
                                      "(default: the kind a calibrated spec was calibrated "
-                                     "with, otherwise torsional)."),
+                                     "with, otherwise torsional; a tooth fault's severity is "
+                                     "fitted as `dtwin severity` fits it, with its twin)."),
     f_sun: float | None = opts.f_sun_option("Input speed (Hz) of every record; "),
     tacho: str | None = opts.tacho_option(),
     ray_address: str | None = typer.Option(None, "--ray-address", help="An existing Ray "
@@ -103,6 +139,7 @@ def fleet_identify(
 ) -> None:
     """Identify every record of a fleet: Ray tasks, one result file per record, a table."""
     from dtwin.identify.fleet import FleetSettings, run_fleet
+    from dtwin.identify.severity import fault_location
 
     from ..build import twin_kind, warn_torsional_tooth_fault
 
@@ -140,8 +177,11 @@ def fleet_identify(
     gearbox = opts.load_gearbox(preset, spec, why="fleet identification needs the gearbox").spec
     if ray_address is not None and engine == "local":
         raise opts.OptionError("--engine", "--ray-address needs the ray engine (or auto)")
-    kind = twin_kind(gearbox, model)
-    warn_torsional_tooth_fault(kind, names)
+    if model is None and fault_location(names) is not None:
+        kind = None  # a tooth fault's depth: the twin `dtwin severity` fits (one path)
+    else:
+        kind = twin_kind(gearbox, model)
+        warn_torsional_tooth_fault(kind, names)
     settings = FleetSettings(free=tuple(names), kind=kind, f_sun=f_sun,
                              tacho=(reading["tacho"], reading["tacho_ppr"],
                                     reading["tacho_shaft"]) if reading else None,
@@ -150,6 +190,7 @@ def fleet_identify(
                              grid=grid, order_step=order_step, f_max=f_max,
                              batch_size=batch_size,
                              max_retries=max_retries, discover=discover)
+    _refuse_unusable_fleet(files, gearbox, settings)
     run = run_fleet(records, gearbox, out, settings, manifest=manifest,
                     engine="ray" if ray_address and engine == "auto" else engine,
                     address=ray_address, num_cpus=num_cpus,
@@ -203,7 +244,8 @@ def fleet_table(
     from dtwin.identify.fleet import load_results, table_rows, write_table
 
     if not (results / "records").is_dir() and not (results / "failed").is_dir():
-        raise SpecError([("RESULTS", f"{results} holds no fleet results (records/ or failed/)")])
+        raise opts.OptionError("RESULTS", f"{results} holds no fleet results (records/ or "
+                               "failed/)")
     path, remark = write_table(results, force=force, fmt="csv" if csv_out else "auto")
     rows, names = table_rows(load_results(results))
     if json_out:
@@ -249,7 +291,7 @@ def fleet_trends(
     try:
         th = dict(parse_threshold(t) for t in threshold)
     except ValueError as e:
-        raise SpecError([("--threshold", str(e))]) from None
+        raise opts.OptionError("--threshold", str(e)) from None
     opts.positive("--horizon", horizon, unit="days")
     if not results.is_dir():
         raise opts.OptionError("RESULTS", f"{results} is not a folder of fleet results")
@@ -257,7 +299,7 @@ def fleet_trends(
     rows = load_results(results, failed=False)
 
     if not rows:
-        raise SpecError([("RESULTS", f"{results} holds no fitted record")])
+        raise opts.OptionError("RESULTS", f"{results} holds no fitted record")
     trends = machine_trends(rows, th, horizon_days=horizon)
     report = {"results": str(results), "machines": {m: t.to_dict() for m, t in trends.items()}}
     with OutputFolder(out or results / "trends", force=force, staged=True,

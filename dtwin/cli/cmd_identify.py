@@ -208,7 +208,9 @@ def identify(
     preset: str | None = opts.preset_option(),
     model: str | None = typer.Option(None, "--model", help="torsional or translational twin "
                                      "(default: the kind a calibrated spec was calibrated "
-                                     "with, otherwise torsional)."),
+                                     "with, otherwise torsional; a tooth fault's severity on "
+                                     "one steady record is fitted as `dtwin severity` fits "
+                                     "it, with its twin)."),
     f_sun: float | None = opts.f_sun_option("Input speed (Hz) of every record; "),
     tacho: str | None = opts.tacho_option(),
     runup: tuple[float, float] | None = typer.Option(None, "--runup", help="Run-up records: "
@@ -233,6 +235,7 @@ def identify(
 ) -> None:
     """Fit twin parameters (registry names) to measured spectra, with 95 % intervals."""
     from dtwin.identify.fit import SOLVERS, fit
+    from dtwin.identify.severity import estimate_severity, fault_location
 
     from ..build import twin_kind, warn_torsional_tooth_fault
 
@@ -252,8 +255,11 @@ def identify(
             raise opts.OptionError("--runup", f"LOW must be > 0 Hz, got {runup[0]:g}")
         opts.input_speed_option("--runup", runup[1])
     gb = opts.load_gearbox(preset, spec, why="identification needs the gearbox")
+    asked = None if model is None else twin_kind(gb.spec, model)
     model = twin_kind(gb.spec, model)
-    warn_torsional_tooth_fault(model, names)
+    one_depth = runup is None and len(records) == 1 and fault_location(names) is not None
+    # a tooth fault's depth on one record is fitted with severity's twin unless one is asked
+    warn_torsional_tooth_fault(asked if one_depth else model, names)
     ch = opts.channel_token(channel)
     segs = _segments(records, sample_rate, ch, gb.spec, f_sun, window, tacho)
     recs = [sg.record for sg in segs]
@@ -263,17 +269,35 @@ def identify(
     from .progress import progress as shown
     from .progress import record_size
 
+    # one tooth fault's depth on one steady record: the problem `dtwin severity` fits
+    location = fault_location(names) if one_depth else None
+    est = None
     with shown("identify", json_out=json_out, size=record_size(recs[0]),
                enabled=progress) as stage:
-        res = fit(recs, gb.spec, names, kind=model, f_sun=f_sun,
-                  runup=tuple(runup) if runup else None, solver=solver, starts=starts,
-                  refine=refine, jac=jac, max_steps=max_steps, channel=ch, splits=splits,
-                  progress=stage.enabled)
+        if location is not None:
+            est = estimate_severity(recs[0], gb.spec, location,
+                                    free=[n for n in names if n != f"{location}_fault"],
+                                    kind=asked, f_sun=f_sun, solver=solver, starts=starts,
+                                    refine=refine, jac=jac, max_steps=max_steps, channel=ch,
+                                    splits=splits, progress=stage.enabled)
+            res = est.fit
+            model = res.problem.twin.kind
+        else:
+            res = fit(recs, gb.spec, names, kind=model, f_sun=f_sun,
+                      runup=tuple(runup) if runup else None, solver=solver, starts=starts,
+                      refine=refine, jac=jac, max_steps=max_steps, channel=ch, splits=splits,
+                      progress=stage.enabled)
     report = {"records": [str(p) for p in records], "gearbox": gb.source,
               "model": model, **_window_report(segs), **res.to_dict()}
+    if est is not None:
+        report["severity"] = {k: v for k, v in est.to_dict().items() if k != "fit"}
 
     def table() -> None:
         _echo_windows(segs)
+        if est is not None:
+            typer.echo(est.summary())  # the depth `dtwin severity` reports for this record
+            if est.note:
+                typer.echo(f"note: {est.note}")
         typer.echo(res.table())
 
     opts.emit(report, json_out=json_out, table=table, out=out,

@@ -64,6 +64,7 @@ a size.
 
 from .candidates import coverage as coverage
 from .candidates import signature_labels as signature_labels
+from .depth import fault_depths as fault_depths
 from .loop import discover as discover
 from .model import ExtendedModel as ExtendedModel
 from .model import extended_model as extended_model
@@ -107,6 +108,7 @@ __all__ = [
     "T_RESOLUTION",
     "amplitude_profile",
     "candidate_inputs",
+    "fault_depths",
     "chi2_quantile",
     "coverage",
     "discover",

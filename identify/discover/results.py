@@ -134,10 +134,15 @@ class Step:
     #: held-out gaps as reported, before the step and with the effect (class docstring)
     heldout_before: GapResult | None = None
     heldout_after: GapResult | None = None
+    #: for a local tooth fault, its depth as ``dtwin severity`` fits it (severity, peak
+    #: stiffness loss, 95 % intervals, status: :func:`dtwin.identify.discover.depth.fault_depths`);
+    #: None when not fitted
+    depth: dict | None = None
 
     def to_dict(self) -> dict:
         return dict(
             number=self.number, effect=self.effect, group=self.group, named=self.named,
+            depth=self.depth,
             summary=self.summary,
             indistinguishable_from=self.indistinguishable_from,
             matched_lines=[dict(r.to_dict(), signature=lab) for r, lab in

@@ -20,6 +20,16 @@ split is a no-op after :func:`plan`'s grouping; with ``grid="hz"`` also the spee
 optimistix call, one start θ = 0 per record) or, for a single record, :func:`dtwin.identify.fit.fit`
 (multi-start when ``starts > 1``).
 
+**A tooth fault's depth** (``free`` holds ``sun_fault``, ``planet_fault`` or ``ring_fault``;
+:func:`dtwin.identify.severity.fault_location`): the twin is the one ``dtwin severity`` fits
+(:data:`dtwin.build.SEVERITY_KIND`, unless ``FleetSettings.kind`` names one), batched or not,
+and a record fitted alone is fitted by :func:`dtwin.identify.severity.estimate_severity` itself
+— the calibration's two excitation/response splits, the low band of a sun or ring fault, the
+healthy-tooth test — so its value and interval (kept under ``severity`` in its result, with the
+peak stiffness loss) are ``dtwin severity``'s on the same record, spec and grid (``grid="hz"``
+for the very number ``dtwin severity`` prints; the order domain samples the same spectrum on
+another grid). A batched fit shares the twin and the split rule but not the low band.
+
 **Engines.** ``engine="ray"``: each task is a Ray task (``num_cpus=1``; local Ray started with
 ``num_cpus`` unless an existing cluster's ``address`` is given, or Ray already initialised),
 ``max_retries`` for killed workers and ``retry_exceptions=True`` for exceptions. A record that

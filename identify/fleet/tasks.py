@@ -15,7 +15,7 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from dtwin.build import build_twin, twin_kind
+from dtwin.build import SEVERITY_KIND, build_twin, twin_kind
 from dtwin.errors import DtwinError
 from dtwin.io.readers import read_record
 from dtwin.order import shaft_speed, tacho_angle
@@ -24,6 +24,7 @@ from dtwin.spec import load_spec
 
 from ..discover import DiscoverySettings, discover
 from ..segment import segment_for_fit
+from ..severity import estimate_severity, fault_location
 from ..split import SPLIT_STIFFNESS, stiffness_split
 from .settings import FAIL_ENV, SCHEMA, FleetSettings
 from .store import _now
@@ -177,7 +178,32 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
             groups.append([item])
             sigs.append(s)
 
+    location = fault_location(free)
+    if location is not None and settings.kind is None:  # a tooth fault's twin (one path)
+        kw["kind"] = SEVERITY_KIND
+
+    def depth(job, rec):
+        """A tooth fault's depth: the problem ``dtwin severity`` fits (one path,
+        :func:`dtwin.identify.severity.fault_location`); its interval is the severity's."""
+        t0 = time.perf_counter()
+        try:
+            est = estimate_severity(rec, spec, location,
+                                    free=[n for n in free if n != f"{location}_fault"],
+                                    starts=settings.starts, refine=settings.refine,
+                                    **{**kw, "kind": settings.kind})  # None: severity's own
+        except DtwinError as e:
+            return failure_entry(job, e, stage="fit", fingerprint=fingerprint)
+        entry = _fit_entry(job, est.fit, fingerprint=fingerprint, engine=engine, batched=1,
+                           wall=time.perf_counter() - t0)
+        entry["intervals_95"][f"{location}_fault"] = [float(x) for x in est.interval]
+        entry["excitation"] = est.excitation or entry["excitation"]
+        entry["severity"] = {k: v for k, v in est.to_dict().items() if k != "fit"}
+        entry["model"] = est.fit.problem.twin.kind
+        return entry
+
     def single(job, rec):
+        if location is not None:
+            return depth(job, rec)
         t0 = time.perf_counter()
         try:
             res = _fit.fit(rec, spec, free, starts=settings.starts, refine=settings.refine, **kw)
@@ -208,9 +234,11 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
     return [entries[j["key"]] for j in jobs]
 
 
-def _fitted_twin(spec, settings: FleetSettings, values: Mapping[str, float], f_sun: float | None):
-    """The spec's twin with the fitted `values` written through the registry's addresses."""
-    twin = build_twin(spec, kind=twin_kind(spec, settings.kind), f_sun=f_sun)
+def _fitted_twin(spec, settings: FleetSettings, values: Mapping[str, float], f_sun: float | None,
+                 kind: str | None = None):
+    """The spec's twin (of `kind`, default the settings') with the fitted `values` written
+    through the registry's addresses."""
+    twin = build_twin(spec, kind=kind or twin_kind(spec, settings.kind), f_sun=f_sun)
     names = [n for n in settings.free if n in values]
     twin = ensure_parts(twin, names)
     for n in names:
@@ -233,9 +261,10 @@ def discover_task(job: Mapping[str, Any], spec_data: Mapping[str, Any], settings
         if fit_entry.get("excitation") == SPLIT_STIFFNESS:
             spec = stiffness_split(spec)
         rec = read_record(job["path"], **settings.record_reading())
-        twin = _fitted_twin(spec, settings, fit_entry.get("values", {}), fit_entry.get("f_sun"))
-        res = discover(rec.select([settings.channel]), spec, base_twin=twin,
-                       kind=twin_kind(spec, settings.kind),
+        kind = fit_entry.get("model") or twin_kind(spec, settings.kind)  # the fit's twin
+        twin = _fitted_twin(spec, settings, fit_entry.get("values", {}), fit_entry.get("f_sun"),
+                            kind)
+        res = discover(rec.select([settings.channel]), spec, base_twin=twin, kind=kind,
                        settings=DiscoverySettings(**dict(settings.discover_options)))
     except DtwinError as e:
         return failure_entry(job, e, stage="discover", fingerprint=fingerprint, kind="discover")
