@@ -244,8 +244,10 @@ class SeverityEstimate:
                        f"{100 * pk[1]:.1f}]  {verdict}")
         return "\n".join(out)
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"location": self.location, "severity": self.severity,
+    def to_dict(self, with_fit: bool = True) -> dict[str, Any]:
+        """The estimate as JSON-ready values; `with_fit`: with the fit's own dictionary under
+        ``fit`` (without it where the fit is reported beside it)."""
+        out = {"location": self.location, "severity": self.severity,
                 "interval_95": list(self.interval), "determined": self.determined,
                 "interval_method": self.method, "peak_stiffness_loss": self.peak_loss,
                 "peak_stiffness_loss_interval_95": list(self.peak_interval),
@@ -254,7 +256,10 @@ class SeverityEstimate:
                 "status": self.status, "shapes": [dict(x) for x in self.shapes],
                 "twin_kind": self.fit.problem.twin.kind, "note": self.note,
                 "low_band": self.low_band, "excitation": self.excitation,
-                "flank": self.flank, "fit": self.fit.to_dict()}
+                "flank": self.flank}
+        if with_fit:
+            out["fit"] = self.fit.to_dict()
+        return out
 
     def summary(self) -> str:
         """One line: severity and peak stiffness loss with their 95 % intervals and status."""
@@ -659,8 +664,7 @@ class SeveritySeries:
                 "values": self.values.tolist(), "lower_95": self.lower.tolist(),
                 "upper_95": self.upper.tolist(),
                 "not_determined": [list(x) for x in self.not_determined],
-                "estimates": [{k: v for k, v in e.to_dict().items() if k != "fit"}
-                              for e in self.estimates]}
+                "estimates": [e.to_dict(with_fit=False) for e in self.estimates]}
 
 
 def severity_series(

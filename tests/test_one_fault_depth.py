@@ -84,6 +84,30 @@ def _spec_text(spec) -> str:
     return json.dumps(data, sort_keys=True, default=str)
 
 
+def _four_commands(spec: str, tmp_path, monkeypatch):
+    """``dtwin severity``, ``identify --free sun_fault``, ``fleet identify --free sun_fault``
+    (``--grid hz``) and ``discover`` (its search replaced by a result naming the sun fault) on
+    the record with `spec`, each as a user types it: severity's JSON, identify's, the fleet's
+    result entry and discover's."""
+    code, sev, err = run_cli("severity", str(RECORD), "--spec", spec, "--location", "sun",
+                             "--json")
+    assert code == 0, err
+    code, ident, err = run_cli("identify", str(RECORD), "--spec", spec, "--free", "sun_fault",
+                               "--json")
+    assert code == 0, err
+    code, _, err = run_cli("fleet", "identify", str(RECORD), "--spec", spec, "--free",
+                           "sun_fault", "--grid", "hz", "--engine", "local", "--no-progress",
+                           "--out", str(tmp_path / "fleet"))
+    assert code == 0, err
+    (entry,) = [json.loads(p.read_text()) for p in (tmp_path / "fleet" / "records").glob(
+        "*.json") if not p.name.endswith(".discover.json")]
+    disc = importlib.import_module("dtwin.identify.discover")
+    monkeypatch.setattr(disc, "discover", lambda *a, **k: _discovery_naming_the_sun_fault())
+    code, found, err = run_cli("discover", str(RECORD), "--spec", spec, "--json")
+    assert code == 0, err
+    return sev, ident, entry, found
+
+
 @needs_independent
 def test_each_command_fits_the_depth_severity_fits(independent_calibrated_spec, tmp_path,
                                                    monkeypatch):
@@ -106,22 +130,7 @@ def test_each_command_fits_the_depth_severity_fits(independent_calibrated_spec, 
     # the modules, not the functions dtwin.identify exports under their names
     for where in ("dtwin.identify.fleet.tasks", "dtwin.identify.discover.depth"):
         monkeypatch.setattr(importlib.import_module(where), "estimate_severity", watched)
-    code, sev, err = run_cli("severity", str(RECORD), "--spec", spec, "--location", "sun",
-                             "--json")
-    assert code == 0, err
-    code, ident, err = run_cli("identify", str(RECORD), "--spec", spec, "--free", "sun_fault",
-                               "--json")
-    assert code == 0, err
-    code, _, err = run_cli("fleet", "identify", str(RECORD), "--spec", spec, "--free",
-                           "sun_fault", "--grid", "hz", "--engine", "local", "--no-progress",
-                           "--out", str(tmp_path / "fleet"))
-    assert code == 0, err
-    (entry,) = [json.loads(p.read_text()) for p in (tmp_path / "fleet" / "records").glob(
-        "*.json") if not p.name.endswith(".discover.json")]
-    disc = importlib.import_module("dtwin.identify.discover")
-    monkeypatch.setattr(disc, "discover", lambda *a, **k: _discovery_naming_the_sun_fault())
-    code, found, err = run_cli("discover", str(RECORD), "--spec", spec, "--json")
-    assert code == 0, err
+    sev, ident, entry, found = _four_commands(spec, tmp_path, monkeypatch)
 
     assert len(calls) == 4, [c[3] for c in calls]
     data, fs, spec_seen, loc, options = calls[0]
@@ -148,22 +157,7 @@ def test_each_command_fits_the_depth_severity_fits(independent_calibrated_spec, 
 def test_severity_identify_fleet_and_discover_give_one_depth(independent_calibrated_spec,
                                                              tmp_path, monkeypatch):
     spec = str(independent_calibrated_spec)
-    code, sev, err = run_cli("severity", str(RECORD), "--spec", spec, "--location", "sun",
-                             "--json")
-    assert code == 0, err
-    code, ident, err = run_cli("identify", str(RECORD), "--spec", spec, "--free", "sun_fault",
-                               "--json")
-    assert code == 0, err
-    code, _, err = run_cli("fleet", "identify", str(RECORD), "--spec", spec, "--free",
-                           "sun_fault", "--grid", "hz", "--engine", "local", "--no-progress",
-                           "--out", str(tmp_path / "fleet"))
-    assert code == 0, err
-    (entry,) = [json.loads(p.read_text()) for p in (tmp_path / "fleet" / "records").glob(
-        "*.json") if not p.name.endswith(".discover.json")]
-    disc = importlib.import_module("dtwin.identify.discover")
-    monkeypatch.setattr(disc, "discover", lambda *a, **k: _discovery_naming_the_sun_fault())
-    code, found, err = run_cli("discover", str(RECORD), "--spec", spec, "--json")
-    assert code == 0, err
+    sev, ident, entry, found = _four_commands(spec, tmp_path, monkeypatch)
     depth = found["steps"][0]["depth"]
     print(sev["severity"], sev["peak_stiffness_loss"], sev["status"], sep="\n")
 

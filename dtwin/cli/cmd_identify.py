@@ -290,7 +290,7 @@ def identify(
     report = {"records": [str(p) for p in records], "gearbox": gb.source,
               "model": model, **_window_report(segs), **res.to_dict()}
     if est is not None:
-        report["severity"] = {k: v for k, v in est.to_dict().items() if k != "fit"}
+        report["severity"] = est.to_dict(with_fit=False)
 
     def table() -> None:
         _echo_windows(segs)

@@ -66,7 +66,7 @@ def fault_depths(result: DiscoveryResult, record, spec, *, f_sun: float | None =
             segment = segment_for_fit(record, spec, f_sun, "auto", channel=channel).record
         est = estimate_severity(segment, spec, location, f_sun=f_sun, kind=kind,
                                 channel=channel, **severity_kwargs)
-        step.depth = {k: v for k, v in est.to_dict().items() if k != "fit"}
+        step.depth = est.to_dict(with_fit=False)
         step.depth["summary"] = est.summary()
         out.append(est)
     return out

@@ -197,7 +197,7 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
                            wall=time.perf_counter() - t0)
         entry["intervals_95"][f"{location}_fault"] = [float(x) for x in est.interval]
         entry["excitation"] = est.excitation or entry["excitation"]
-        entry["severity"] = {k: v for k, v in est.to_dict().items() if k != "fit"}
+        entry["severity"] = est.to_dict(with_fit=False)
         entry["model"] = est.fit.problem.twin.kind
         return entry
 
