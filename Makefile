@@ -12,19 +12,10 @@ export MPLBACKEND := Agg
 TEST_JAX_CACHE := $(abspath $(VENV))/jax-cache
 test test-all: export DTWIN_JAX_CACHE ?= $(TEST_JAX_CACHE)
 
-# Two pytest-xdist workers. XLA's CPU compiler (jaxlib 0.10.2) now and then kills the process
-# compiling a program (`Fatal Python error: Aborted` or a segfault); xdist then starts a new
-# worker and pytest-rerunfailures runs the test that was running once more (`--reruns 1`).
-# `--only-rerun` names a message no ordinary failure has, so an ordinary failure is never rerun
-# (crashed tests are rerun whatever the filter). `worksteal`, not `loadgroup`: xdist's group and
-# file schedulers cannot put a crashed test back in the queue, and can hang waiting for the
-# replacement worker (tests/test_crash_rerun.py runs all of this on a suite that crashes).
-# tests/_xdist_crash.py (imported by tests/conftest.py) gives a crashed test its rerun budget on
-# the controller, which otherwise hears it from a worker that may die before it is read.
-# Up to 5 crashed tests a run are rerun: the full suite has lost one or two workers a run that
-# way (two in each of three runs on 2026-11-28, inside XLA's backend_compile_and_load; each
-# test passed on its rerun).
-XDIST := -n 2 --dist worksteal --reruns 1 --only-rerun "pytest-xdist worker crashed" --max-suite-reruns 5
+# Two pytest-xdist workers, no reruns: a failure is a failure. The XLA compiler crashes that
+# once killed a worker now and then were the process running out of memory mappings
+# (vm.max_map_count); dtwin/_maps.py clears JAX's caches before that happens.
+XDIST := -n 2 --dist worksteal
 
 .PHONY: venv demo test test-all lint bench bench-family notebooks docs clean
 

@@ -15,9 +15,6 @@ from _bench import bench_calibration  # noqa: E402,F401
 # the spec calibrated on the independent records' baseline-1, one per session (tests/_independent.py)
 from _independent import independent_calibrated_spec, independent_calibration  # noqa: E402,F401
 
-# a crashed worker's test keeps its rerun budget (tests/_xdist_crash.py)
-from _xdist_crash import pytest_handlecrashitem  # noqa: E402,F401
-
 import dtwin  # noqa: E402,F401  (configures the compilation cache)
 from dtwin import _maps  # noqa: E402
 
