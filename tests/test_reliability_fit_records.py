@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 import pytest
-from _cli_errors import one_error_line
+from _cli_errors import Started, one_error_line, stand_in_fits
 
 from dtwin.cli import main
 from dtwin.io.readers import write_record
@@ -42,24 +42,9 @@ def _mesh_record(path, *, seconds: float = 4.0, fs: float = 5000.0, metadata=Non
     return str(path)
 
 
-class Started(Exception):
-    """Raised by the stand-ins of the fits: the command got past its checks."""
-
-
-def _started(*a, **k):
-    raise Started
-
-
 @pytest.fixture()
 def fits(monkeypatch):
-    from importlib import import_module
-
-    monkeypatch.setenv("DTWIN_DEBUG", "1")  # the stand-in's exception reaches the test
-    for module, name in (("dtwin.identify.fit", "fit"),
-                         ("dtwin.identify.severity", "estimate_severity"),
-                         ("dtwin.identify.discover", "discover"),
-                         ("dtwin.identify.calibrate", "calibrate")):
-        monkeypatch.setattr(import_module(module), name, _started)
+    stand_in_fits(monkeypatch)
 
 
 def _refused(argv, capsys) -> str:

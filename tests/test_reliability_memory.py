@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _cli_errors import one_error_line
+from _cli_errors import FITS, Started, one_error_line, stand_in_fits
 
 from dtwin.cli import main
 from dtwin.io.readers import write_record
@@ -33,22 +33,9 @@ def _record(path, seconds: float, fs: float) -> str:
     return str(path)
 
 
-class Started(Exception):
-    """Raised by the stand-ins of the fits: the command got past its checks."""
-
-
-def _started(*a, **k):
-    raise Started
-
-
 @pytest.fixture()
 def fits(monkeypatch):
-    from importlib import import_module
-
-    monkeypatch.setenv("DTWIN_DEBUG", "1")  # the stand-in's exception reaches the test
-    for module, name in (("dtwin.identify.discover", "discover"),
-                         ("dtwin.identify.calibrate", "calibrate")):
-        monkeypatch.setattr(import_module(module), name, _started)
+    stand_in_fits(monkeypatch, FITS[2:])
 
 
 def _available(monkeypatch, n_bytes: int) -> None:
@@ -94,10 +81,7 @@ def test_discover_refuses_a_record_that_would_not_fit(tmp_path, fits, monkeypatc
 def test_compare_drives_refuses_a_span_that_would_not_fit(monkeypatch, capsys):
     """`compare-drives --duration 3000`: XLA asked for 984 GB and the command ended in an
     internal error (exit 70); now one line with the estimate, before any simulation."""
-    import dtwin.coupling
-
-    monkeypatch.setenv("DTWIN_DEBUG", "1")
-    monkeypatch.setattr(dtwin.coupling, "compare_drives", _started)
+    stand_in_fits(monkeypatch, (("dtwin.coupling", "compare_drives"),))
     line = one_error_line(["compare-drives", "--preset", "paper-bench", "--duration", "3000"],
                           capsys)
     assert line.startswith("error: --duration: 5 severities × 3000.1 s at 5000 Hz"), line
