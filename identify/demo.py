@@ -494,8 +494,7 @@ def demo_section(folder, data: Path, quick: bool = False, spec=None, full: bool 
         return "\n".join(lines)
     rec = read_record(data / "samples" / "bench_sun_fault.dtwin.h5")
     est = estimate_severity(rec, spec, "sun", f_sun=estimate_speed(rec, twin, 30.0).f_sun,
-                            starts=3 if full else 1, refine=1,
-                            jackknife=calibrated and full, splits=None if full else False)
+                            starts=3 if full else 1, refine=1, splits=None if full else False)
     folder.savefig("identify_sun_fault.png", plot_fit(est.fit))
     folder.write_json("identify_sun_fault.json", est.fit.to_dict())
     lo, hi = est.interval

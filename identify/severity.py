@@ -88,11 +88,15 @@ healthy tooth is a point of the fitted model, not another model form, so the sha
 term (what the best fit leaves unexplained) does not apply. Holding the other parameters makes
 the test conservative: the profile over them could only lower the healthy twin's loss.
 
-**Band jackknife** (``jackknife=True``). Each accepted shape's interval is also the hull with
-the delete-one-band jackknife interval (:func:`dtwin.identify.uncertainty.band_jackknife`):
-when the bands disagree about the severity beyond their noise — a model-form error that the
-loss, at the noise level, need not show — the interval grows with the disagreement, and the
-status says "widened by the band jackknife".
+**Band jackknife** (``jackknife=True``, the default). Each accepted shape's interval is also
+the hull with the delete-one-band jackknife interval
+(:func:`dtwin.identify.uncertainty.band_jackknife`): when the bands disagree about the
+severity beyond their noise — a model-form error that the loss, at the noise level, need not
+show — the interval grows with the disagreement, and the status says "widened by the band
+jackknife". So "ok" means the fit passed all of its own checks: converged, loss at the noise
+level (lack of fit) and bands that agree. It costs one least-squares step per band on the
+fit's Jacobian; ``jackknife=False`` (``--no-jackknife``) leaves it out, and with fewer than
+three bands there is nothing to leave out.
 """
 
 from __future__ import annotations
@@ -604,7 +608,7 @@ def _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_
 def estimate_severity(
     record, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     initial_severity: float = 0.3, ramps: Sequence[float] | str | None = None,
-    low_band: bool | None = None, jackknife: bool = False, splits: bool | None = None,
+    low_band: bool | None = None, jackknife: bool = True, splits: bool | None = None,
     flanks: bool | Sequence[str] | None = None, **fit_kwargs: Any,
 ) -> SeverityEstimate:
     """Severity of the fault at `location` from one record, and its peak stiffness loss
@@ -615,7 +619,8 @@ def estimate_severity(
     (edge widths in mesh cycles, ``"grid"`` for :data:`RAMP_GRID`, ``"shapes"`` for
     :data:`SHAPE_GRID`; None: the twin's fault as it is, one fit); `low_band`: fit the low band
     too (None: for a sun or ring fault on a steady record, :data:`LOW_BAND_LOCATIONS`);
-    `jackknife`; `splits`: fit a calibrated spec's other excitation/response split too (None:
+    `jackknife`: widen the interval by the band jackknife where the bands disagree (module
+    docstring; on by default); `splits`: fit a calibrated spec's other excitation/response split too (None:
     where it has one, :func:`~dtwin.identify.split.stiffness_split`; module docstring, "The
     calibration's split");
     `flanks`: for a planet fault, the planet-tooth flanks to fit (True: :data:`PLANET_FLANKS`;
@@ -671,7 +676,7 @@ def severity_series(
     records: Sequence, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     labels: Sequence[str] | None = None, initial_severity: float = 0.3, warm_start: bool = False,
     ramps: Sequence[float] | str | None = None, low_band: bool | None = None,
-    jackknife: bool = False, splits: bool | None = None,
+    jackknife: bool = True, splits: bool | None = None,
     flanks: bool | Sequence[str] | None = None, **fit_kwargs: Any,
 ) -> SeveritySeries:
     """Fit every record of a series (module docstring).

@@ -398,8 +398,8 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
     """`dtwin severity --low-band --jackknife --shapes --splits --flanks` asks the library for
     the low band, the band jackknife, the loss shapes (dtwin.identify.severity.estimate_severity:
     ``ramps="shapes"``), both excitation/response splits and every planet-tooth flank; without
-    them, no jackknife, one shape, and the low band, splits and flanks where they apply (None);
-    `--no-low-band`, `--no-splits` and `--no-flanks` turn those off."""
+    them, the jackknife, one shape, and the low band, splits and flanks where they apply (None);
+    `--no-low-band`, `--no-jackknife`, `--no-splits` and `--no-flanks` turn those off."""
     from dtwin.identify import severity
 
     seen = []
@@ -413,10 +413,10 @@ def test_severity_flags_reach_the_library(files, monkeypatch, capsys):
         raise Stop
 
     monkeypatch.setattr(severity, "estimate_severity", capture)
-    for extra, want in (([], (None, False, None, None, None)),
+    for extra, want in (([], (None, True, None, None, None)),
                         (["--low-band", "--jackknife", "--shapes", "--splits", "--flanks"],
                          (True, True, "shapes", True, True)),
-                        (["--no-low-band", "--no-splits", "--no-flanks"],
+                        (["--no-low-band", "--no-jackknife", "--no-splits", "--no-flanks"],
                          (False, False, None, False, False))):
         with pytest.raises(SystemExit):  # the stand-in stops the command once it was called
             main(["severity", files["rec"], "--preset", "paper-sim", *extra])

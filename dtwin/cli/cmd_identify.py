@@ -11,7 +11,7 @@
     dtwin severity RECORD (--spec FILE | --preset NAME) [--location sun|planet|ring]
                    [--free extra,names] [--f-sun HZ] [--tacho CHANNEL[:PPR]]
                    [--fit-window auto|full|START:LENGTH]
-                   [--low-band/--no-low-band] [--jackknife] [--shapes]
+                   [--low-band/--no-low-band] [--jackknife/--no-jackknife] [--shapes]
                    [--splits/--no-splits] [--flanks/--no-flanks]
                    [--json] [--out DIR] [--force]
 
@@ -330,7 +330,7 @@ def severity(
              "tooth fault makes its strongest lines (default: on for a sun or ring fault on a "
              "steady record)."),
     jackknife: bool = typer.Option(
-        False, "--jackknife",
+        True, "--jackknife/--no-jackknife",
         help="Widen the interval by the delete-one-band jackknife when the bands disagree "
              "beyond their noise (a model-form error); the status says so."),
     shapes: bool = typer.Option(
