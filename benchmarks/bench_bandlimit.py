@@ -305,7 +305,7 @@ def main(argv=None) -> int:
             ys, res, ns = S._solve(tw, y0, t0, t1, jnp.asarray(ts), "acceleration", args.rtol,
                                    args.rtol, dtmax, int(400_000 * (t1 - t0) + 10_000), "forward",
                                    False, 0.3, 0.3, solver is None, S.RATE_SCALE_HZ)
-            sig = S._daq(ys, taps, daq, fs, ns, 0, discard).signal
+            sig = S.acquire(ys, taps, daq, fs, ns, 0, discard).signal
             return (np.asarray(jax.block_until_ready(sig)), int(ns) / (t1 - t0),
                     bool(res == diffrax.RESULTS.successful))
         finally:
@@ -316,7 +316,7 @@ def main(argv=None) -> int:
         ys, res, ns = code["solve_condensed"](tw, y0, f_sun, t0, t1, jnp.asarray(ts), args.rtol,
                                               args.rtol, dtmax, int(400_000 * (t1 - t0) + 10_000),
                                               n_kept)
-        sig = S._daq(ys, taps, daq, fs, ns, 0, discard).signal
+        sig = S.acquire(ys, taps, daq, fs, ns, 0, discard).signal
         return (np.asarray(jax.block_until_ready(sig)), int(ns) / (t1 - t0),
                 bool(res == diffrax.RESULTS.successful))
 

@@ -48,7 +48,7 @@ def default_cache_dir() -> str:
     return os.path.join(base, "dtwin", "jax")
 
 
-def _cache_dir() -> str | None:
+def cache_dir() -> str | None:
     """The folder ``DTWIN_JAX_CACHE`` asks for (None: no persistent cache)."""
     env = os.environ.get("DTWIN_JAX_CACHE")
     if env is None or env.lower() in ("on", "1", "true", "yes"):
@@ -58,7 +58,7 @@ def _cache_dir() -> str | None:
     return os.path.expanduser(env)
 
 
-_dir = _cache_dir()
+_dir = cache_dir()
 if _dir is not None:
     try:
         os.makedirs(_dir, exist_ok=True)

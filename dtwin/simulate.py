@@ -40,7 +40,7 @@ from . import _maps
 from .errors import SolverError
 from .integrator import UnrolledTsit5
 from .io.record import Record
-from .parts.drive import DrivePart, LoadPart
+from .parts.drive import DrivePart
 from .parts.speed_source import IdealSpeedSource
 from .parts.transfer_path import AbstractTransferPath, ring_velocity_fixed
 from .periodic import (
@@ -51,7 +51,8 @@ from .periodic import (
     rigid_advance,
 )
 from .sensor_response import apply_frf, knot_basis
-from .twin import Coords, Twin
+from .statics import static_balance
+from .twin import Twin
 
 QUANTITIES = ("acceleration", "velocity", "displacement", "ring_velocity")
 #: Default of `SolverOptions.rate_scale_hz` (Hz): rates are scaled by 2π times this.
@@ -262,34 +263,6 @@ def state_scales(twin: Twin, rate_scale_hz: float = RATE_SCALE_HZ) -> tuple[Arra
     return sz, sv
 
 
-def _ext_static_forces(twin: Twin, omega_c):
-    """Generalised static forces: load torque on the carrier and the balancing sun torque."""
-    tl = jnp.zeros(())
-    for p in twin.find(LoadPart):
-        tl = tl + p.load.torque(jnp.zeros(()), jnp.zeros(()), omega_c)
-    rs, _ = twin.kinematic_ratios
-    f = Coords.zeros(twin.n_planets).set(theta_c=-tl, theta_s=tl / rs)
-    # centripetal force on the planets (bearing pre-load)
-    f = f + twin.frame_forces(Coords.zeros(twin.n_planets), Coords.zeros(twin.n_planets).set(theta_c=omega_c))
-    return f, tl / rs
-
-
-def _static_balance(twin: Twin, omega_c):
-    """The static problem of a steady run: mean mesh stiffness, linear contact, the parts'
-    springs, the carrier angle held and the load torque at carrier speed `omega_c` (rad/s).
-
-    **Returns:** `(A, keep, K, F, torque_sun)`: the kinematic map, the integration coordinates
-    other than the carrier angle, the stiffness and static forces over them, and the sun torque
-    that balances the load."""
-    A = jnp.asarray(twin.kinematic_map())
-    ic = twin._index("theta_c")
-    keep = np.array([i for i in range(twin.n_dof) if i != ic])
-    K = A.T @ twin.linear_stiffness(modal=False) @ A
-    f, torque_sun = _ext_static_forces(twin, omega_c)
-    F = A.T @ twin.pack(f)
-    return A, keep, K[np.ix_(keep, keep)], F[keep], torque_sun
-
-
 def initial_state(twin: Twin, f_sun: float | Array, start: str = "steady"):
     """Initial `(z, z', aux)` (unscaled) for a run at input speed `f_sun` (Hz).
 
@@ -308,7 +281,7 @@ def initial_state(twin: Twin, f_sun: float | Array, start: str = "steady"):
         aux = [p.aux_init(twin, jnp.zeros(())) for p in twin.parts]
     elif start == "steady":
         omega_c = omega_s / rs
-        A, keep, K, F, torque_sun = _static_balance(twin, omega_c)
+        A, keep, K, F, torque_sun = static_balance(twin, omega_c)
         x = jnp.linalg.solve(K, F)
         z = jnp.zeros(n).at[keep].set(x)
         zd = jnp.zeros(n).at[ic].set(omega_c)
@@ -667,9 +640,9 @@ def _tiled_grid(ts, t_ref, period, fs_hi):
     return save, jnp.argsort(order), turns, save[-1]
 
 
-def _observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float, f_sun: float,
-                 quantity: str, solver: SolverOptions, dtmax, progress: bool = False,
-                 start: str = "steady"):
+def integrate_observables(twin: Twin, y0, t0: float, ts_np: np.ndarray, fs_hi: float,
+                          f_sun: float, quantity: str, solver: SolverOptions, dtmax,
+                          progress: bool = False, start: str = "steady"):
     """The observables on the high-rate grid `ts_np` (s) from `t0` (s), integrated in full or
     over one period of the gear set (`periodic_plan`). **Returns** ``(observables, result,
     steps, method, defect)``; `defect` None when integrated in full."""
@@ -803,7 +776,7 @@ def simulate(
     # and where that fails too (or the response is not periodic) integrate in full
     tried = []
     for option in settling_sequence(solver):
-        ys, result, nsteps, method, defect = _observables(twin, y0, t0, ts_np, fs_hi, f_sun,
+        ys, result, nsteps, method, defect = integrate_observables(twin, y0, t0, ts_np, fs_hi, f_sun,
                                                           daq.quantity, option, dtmax, progress,
                                                           start)
         if not check or defect is None or float(defect) <= solver.periodic_tolerance:
@@ -815,11 +788,15 @@ def simulate(
     if check:
         _raise_for(result, t1)
     # compiled as one program (op by op, its first call compiles each operation separately)
-    res = _daq_jit(ys, taps, daq, fs_out, nsteps, jnp.asarray(seed), jnp.asarray(t_start))
+    res = _acquire_jit(ys, taps, daq, fs_out, nsteps, jnp.asarray(seed), jnp.asarray(t_start))
     return dataclasses.replace(res, method=method, periodic_defect=defect)
 
 
-def _daq(ys, taps, daq: DAQ, fs_out, nsteps, seed, t_start) -> SimResult:
+def acquire(ys, taps, daq: DAQ, fs_out, nsteps, seed, t_start) -> SimResult:
+    """The record the DAQ `daq` makes of the observables `ys` (:func:`integrate_observables`,
+    sampled at `daq.oversample` × `fs_out`): the anti-alias filter `taps` and decimation to
+    `fs_out` (Hz), the sensor response and gain, integration to velocity or displacement, noise
+    at the DAQ's SNR (seeded by `seed`), the tachometer; times from `t_start` (s)."""
     taps = jnp.asarray(taps)
     step = daq.oversample
 
@@ -851,7 +828,7 @@ def _daq(ys, taps, daq: DAQ, fs_out, nsteps, seed, t_start) -> SimResult:
     return SimResult(time, sig, tacho, outputs, nsteps, fs_out, daq.quantity)
 
 
-_daq_jit = eqx.filter_jit(_daq)
+_acquire_jit = eqx.filter_jit(acquire)
 
 
 def integrate_spectral(x: Float[Array, " n"], fs: float, order: int, f_highpass: float) -> Array:

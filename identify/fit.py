@@ -44,13 +44,14 @@ import optimistix as optx
 
 from dtwin import _heap
 from dtwin.build import build_twin, is_calibrated, twin_kind
-from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
+from dtwin.errors import DtwinError, FitError, ParameterError, RecordError, SettingsError
 from dtwin.registry import REGISTRY, lookup
 from dtwin.simulate import SolverOptions, settling_sequence
 from dtwin.spec import Spec, load_spec
 from dtwin.twin import Twin
 
 from .confounding import calibrated_excitation, calibration_confounding, needs_check
+from .low_band import with_low_band_problem
 from .operating_point import estimate_speed_profile, nominal_speed, resolve_speed
 from .params import ParameterSet
 from .residuals import (
@@ -70,7 +71,6 @@ from .split import (
     SPLIT_CALIBRATED,
     SPLIT_STIFFNESS,
     choose_split,
-    low_band_losses,
     other_split,
 )
 from .uncertainty import MODEL_FORM_REASON, Uncertainty, analyse, expected_noise_rss
@@ -78,6 +78,10 @@ from .uncertainty import MODEL_FORM_REASON, Uncertainty, analyse, expected_noise
 __all__ = ["FitResult", "Problem", "SOLVERS", "fit", "fit_batch", "make_problem", "stack_problems"]
 
 SOLVERS = ("lm", "gauss-newton", "dogleg")
+#: Fault locations whose split is scored with the low band too (as
+#: :data:`dtwin.identify.low_band.LOW_BAND_LOCATIONS`: the sun's and the ring's comb lies where
+#: the records put it).
+LOW_BAND_FAULTS = ("sun_fault", "ring_fault")
 #: Default statistical stopping rule: stop when the optimum is within this many standard
 #: errors of the accepted point (:func:`gauss_newton_step_in_sigma`). Above the ODE solver's
 #: noise floor: at rtol = 1e-4 the Gauss–Newton step at points within 0.03 in θ of the optimum
@@ -919,7 +923,7 @@ def fit(
       fit the free parameters again with the other end of its excitation/response split (the
       stiffness waveform's excitation, a flat response) and report the split of least loss
       (for a sun or ring fault, scored with the low band too, which the fits do not use:
-      :func:`~dtwin.identify.split.low_band_losses`), with intervals over both where the
+      :func:`low_band_losses`), with intervals over both where the
       record cannot reject either (:mod:`dtwin.identify.split`); None: where a fault severity is free (a healthy record
       cannot tell the splits apart, a fault's sidebands can), True: for any parameters, False:
       never. Not with `problem`.
@@ -1207,3 +1211,44 @@ def fit_batch(
             residuals=np.asarray(rs[i]), jacobian=np.asarray(Js[i]),
         ))
     return out
+
+
+def low_band_losses(fits: Sequence[tuple[Any, FitResult]], records, names: Sequence[str],
+                    problem_kwargs: dict[str, Any]) -> list[float] | None:
+    """Each fit's loss (½‖r‖²) over its own points and the low band of `records` (the fault's
+    comb below the first mesh band, :func:`dtwin.identify.low_band.with_low_band`), at its fitted
+    values: `fits` are ``(spec, FitResult)`` of one record set. The low band is where a small
+    sun or ring fault makes its strongest lines and where the fit did not look, so it scores the
+    splits on data the fits did not use. A fit on the DFT grid is scored with its own problem
+    and the low band added; one in the order domain with a DFT-grid problem of the same record
+    at the fitted values and operating point. None where it does not apply (the fits are then
+    scored by their own losses): no sun or ring fault among `names` (:data:`LOW_BAND_FAULTS`), a
+    run-up, a fit without uncertainty, or a score that could not be computed."""
+    if not any(n in LOW_BAND_FAULTS for n in names):
+        return None
+    recs = list(records) if isinstance(records, (list, tuple)) else [records]
+    channel = problem_kwargs.get("channel", 0)
+    keep = {k: v for k, v in problem_kwargs.items()
+            if k not in ("features", "weights", "f_sun", "initial", "runup")}
+    out = []
+    for spec, res in fits:
+        prob = res.problem
+        if prob is None or res.uncertainty is None or \
+                any(o.kind != "spectrum" or o.ramp for o in prob.observations):
+            return None
+        theta = np.asarray(res.theta)
+        if any(o.order_domain for o in prob.observations):
+            f_sun = [op.get("f_sun") for op in res.operating_points]
+            if len(f_sun) != len(recs) or any(f is None for f in f_sun):
+                return None
+            try:
+                prob, _ = make_problem(recs, spec, list(res.names), initial=dict(res.values),
+                                       f_sun=f_sun, features=Features(), **keep)
+            except DtwinError:  # scored by the fits' own losses then
+                return None
+            theta = np.zeros_like(theta)
+        if len(prob.observations) != len(recs):
+            return None
+        prob = with_low_band_problem(prob, recs, channel=channel)
+        out.append(float(np.asarray(_batched_loss(jnp.asarray(theta)[None], prob, "map"))[0]))
+    return out if all(np.isfinite(out)) else None

@@ -63,10 +63,10 @@ from dtwin.parts.speed_source import SpeedProfile
 from dtwin.simulate import (
     DAQ,
     SolverOptions,
-    _daq,
-    _observables,
+    acquire,
     daq_filter,
     initial_state,
+    integrate_observables,
 )
 from dtwin.spectrum import analytic_signal, get_window, noise_floor
 from dtwin.units import quantity as unit_quantity
@@ -468,9 +468,9 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
     dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
     # in full, or over one period of the gear set when `solver.periodic` allows (dtwin.simulate)
-    ys, _, nsteps, _, defect = _observables(twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity,
-                                            solver, dtmax)
-    sig = _daq(ys, taps, daq, fs_out, nsteps, 0, float(discard)).signal
+    ys, _, nsteps, _, defect = integrate_observables(twin, y0, t0, ts_np, fs_hi, f_sun,
+                                                     daq.quantity, solver, dtmax)
+    sig = acquire(ys, taps, daq, fs_out, nsteps, 0, float(discard)).signal
     return sig, defect
 
 

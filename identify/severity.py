@@ -113,14 +113,16 @@ import numpy as np
 from dtwin.build import SEVERITY_KIND, is_calibrated
 from dtwin.errors import ParameterError, SettingsError
 from dtwin.faults import MIN_SPREAD, peak_stiffness_loss
-from dtwin.kinematics import Kinematics
 from dtwin.registry import lookup
 from dtwin.spec import Spec, load_spec
-from dtwin.spectrum import noise_floor
 from dtwin.twin import Twin
 
 from .fit import FitResult, _batched_loss, _jacobian, fit, make_problem
-from .residuals import _STRONG_DB, _amplitude, point_groups
+from .low_band import LOW_BAND_LOCATIONS as LOW_BAND_LOCATIONS
+from .low_band import LOW_BAND_START as LOW_BAND_START
+from .low_band import with_low_band as with_low_band
+from .low_band import with_low_band_problem as with_low_band_problem
+from .residuals import point_groups
 from .split import (
     SPLIT_CALIBRATED,
     SPLIT_STIFFNESS,
@@ -142,15 +144,7 @@ RAMP_GRID = (0.05, 0.15, 0.3)
 #: either side and fades over it, and a sharp one confined to the middle of the contact (a pit
 #: or spall about the pitch point: :data:`dtwin.faults.MIN_SPREAD`).
 SHAPE_GRID = ((0.05, 0.0), (0.3, 0.0), (0.3, 1.0), (0.05, MIN_SPREAD))
-#: Start of the low band (units of the planet-pass frequency ``N f_c``): the lowest knot of a
-#: calibrated sensor response (:mod:`dtwin.identify.calibrate`).
-LOW_BAND_START = 0.8
-
 _LOCATIONS = ("sun", "planet", "ring")
-#: Fault locations whose severity fits the low band by default (``low_band=None``): the sun's
-#: and the ring's low comb lies where the records put it; a planet fault's the twin places
-#: beside ``k f_p`` (docs/identification.md, "The low band").
-LOW_BAND_LOCATIONS = ("sun", "ring")
 
 
 def fault_location(names: Sequence[str]) -> str | None:
@@ -306,47 +300,6 @@ def _split_kwargs(fit_kwargs: dict[str, Any]) -> tuple[dict[str, Any], dict[str,
     mp = set(inspect.signature(make_problem).parameters) - {"records", "spec_or_twin", "free"}
     return ({k: v for k, v in fit_kwargs.items() if k in mp},
             {k: v for k, v in fit_kwargs.items() if k not in mp or k == "jac"})
-
-
-def with_low_band(obs, record, *, channel: int | str = 0, floor_bins: int = 31,
-                  start: float = LOW_BAND_START, n_planets: int = 3, f_carrier: float):
-    """`obs` (a steady spectrum :class:`dtwin.identify.residuals.Observation`) with the low band
-    added as band 0: every DFT bin from ``start × N f_c`` (Hz) up to the first mesh band, with
-    its measured level and noise floor computed as :func:`dtwin.identify.residuals.observe`
-    does. A local tooth fault's strongest lines at a low sampling rate lie there: the impulse
-    comb of the faulty tooth's passes (``k f_sf``), with the sun's rotation ``± f_s`` when the
-    sun floats (module docstring, "The low band")."""
-    if obs.kind != "spectrum" or obs.ramp or obs.order_domain:
-        raise SettingsError("the low band is for steady spectrum observations (grid='hz')")
-    x = np.asarray(record.channel(channel), dtype=np.float64)[: obs.n_samples]
-    amp = np.asarray(_amplitude(x, obs.n_samples))
-    floor_all = noise_floor(amp, floor_bins)
-    freqs = np.fft.rfftfreq(obs.n_samples, 1.0 / obs.sample_rate)
-    f_hi = float(np.min(np.asarray(obs.freqs)))
-    sel = np.flatnonzero((freqs >= start * n_planets * f_carrier) & (freqs < f_hi))
-    if sel.size == 0:
-        return obs
-    a, fl = amp[sel], floor_all[sel]
-    strong = (a > fl * 10 ** (_STRONG_DB / 20)).astype(np.float64)
-    cat = lambda new, old: jnp.concatenate([jnp.asarray(new, dtype=jnp.asarray(old).dtype),  # noqa: E731
-                                            jnp.asarray(old)])
-    return dataclasses.replace(
-        obs, k=cat(sel, obs.k), w=cat(np.zeros(sel.size), obs.w),
-        meas=cat(np.log(a + fl), obs.meas), floor=cat(fl, obs.floor),
-        strong=cat(strong, obs.strong), group=cat(np.zeros(sel.size), obs.group),
-        freqs=cat(freqs[sel], obs.freqs))
-
-
-def with_low_band_problem(problem, records, *, channel: int | str = 0):
-    """`problem` with the low band (:func:`with_low_band`) added to the observation of each of
-    `records` (one per observation, in order; a single record for the first observation alone),
-    at the planet-pass frequency of each observation's speed."""
-    recs = list(records) if isinstance(records, (list, tuple)) else [records]
-    lp = problem.twin.lp
-    new = tuple(with_low_band(o, rec, channel=channel, n_planets=int(lp.n_planets),
-                              f_carrier=Kinematics.from_gear_set(lp, float(o.speed[0])).f_carrier)
-                for o, rec in zip(problem.observations, recs, strict=False))
-    return dataclasses.replace(problem, observations=new + problem.observations[len(new):])
 
 
 def _shapes(ramps) -> tuple[tuple[float, float], ...]:

@@ -17,7 +17,8 @@ So a fault severity is fitted with both ends of the split: the calibrated spec a
 a flat response (:data:`SPLIT_STIFFNESS`, :func:`stiffness_split`); window, damping and load
 shares stay as calibrated. The fits are scored by one rule (:func:`model_form_tolerance`): the
 split of least loss is reported (for a sun or ring fault fitted on the mesh bands, the loss
-with the low band added, which the fits did not use: :func:`low_band_losses`; there a small
+with the low band added, which the fits did not use:
+:func:`dtwin.identify.fit.low_band_losses`; there a small
 fault's comb stands tens of dB over the floor where its mesh sidebands stand a few, and the
 mesh lines, which the calibrated split was chosen to fit, would otherwise decide), and a split whose ``‖r‖²`` exceeds it by no more than the
 larger of ``χ²₁(95 %)`` in units of the residual variance and what the best fit leaves
@@ -33,11 +34,10 @@ import dataclasses
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-import jax.numpy as jnp
 import numpy as np
 
 from dtwin.build import is_calibrated
-from dtwin.errors import DtwinError, SettingsError
+from dtwin.errors import SettingsError
 from dtwin.registry import lookup
 from dtwin.spec import Spec, load_spec, spec_to_dict
 from dtwin.twin import Twin
@@ -48,8 +48,8 @@ from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, Uncertainty, half_width_scal
 if TYPE_CHECKING:
     from .fit import FitResult
 
-__all__ = ["LOW_BAND_FAULTS", "SPLIT_CALIBRATED", "SPLIT_STIFFNESS", "choose_split",
-           "fault_names", "low_band_losses", "model_form_tolerance", "other_split",
+__all__ = ["SPLIT_CALIBRATED", "SPLIT_STIFFNESS", "choose_split",
+           "fault_names", "model_form_tolerance", "other_split",
            "stiffness_split"]
 
 #: What each end of a calibrated spec's excitation/response split is called in results.
@@ -106,57 +106,6 @@ def other_split(spec_or_twin, names: Sequence[str], splits: bool | None) -> Spec
     return other
 
 
-#: Fault locations whose split is scored with the low band too (as
-#: :data:`dtwin.identify.severity.LOW_BAND_LOCATIONS`: the sun's and the ring's comb lies where
-#: the records put it).
-LOW_BAND_FAULTS = ("sun_fault", "ring_fault")
-
-
-def low_band_losses(fits: Sequence[tuple[Any, FitResult]], records, names: Sequence[str],
-                    problem_kwargs: dict[str, Any]) -> list[float] | None:
-    """Each fit's loss (½‖r‖²) over its own points and the low band of `records` (the fault's
-    comb below the first mesh band, :func:`dtwin.identify.severity.with_low_band`), at its fitted
-    values: `fits` are ``(spec, FitResult)`` of one record set. The low band is where a small
-    sun or ring fault makes its strongest lines and where the fit did not look, so it scores the
-    splits on data the fits did not use. A fit on the DFT grid is scored with its own problem
-    and the low band added; one in the order domain with a DFT-grid problem of the same record
-    at the fitted values and operating point. None where it does not apply (the fits are then
-    scored by their own losses): no sun or ring fault among `names` (:data:`LOW_BAND_FAULTS`), a
-    run-up, a fit without uncertainty, or a score that could not be computed."""
-    from .fit import _batched_loss, make_problem
-    from .residuals import Features
-    from .severity import with_low_band_problem
-
-    if not any(n in LOW_BAND_FAULTS for n in names):
-        return None
-    recs = list(records) if isinstance(records, (list, tuple)) else [records]
-    channel = problem_kwargs.get("channel", 0)
-    keep = {k: v for k, v in problem_kwargs.items()
-            if k not in ("features", "weights", "f_sun", "initial", "runup")}
-    out = []
-    for spec, res in fits:
-        prob = res.problem
-        if prob is None or res.uncertainty is None or \
-                any(o.kind != "spectrum" or o.ramp for o in prob.observations):
-            return None
-        theta = np.asarray(res.theta)
-        if any(o.order_domain for o in prob.observations):
-            f_sun = [op.get("f_sun") for op in res.operating_points]
-            if len(f_sun) != len(recs) or any(f is None for f in f_sun):
-                return None
-            try:
-                prob, _ = make_problem(recs, spec, list(res.names), initial=dict(res.values),
-                                       f_sun=f_sun, features=Features(), **keep)
-            except DtwinError:  # scored by the fits' own losses then
-                return None
-            theta = np.zeros_like(theta)
-        if len(prob.observations) != len(recs):
-            return None
-        prob = with_low_band_problem(prob, recs, channel=channel)
-        out.append(float(np.asarray(_batched_loss(jnp.asarray(theta)[None], prob, "map"))[0]))
-    return out if all(np.isfinite(out)) else None
-
-
 def model_form_tolerance(unc: Uncertainty | None, loss: float) -> float:
     """How far (in ``‖r‖²``) a fit of another model form may lie above the best fit, of loss
     `loss` (½‖r‖²) and uncertainty `unc`, and not be rejected: the larger of ``χ²₁(95 %)`` in
@@ -174,7 +123,7 @@ def model_form_tolerance(unc: Uncertainty | None, loss: float) -> float:
 def choose_split(fits: Sequence[tuple[str, FitResult]],
                  scores: Sequence[float] | None = None) -> FitResult:
     """The fit of least loss among `fits` (``(split, FitResult)``, the same parameters, one
-    record set), or of least `scores` where given (:func:`low_band_losses`), with
+    record set), or of least `scores` where given (:func:`dtwin.identify.fit.low_band_losses`), with
     ``excitation`` set to its split and ``splits`` to a row per fit (split, loss, score, values,
     95 % intervals, accepted). Where another split is accepted (its loss or score within
     :func:`model_form_tolerance` of the best fit's) every interval is the union over the

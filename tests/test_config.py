@@ -11,14 +11,14 @@ def test_cache_switch_words_are_not_folder_names(monkeypatch, tmp_path):
     default = os.path.join(str(tmp_path), "dtwin", "jax")
     for word in ("off", "0", "none", "false", ""):
         monkeypatch.setenv("DTWIN_JAX_CACHE", word)
-        assert _config._cache_dir() is None, word
+        assert _config.cache_dir() is None, word
     for word in ("on", "1", "true", "ON"):
         monkeypatch.setenv("DTWIN_JAX_CACHE", word)
-        assert _config._cache_dir() == default, word
+        assert _config.cache_dir() == default, word
     monkeypatch.setenv("DTWIN_JAX_CACHE", "/some/folder")
-    assert _config._cache_dir() == "/some/folder"
+    assert _config.cache_dir() == "/some/folder"
     monkeypatch.delenv("DTWIN_JAX_CACHE")
-    assert _config._cache_dir() == default
+    assert _config.cache_dir() == default
 
 
 _CACHE_DIR = "import dtwin, jax; print(jax.config.jax_compilation_cache_dir)"

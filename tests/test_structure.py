@@ -1,7 +1,10 @@
-"""The package's structure (issue 18): no import circles among modules, the parts do not import
-the twin, format modules do not import their dispatcher, the top-level package exposes the twin
-and not the Section 6 study, docstrings cite papers, standards or docs/, never a file outside
-the repository. Read from the source text (``ast``), so nothing is imported twice."""
+"""The package's structure (issues 18, 52): no import circles among modules, counting the
+imports inside functions too; no ``_private`` name of a module imported from another package;
+the parts do not import the twin, format modules do not import their dispatcher, the top-level
+package exposes the twin and not the Section 6 study, docstrings cite papers, standards or
+docs/, never a file outside the repository. Read from the source text (``ast``), so nothing is
+imported twice. Imports under ``if TYPE_CHECKING:`` are for annotations and are never run, so
+they are not counted."""
 
 import ast
 import re
@@ -27,18 +30,30 @@ def _modules() -> dict[str, tuple[Path, bool]]:
     return mods
 
 
+def _tree(f: Path) -> ast.Module:
+    """The module's syntax tree without its ``if TYPE_CHECKING:`` blocks (annotations only)."""
+    tree = ast.parse(f.read_text(encoding="utf-8"))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING":
+            node.body = []
+    return tree
+
+
+def _from_module(name: str, n: ast.ImportFrom, is_pkg: bool) -> str:
+    if not n.level:
+        return n.module or ""
+    base = name.split(".") if is_pkg else name.split(".")[:-1]
+    base = base[: len(base) - (n.level - 1)]
+    return ".".join(base + ([n.module] if n.module else []))
+
+
 def _imports(name: str, tree: ast.Module, is_pkg: bool, mods, *, module_level: bool
              ) -> set[str]:
     nodes = tree.body if module_level else list(ast.walk(tree))
     out = set()
     for n in nodes:
         if isinstance(n, ast.ImportFrom):
-            if n.level:
-                base = name.split(".") if is_pkg else name.split(".")[:-1]
-                base = base[: len(base) - (n.level - 1)]
-                m = ".".join(base + ([n.module] if n.module else []))
-            else:
-                m = n.module or ""
+            m = _from_module(name, n, is_pkg)
             for a in n.names:
                 full = f"{m}.{a.name}"
                 out.add(full if full in mods else m)
@@ -80,9 +95,42 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_no_import_circles_at_module_level():
     mods = _modules()
-    graph = {n: _imports(n, ast.parse(f.read_text(encoding="utf-8")), p, mods, module_level=True)
-             for n, (f, p) in mods.items()}
+    graph = {n: _imports(n, _tree(f), p, mods, module_level=True) for n, (f, p) in mods.items()}
     assert _cycles(graph) == []
+
+
+def test_no_import_circles_through_imports_inside_functions():
+    """A function-local import hides a circle from the module-level graph but not from the
+    design: it is counted like any other."""
+    mods = _modules()
+    graph = {n: _imports(n, _tree(f), p, mods, module_level=False) for n, (f, p) in mods.items()}
+    assert _cycles(graph) == []
+
+
+def _package(name: str, mods) -> str:
+    return name if mods[name][1] else name.rpartition(".")[0]
+
+
+def test_no_private_name_is_imported_from_another_package():
+    """``from dtwin.simulate import _daq`` in ``dtwin.identify``: a name its module keeps to
+    itself, used where that module cannot see it. Within a package such names are shared by
+    design; across packages a name is public or not imported. A private *module*
+    (``dtwin._heap``, ``dtwin._maps``) is the project's own machinery and may be imported
+    anywhere."""
+    mods = _modules()
+    found = []
+    for name, (f, is_pkg) in mods.items():
+        for n in ast.walk(_tree(f)):
+            if not isinstance(n, ast.ImportFrom):
+                continue
+            m = _from_module(name, n, is_pkg)
+            if m not in mods:
+                continue
+            for a in n.names:
+                if a.name.startswith("_") and not a.name.startswith("__") and \
+                        f"{m}.{a.name}" not in mods and _package(m, mods) != _package(name, mods):
+                    found.append(f"{name} imports {m}.{a.name}")
+    assert found == []
 
 
 @pytest.mark.parametrize("module,forbidden", [
@@ -97,11 +145,7 @@ def test_no_upward_import(module, forbidden):
     """Not even inside a function (the annotations-only TYPE_CHECKING block aside)."""
     mods = _modules()
     f, is_pkg = mods[module]
-    tree = ast.parse(f.read_text(encoding="utf-8"))
-    for node in ast.walk(tree):  # drop `if TYPE_CHECKING:` blocks
-        if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING":
-            node.body = []
-    deps = _imports(module, tree, is_pkg, mods, module_level=False)
+    deps = _imports(module, _tree(f), is_pkg, mods, module_level=False)
     assert forbidden not in deps, f"{module} imports {forbidden}"
 
 

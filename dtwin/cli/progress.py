@@ -27,9 +27,9 @@ _KEEP = 64
 
 def timings_file() -> str | None:
     """Where the stage times of earlier runs are kept (None: the compilation cache is off)."""
-    from .._config import _cache_dir
+    from .._config import cache_dir
 
-    folder = _cache_dir()
+    folder = cache_dir()
     return None if folder is None else os.path.join(folder, "dtwin-timings.json")
 
 

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ChannelError
+from .files import to_jsonable
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,8 +106,6 @@ class Record:
             import xarray as xr
         except ImportError as e:  # pragma: no cover - depends on the environment
             raise ImportError("Record.to_xarray needs xarray: pip install xarray") from e
-        from .output import to_jsonable
-
         coords: dict[str, Any] = {"time": ("time", self.time, {"units": "s"}),
                                   "channel": ("channel", list(self.channels)),
                                   "unit": ("channel", [u or "" for u in self.units])}

@@ -35,6 +35,7 @@ from jaxtyping import Array, Float
 
 from ..coords import unit_radial, unit_tangential
 from ..faults import mesh_phases
+from ..statics import static_balance
 from ..stiffness import transmission_error
 from .base import AbstractPart, Modulation
 
@@ -134,13 +135,11 @@ def load_share_offsets(twin, shares, f_sun) -> Float[Array, " N"]:
 
     **Returns:** `e` (m), shape (N,); positive relieves a planet.
     """
-    from ..simulate import _static_balance  # simulate imports the parts
-
     lp, n = twin.lp, twin.n_planets
     s = jnp.asarray(shares, dtype=jnp.float64)
     s = s / jnp.mean(s)
     rs, _ = twin.kinematic_ratios
-    A, keep, K, F, _ = _static_balance(
+    A, keep, K, F, _ = static_balance(
         twin, 2.0 * jnp.pi * jnp.asarray(f_sun, dtype=jnp.float64) / rs)
     L = twin.deflection_matrix() @ A[:, keep]  # 2N x reduced coordinates
     km = jnp.concatenate([jnp.full((n,), lp.k_sun_planet), jnp.full((n,), lp.k_ring_planet)])

@@ -1,0 +1,52 @@
+"""The static problem of a steady run: the mean-stiffness gear set under its load torque.
+
+:func:`static_balance` gives the linear stiffness and static forces over the integration
+coordinates with the carrier angle held (mean mesh stiffness, linear contact, the parts'
+springs, the load torque at the carrier speed and the planets' centripetal pre-load). The
+steady start of a simulation (:func:`dtwin.simulate.initial_state`) solves it, and so does the
+load-sharing imperfection that sets planet clearances for stated shares
+(:func:`dtwin.parts.imperfections.load_share_offsets`). Forces in N and N·m, speeds in rad/s.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import jax.numpy as jnp
+import numpy as np
+
+from .coords import Coords
+from .parts.drive import LoadPart
+
+if TYPE_CHECKING:
+    from .twin import Twin
+
+__all__ = ["static_balance", "static_forces"]
+
+
+def static_forces(twin: Twin, omega_c):
+    """Generalised static forces: load torque on the carrier and the balancing sun torque."""
+    tl = jnp.zeros(())
+    for p in twin.find(LoadPart):
+        tl = tl + p.load.torque(jnp.zeros(()), jnp.zeros(()), omega_c)
+    rs, _ = twin.kinematic_ratios
+    f = Coords.zeros(twin.n_planets).set(theta_c=-tl, theta_s=tl / rs)
+    # centripetal force on the planets (bearing pre-load)
+    f = f + twin.frame_forces(Coords.zeros(twin.n_planets), Coords.zeros(twin.n_planets).set(theta_c=omega_c))
+    return f, tl / rs
+
+
+def static_balance(twin: Twin, omega_c):
+    """The static problem of a steady run: mean mesh stiffness, linear contact, the parts'
+    springs, the carrier angle held and the load torque at carrier speed `omega_c` (rad/s).
+
+    **Returns:** `(A, keep, K, F, torque_sun)`: the kinematic map, the integration coordinates
+    other than the carrier angle, the stiffness and static forces over them, and the sun torque
+    that balances the load."""
+    A = jnp.asarray(twin.kinematic_map())
+    ic = twin._index("theta_c")
+    keep = np.array([i for i in range(twin.n_dof) if i != ic])
+    K = A.T @ twin.linear_stiffness(modal=False) @ A
+    f, torque_sun = static_forces(twin, omega_c)
+    F = A.T @ twin.pack(f)
+    return A, keep, K[np.ix_(keep, keep)], F[keep], torque_sun
