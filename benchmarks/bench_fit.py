@@ -22,7 +22,7 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
   from one primal-and-tangents solve), each timed after compilation, five times interleaved:
   the Jacobian's cost relative to one simulation as the median of the five pairs' ratios.
 - **SciPy** (what a user without JAX writes): the same residual vector computed from
-  `benchmarks/reference_numpy.py` (the twin's equations in NumPy) integrated by
+  `tests/reference_numpy.py` (the twin's equations in NumPy) integrated by
   ``scipy.integrate.solve_ivp`` (RK45, same rtol/atol/largest step), the same DAQ filter and
   the same log-spectral residuals; ``scipy.optimize.least_squares(method="lm")`` would take
   ``1 + p`` such simulations per finite-difference Jacobian. One simulation over
@@ -177,7 +177,7 @@ def main(argv=None) -> int:
     # --- SciPy: the same residuals from solve_ivp over the NumPy model, one span timed
     import scipy.integrate
 
-    sys.path.insert(0, str(HERE))
+    sys.path.insert(0, str(HERE.parent / "tests"))  # the test oracle lives with the tests
     from reference_numpy import ReferenceModel
 
     tw0 = prob.pset.apply(prob.twin, prob.pset.values(theta))

@@ -8,7 +8,7 @@ record:
   and second call (run); compile time = first − second; simulated seconds per wall second,
   accepted steps per simulated second, wall time per step; the cost of one right-hand side
   evaluation in a jitted loop (what a step costs at the least: Tsit5 takes 6 per step);
-- the same equations (`benchmarks/reference_numpy.py`, an independent NumPy implementation,
+- the same equations (`tests/reference_numpy.py`, an independent NumPy implementation,
   faults and sensor included) integrated by `scipy.integrate.solve_ivp` with RK45 and DOP853 at
   the same `rtol`, `atol` and largest step on the same scaled state (both use the RMS norm of
   the error over ``atol + rtol |y|``) over `--scipy-span` seconds, timed and extrapolated
@@ -137,7 +137,7 @@ def bench_kind(kind, args):
     from dtwin.simulate import DAQ, SolverOptions, daq_filter, initial_state, simulate, state_scales
     from dtwin.spec import preset
 
-    sys.path.insert(0, str(HERE))
+    sys.path.insert(0, str(HERE.parent / "tests"))  # the test oracle lives with the tests
     from reference_numpy import ReferenceModel
 
     f_sun = 30.0

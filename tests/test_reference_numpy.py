@@ -1,6 +1,6 @@
 """The twin's assembled equations against an independent NumPy implementation.
 
-`benchmarks/reference_numpy.py` re-implements the equations of motion from docs/conventions.md
+`tests/reference_numpy.py` re-implements the equations of motion from docs/conventions.md
 and the docstrings (mass matrix from the kinetic energy, deflection matrix written out by hand,
 stiffness waveform, sun-fault window, one-sided contact, supports, rotating-frame forces, drive,
 load, sensor); only the numbers come from the built twin. At random states near the operating
@@ -13,22 +13,18 @@ from __future__ import annotations
 
 import copy
 import math
-import sys
-from pathlib import Path
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from reference_numpy import ReferenceModel  # the test oracle, a helper beside this file
 
 from dtwin.build import build_twin
 from dtwin.faults import MissingTooth
 from dtwin.simulate import _observe, initial_state, state_scales
 from dtwin.spec import preset
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from reference_numpy import ReferenceModel  # noqa: E402
 
 KINDS = ("translational", "torsional")
 FAULT_TOOTH = 3
