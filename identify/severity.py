@@ -41,10 +41,10 @@ smaller than the model-form error the best fit still carries cannot tell two sha
 **The twin.** A severity is fitted with the translational twin unless a `kind` is given
 (:data:`dtwin.build.SEVERITY_KIND`), whatever kind the spec names or was calibrated with: a
 local tooth fault loads one mesh at a time, a floating sun moves under that loss, and the
-torsional twin, whose sun and planets cannot move sideways, makes a sun or planet fault 4–10×
-louder and reads it 4–10× small (docs/identification.md, "The twin of a severity"). Where the spec was calibrated with the
-other twin, its calibrated excitation, window and response are taken as they are and the estimate's
-`note` says so.
+torsional twin, whose sun and planets cannot move sideways, makes a sun or planet fault
+several times louder and so reads it several times small (docs/identification.md, "The twin of
+a severity"). Where the spec was calibrated with the other twin, its calibrated excitation,
+window and response are taken as they are and the estimate's `note` says so.
 
 **The calibration's split** (``splits=None``: on for a calibrated spec with a calibrated mesh
 excitation or response shape; :mod:`dtwin.identify.split`). A healthy record cannot tell the
@@ -58,9 +58,9 @@ the union over the splits the record cannot reject. One more fit per shape.
 **A planet fault's flank** (``flanks=None``: on for a planet fault whose flank the spec does
 not name). A planet tooth meets the sun on one flank and the ring on the other, and a fault may
 weaken either or both (pitting of one flank, a crack or a missing tooth through both). The
-flank decides which mesh loses stiffness, and so the phase and level of every sideband: on a
-four-planet record with one planet flank pitted, a fit on the wrong flank reads the fault
-2.5–130× small, with a loss 2–6 times the right one's. The flank is a static field of the fault (a
+flank decides which mesh loses stiffness, and so the phase and level of every sideband: a fit
+on the wrong flank reads a one-flank fault far too small, with a loss several times the right
+one's (docs/identification.md). The flank is a static field of the fault (a
 new compiled fit each), so the fit is repeated on each flank of :data:`PLANET_FLANKS` and the
 flanks are scored as the loss shapes are: the flank of least loss is reported
 (`SeverityEstimate.flank`) and the intervals are the union over the flanks the record cannot

@@ -8,8 +8,7 @@ of the stiffness waveform's excitation fits the healthy record as well (or bette
 twin's own sun and ring excitations do not match the machine's). A tooth fault is not cancelled:
 its sidebands, the stiffness it removes (N/m) times the static mesh deflection, pass the
 response as it is, so a response too high at the mesh band reads the fault too small by the
-same factor (2.4–4.6× on a four-planet record whose calibration raised its response 19 dB over
-the band). The faulty record can tell the splits apart, since the fault's own lines fix the
+same factor. The faulty record can tell the splits apart, since the fault's own lines fix the
 response against the stiffness the fault removes.
 
 So a fault severity is fitted with both ends of the split: the calibrated spec as it is

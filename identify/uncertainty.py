@@ -40,8 +40,7 @@ leave is ``E = Σ w² E[r²]`` over the data points. The ratio ``R = ‖r‖² /
 fit: ≈ 1 when the twin explains the record up to noise, well above 1 when a model-form error
 stands above it. ``s²`` already grows with ``R``, but a model-form residual is not noise: it is
 coherent over whole bands, so the sandwich, which counts neighbours only to lag 4, understates
-how far it moves the estimate (on the independent records: a sun-fault severity 5× too small
-inside a ±20 % interval). The stated rule: when ``R > LACK_OF_FIT_LIMIT`` (2) the covariance is
+how far it moves the estimate. The stated rule: when ``R > LACK_OF_FIT_LIMIT`` (2) the covariance is
 multiplied by ``R`` (every interval widened by ``k = √R``), the widening is reported
 (``Uncertainty.widened``) and the fit's table says "widened ×k for lack of fit" instead of "ok";
 identifiability flags are judged on the widened intervals. Above ``MODEL_FORM_LIMIT`` (10: the
