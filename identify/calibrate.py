@@ -387,7 +387,8 @@ class CalibrationResult:
             status = p.status
             if p.note:
                 status += f" ({p.note})"
-            rows.append(f"{p.name:<24} {p.value:>12.4g} {p.sd:>10.2g} {p.unit:<6} {status}")
+            # six significant figures: a frequency knot of 2494.8 Hz is not 2495
+            rows.append(f"{p.name:<24} {p.value:>12.6g} {p.sd:>10.2g} {p.unit:<6} {status}")
         return "\n".join(rows)
 
     @property
