@@ -16,7 +16,8 @@
    and Jacobian from one primal-and-tangents solve per LM step, :func:`_residuals_fwd`; only
    the parameters that change the twin ride through the ODE, :func:`_value_and_jacfwd`; its
    cost against one simulation: benchmarks/README.md, "Fit") — or reverse mode (``jac="rev"``:
-   checkpointed adjoint, for many parameters); it stops on a Cauchy test or when the optimum is within `sigma_tol` standard errors (:func:`_make_solver`);
+   checkpointed adjoint, for many parameters); it stops on a Cauchy test or when the optimum
+   is within `sigma_tol` standard errors (:func:`_make_solver`);
 3. the best converged start is the answer; :mod:`dtwin.identify.uncertainty` adds intervals,
    correlations and identifiability flags from the residuals and Jacobian of the solver's last
    accepted step there (no further simulation).
