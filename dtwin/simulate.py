@@ -776,9 +776,8 @@ def simulate(
     # and where that fails too (or the response is not periodic) integrate in full
     tried = []
     for option in settling_sequence(solver):
-        ys, result, nsteps, method, defect = integrate_observables(twin, y0, t0, ts_np, fs_hi, f_sun,
-                                                          daq.quantity, option, dtmax, progress,
-                                                          start)
+        ys, result, nsteps, method, defect = integrate_observables(
+            twin, y0, t0, ts_np, fs_hi, f_sun, daq.quantity, option, dtmax, progress, start)
         if not check or defect is None or float(defect) <= solver.periodic_tolerance:
             break
         tried.append(f"{float(defect):.2g} after {option.periodic_settle:g} s")
