@@ -43,14 +43,9 @@ def _loss_profile(record, spec, location: str, kind: str, peaks: np.ndarray) -> 
 
     from dtwin.faults import severity_for_peak_loss
     from dtwin.identify.fit import _batched_residuals, make_problem
+    from dtwin.identify.low_band import LOW_BAND_LOCATIONS, with_low_band_problem
     from dtwin.identify.residuals import point_groups
-    from dtwin.identify.severity import (
-        LOW_BAND_LOCATIONS,
-        _fault_index,
-        _name,
-        _peak,
-        with_low_band_problem,
-    )
+    from dtwin.identify.severity import _fault_index, _name, _peak
 
     name = _name(location)
     problem, _ = make_problem(record, spec, [name], kind=kind, initial={name: 0.1})

@@ -51,7 +51,7 @@ from dtwin.spec import Spec, load_spec
 from dtwin.twin import Twin
 
 from .confounding import calibrated_excitation, calibration_confounding, needs_check
-from .low_band import with_low_band_problem
+from .low_band import LOW_BAND_LOCATIONS, with_low_band_problem
 from .operating_point import estimate_speed_profile, nominal_speed, resolve_speed
 from .params import ParameterSet
 from .residuals import (
@@ -78,10 +78,10 @@ from .uncertainty import MODEL_FORM_REASON, Uncertainty, analyse, expected_noise
 __all__ = ["FitResult", "Problem", "SOLVERS", "fit", "fit_batch", "make_problem", "stack_problems"]
 
 SOLVERS = ("lm", "gauss-newton", "dogleg")
-#: Fault locations whose split is scored with the low band too (as
-#: :data:`dtwin.identify.low_band.LOW_BAND_LOCATIONS`: the sun's and the ring's comb lies where
+#: Fault severities whose split is scored with the low band too: those of
+#: :data:`dtwin.identify.low_band.LOW_BAND_LOCATIONS` (the sun's and the ring's comb lies where
 #: the records put it).
-LOW_BAND_FAULTS = ("sun_fault", "ring_fault")
+LOW_BAND_FAULTS = tuple(f"{loc}_fault" for loc in LOW_BAND_LOCATIONS)
 #: Default statistical stopping rule: stop when the optimum is within this many standard
 #: errors of the accepted point (:func:`gauss_newton_step_in_sigma`). Above the ODE solver's
 #: noise floor: at rtol = 1e-4 the Gauss–Newton step at points within 0.03 in θ of the optimum
