@@ -66,6 +66,7 @@ from .residuals import (
     observe,
     point_groups,
     residual_count,
+    window_reach,
 )
 from .split import (
     SPLIT_CALIBRATED,
@@ -637,6 +638,8 @@ class FitResult:
             return "unconverged"
         if self.widened > 1.0:
             return f"widened ×{self.widened:.2g} for lack of fit"
+        if not self.uncertainty.white:
+            return f"residuals not white (p = {self.uncertainty.whiteness_p:.1g})"
         return "ok"
 
     def table(self) -> str:
@@ -1005,7 +1008,8 @@ def fit(
         unc = analyse(pset, theta, rs[best], Js[best], groups,
                       n_profiled_gains=problem.n_profiled_gains,
                       profile_fn=lambda ts: _batched_residuals(jnp.asarray(ts), problem, mode),
-                      expected_rss=expected, scan=_scanned(pset) if scan else ())
+                      expected_rss=expected, scan=_scanned(pset) if scan else (),
+                      reach=window_reach(problem.observations))
         if unc.better is None or len(relocated) >= MAX_RELOCATIONS:
             break
         # a severity's profile or a stiffness's scan passed a point of lower loss: the optimum
@@ -1187,7 +1191,8 @@ def fit_batch(
             unc = analyse(pset, th[i], np.asarray(rs[i]), np.asarray(Js[i]),
                           point_groups(prob.observations),
                           n_profiled_gains=prob.n_profiled_gains,
-                          expected_rss=expected_noise_rss(prob.observations))
+                          expected_rss=expected_noise_rss(prob.observations),
+                          reach=window_reach(prob.observations))
             if confounding and spec is not None and needs_check(pset.free, spec):
                 unc, _ = calibration_confounding(
                     prob, th[i], unc, spec, groups=point_groups(prob.observations),

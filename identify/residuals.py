@@ -594,6 +594,30 @@ def fitted_levels(signal, obs: Observation, gain=1.0):
     return np.asarray(jnp.exp(_expected_log(g * a, obs))), np.exp(np.asarray(obs.meas))
 
 
+#: DFT bins each side of a bin over which a Hann window spreads its noise (the window's
+#: transform has three non-zero taps on the bin grid).
+HANN_REACH_BINS = 2
+
+
+def window_reach(observations: Sequence[Observation]) -> int:
+    """Points of one group farther apart than this share no noise through the Hann window
+    (:data:`HANN_REACH_BINS` DFT bins, in points of each observation's grid; one more where
+    the points are interpolated between bins); the largest over `observations`
+    (:func:`dtwin.identify.uncertainty.residual_whiteness`)."""
+    out = HANN_REACH_BINS
+    for o in observations:
+        bin_hz = o.sample_rate / (o.n_samples if o.kind == "spectrum" else o.segment_len)
+        f, g = np.asarray(o.freqs), np.asarray(o.group)
+        step = np.diff(f)[(g[1:] == g[:-1]) & (np.diff(f) > 0)]
+        if step.size == 0:
+            continue
+        reach = math.ceil(HANN_REACH_BINS * bin_hz / float(np.median(step)) - 1e-9)
+        if np.any(np.asarray(o.w) > 1e-6):  # linear interpolation shares a bin between points
+            reach += 1
+        out = max(out, reach)
+    return out
+
+
 def point_groups(observations: Sequence[Observation]) -> np.ndarray:
     """Group id per residual (band, frame or envelope of each record): neighbouring points of
     one group are correlated (window leakage), different groups are not."""

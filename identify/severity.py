@@ -94,7 +94,8 @@ the hull with the delete-one-band jackknife interval
 severity beyond their noise — a model-form error that the loss, at the noise level, need not
 show — the interval grows with the disagreement, and the status says "widened by the band
 jackknife". So "ok" means the fit passed all of its own checks: converged, loss at the noise
-level (lack of fit) and bands that agree. It costs one least-squares step per band on the
+level (lack of fit), residuals white past the window's reach
+(:mod:`dtwin.identify.uncertainty`, "Whiteness") and bands that agree. It costs one least-squares step per band on the
 fit's Jacobian; ``jackknife=False`` (``--no-jackknife``) leaves it out, and with fewer than
 three bands there is nothing to leave out.
 """
@@ -208,7 +209,7 @@ class SeverityEstimate:
     def status(self) -> str:
         """``NOT DETERMINED`` (with the reason where the model does not fit the record at all:
         :data:`~dtwin.identify.uncertainty.MODEL_FORM_LIMIT`), ``widened ×k for lack of fit``,
-        ``unconverged``, ``widened by
+        ``unconverged``, ``residuals not white (p = …)``, ``widened by
         the band jackknife`` (the bands disagree beyond their noise: a model-form error, and
         the interval covers it) or ``ok``."""
         st = self.fit.status(f"{self.location}_fault")

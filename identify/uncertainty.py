@@ -48,6 +48,24 @@ residual's rms more than three times the noise's) no interval stands for the err
 parameter is NOT DETERMINED, "the model does not fit this record (loss R× the noise)", and its
 value is indicative only.
 
+**Whiteness** (:func:`residual_whiteness`). A model that explains the record up to noise
+leaves residuals whose correlation ends where the window's leakage ends: a Hann window spreads
+a bin's noise over its two neighbours each side, and points farther apart share none of it
+(``reach``: two DFT bins, in points of the fit's grid, :func:`dtwin.identify.residuals.window_reach`).
+A misfit spread over more bins than that — lines the record shows smeared by a speed that
+drifts, or shifted by a wrong speed, a response that bends across a band — correlates residuals
+beyond the reach, whether or not the loss stands above the noise. A line the model lacks or
+misses in height is a residual within the reach and is not seen here: the lack-of-fit rule
+and the band jackknife see it. The test is the
+portmanteau statistic of Ljung & Box (1978) over the ``L = 6`` lags past the reach,
+``Q = Σ n_ℓ ρ̂(ℓ)² / b`` with ``ρ̂(ℓ)`` the correlation of pairs of one band at lag ``ℓ``,
+``n_ℓ`` their number and ``b = 1 + 2 Σ_{k ≤ reach} ρ̂(k)²`` Bartlett's (1946) variance factor for
+lags beyond a correlation of finite reach; under white noise past the reach ``Q ~ χ²_L``.
+Below ``p = WHITENESS_P`` (0.001; under the null the test is uniform, ``tests/test_whiteness.py``)
+the residuals are called not white, and the
+fit's status says so instead of "ok" (``Uncertainty.whiteness_p``); the intervals are not
+widened by it (the lack-of-fit rule and the band jackknife size them).
+
 **Band jackknife** (:func:`band_jackknife`). The lack-of-fit rule widens only when the loss
 stands above the noise; a model-form error can also hide at the noise level and still move an
 estimate (a wrong fault shape shifts every sideband of one band together, and each band by a
@@ -93,10 +111,11 @@ import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.stats import chi2
 from scipy.stats import t as student_t
 
-__all__ = ["LACK_OF_FIT_LIMIT", "Uncertainty", "analyse", "band_jackknife", "expected_noise_rss",
-           "noise_mse", "residual_correlation"]
+__all__ = ["LACK_OF_FIT_LIMIT", "WHITENESS_P", "Uncertainty", "analyse", "band_jackknife",
+           "expected_noise_rss", "noise_mse", "residual_correlation", "residual_whiteness"]
 
 Z95 = 1.959963984540054
 CHI2_95 = 3.841458820694124
@@ -114,6 +133,11 @@ LACK_OF_FIT_LIMIT = 2.0
 MODEL_FORM_LIMIT = 10.0
 #: The start of the reason given for a parameter of a fit above :data:`MODEL_FORM_LIMIT`.
 MODEL_FORM_REASON = "the model does not fit this record"
+#: p-value of the whiteness test below which a fit's residuals are called not white (module
+#: docstring, "Whiteness").
+WHITENESS_P = 1e-3
+#: Lags past the window's reach the whiteness test sums over.
+WHITENESS_LAGS = 6
 
 
 def half_width_scale(value: float, transform: str, lower: float, upper: float) -> float:
@@ -141,7 +165,9 @@ class Uncertainty:
       loss lies below the optimum's by more than the χ²₁ 95 % level (the optimum is a local
       one), else None;
     - `scanned`: names whose loss was scanned over a decade each side (``scan`` of
-      :func:`analyse`).
+      :func:`analyse`);
+    - `whiteness`, `whiteness_p`: the whiteness test's statistic and p-value
+      (:func:`residual_whiteness`; nan when not made).
     """
 
     names: tuple[str, ...]
@@ -164,6 +190,14 @@ class Uncertainty:
     widened: float = 1.0
     better: tuple[str, np.ndarray, float] | None = None
     scanned: tuple[str, ...] = ()
+    whiteness: float = float("nan")
+    whiteness_p: float = float("nan")
+
+    @property
+    def white(self) -> bool:
+        """False when the whiteness test rejects (p below :data:`WHITENESS_P`); True when it
+        passes or was not made."""
+        return not (np.isfinite(self.whiteness_p) and self.whiteness_p < WHITENESS_P)
 
     def to_dict(self) -> dict:
         return {
@@ -177,6 +211,7 @@ class Uncertainty:
             "s2": self.s2, "kappa": self.kappa, "m": self.m, "m_eff": self.m_eff, "dof": self.dof,
             "profiled": list(self.profiled), "scanned": list(self.scanned),
             "lack_of_fit": self.lack_of_fit, "widened": self.widened,
+            "whiteness": self.whiteness, "whiteness_p": self.whiteness_p,
         }
 
 
@@ -201,6 +236,37 @@ def residual_correlation(r: np.ndarray, groups: np.ndarray, max_lag: int = MAX_L
             break
         rho.append(c)
     return np.asarray(rho)
+
+
+def residual_whiteness(r: np.ndarray, groups: np.ndarray, reach: int = 2,
+                       n_lags: int = WHITENESS_LAGS) -> tuple[float, float]:
+    """Ljung–Box statistic ``Q`` of the residuals' correlation between points of one group at
+    lags ``reach + 1 … reach + n_lags`` and its p-value under white noise past `reach` (χ² with
+    the number of lags that have pairs), with Bartlett's variance factor from the correlation
+    within `reach` (module docstring, "Whiteness"). (nan, nan) without pairs."""
+    r = np.asarray(r, dtype=float)
+    groups = np.asarray(groups)
+    ms = float(np.mean(r * r)) if r.size else 0.0
+    if ms == 0.0:
+        return float("nan"), float("nan")
+
+    def rho(lag):
+        if r.size <= lag:
+            return 0.0, 0
+        same = groups[lag:] == groups[:-lag]
+        n = int(np.count_nonzero(same))
+        return (float(np.mean(r[lag:][same] * r[:-lag][same]) / ms) if n else 0.0), n
+
+    b = 1.0 + 2.0 * sum(rho(k)[0] ** 2 for k in range(1, reach + 1))
+    q, dof = 0.0, 0
+    for lag in range(reach + 1, reach + 1 + n_lags):
+        c, n = rho(lag)
+        if n:
+            q += n * c * c / b
+            dof += 1
+    if not dof:
+        return float("nan"), float("nan")
+    return float(q), float(chi2.sf(q, dof))
 
 
 def _banded(groups: np.ndarray, rho: np.ndarray):
@@ -272,7 +338,7 @@ def expected_noise_rss(observations) -> float:
 
 def analyse(
     pset, theta, r, J, groups, *, n_profiled_gains: int = 0, profile_fn=None,
-    expected_rss: float | None = None, scan: Sequence[str] = (),
+    expected_rss: float | None = None, scan: Sequence[str] = (), reach: int | None = None,
 ) -> Uncertainty:
     """Covariance, intervals and identifiability flags (module docstring).
 
@@ -282,7 +348,8 @@ def analyse(
     profile likelihood of severities (optional); `expected_rss`: the loss the noise alone
     would leave (:func:`expected_noise_rss`; None: no lack-of-fit test); `scan`: free
     ``log`` parameters whose loss is scanned over a decade each side of the optimum (module
-    docstring, "Scan"; needs `profile_fn`).
+    docstring, "Scan"; needs `profile_fn`); `reach`: the window's reach in points
+    (:func:`dtwin.identify.residuals.window_reach`; None: no whiteness test).
     """
     theta = np.asarray(theta, dtype=float)
     r = np.asarray(r, dtype=float)
@@ -295,6 +362,8 @@ def analyse(
     s2 = float(np.sum(r[:m_data] ** 2) / dof)
     groups = np.concatenate([np.asarray(groups), -1 - np.arange(n_prior)])
     rho = residual_correlation(r[:m_data], groups[:m_data])
+    white_q, white_p = (residual_whiteness(r[:m_data], groups[:m_data], reach)
+                        if reach is not None else (float("nan"), float("nan")))
     kappa = float(1.0 + 2.0 * np.sum(rho[1:]))
     # scaled Jacobian and its SVD (columns scaled to unit norm: conditioning, null directions)
     col = np.linalg.norm(J, axis=0)
@@ -397,7 +466,7 @@ def analyse(
         correlation=corr, singular_values=sv, null_directions=null, not_determined=flags,
         s2=s2, kappa=kappa, m=m_data, m_eff=m_data / kappa, dof=dof, profiled=tuple(profiled),
         lack_of_fit=float(lack), widened=float(np.sqrt(widen)), better=better,
-        scanned=tuple(scanned),
+        scanned=tuple(scanned), whiteness=white_q, whiteness_p=white_p,
     )
 
 

@@ -6,7 +6,9 @@ Kernel: ``dtwin``, this interpreter (the venv's python), installed into ``sys.pr
 The notebooks are stored without outputs (checked here too), and ``notebooks/_build.py``, which
 writes them, reproduces them exactly. Notebooks run one after another on one xdist worker.
 
-All four run in ``make test`` in their short form (``SLOW`` is empty). Measured here, 2-core CPU
+01 and 04 run in ``make test`` in their short form; 02 and 03 (the two longest, 211 s and
+307 s of a fresh 2-core run's pytest time) run in ``make test-all`` (``SLOW``): what they show is
+tested in ``make test`` by the drive comparison's and identification's own tests. Measured here, 2-core CPU
 shared with other jobs (never quiet; warm JAX compilation cache in ``.venv/jax-cache``), each
 notebook alone in ``pytest -n 0``, 2026-11-22:
 
@@ -38,8 +40,12 @@ NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
 SKIP: dict[str, str] = {}
 
 #: Notebooks too slow for `make test` even with FULL = False (marked slow, run by
-#: `make test-all`). Empty: all four run in CI in their short form.
-SLOW: dict[str, str] = {}
+#: `make test-all`), with what tests their subject in `make test`.
+SLOW: dict[str, str] = {
+    "02_the_motor.ipynb": "the drive comparison: tests/test_coupling.py, tests/test_motor*.py",
+    "03_identification.ipynb": "identification: tests/test_identify_fit.py, "
+                               "tests/test_one_fault_depth.py",
+}
 
 
 
