@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -43,10 +44,19 @@ def static_balance(twin: Twin, omega_c):
     **Returns:** `(A, keep, K, F, torque_sun)`: the kinematic map, the integration coordinates
     other than the carrier angle, the stiffness and static forces over them, and the sun torque
     that balances the load."""
-    A = jnp.asarray(twin.kinematic_map())
+    A, K, F, torque_sun = _stiffness_and_forces(twin, jnp.asarray(omega_c, dtype=jnp.float64))
     ic = twin._index("theta_c")
     keep = np.array([i for i in range(twin.n_dof) if i != ic])
+    return A, keep, K[np.ix_(keep, keep)], F[keep], torque_sun
+
+
+@eqx.filter_jit
+def _stiffness_and_forces(twin: Twin, omega_c):
+    """The kinematic map, stiffness and static forces over all integration coordinates, and the
+    sun torque: one compiled program (a twin is built outside any `jit`, and this Jacobian's
+    few hundred operations, run one by one, cost seconds of compilation in every new process;
+    compiled together they are one entry of the persistent compilation cache)."""
+    A = jnp.asarray(twin.kinematic_map())
     K = A.T @ twin.linear_stiffness(modal=False) @ A
     f, torque_sun = static_forces(twin, omega_c)
-    F = A.T @ twin.pack(f)
-    return A, keep, K[np.ix_(keep, keep)], F[keep], torque_sun
+    return A, K, A.T @ twin.pack(f), torque_sun

@@ -135,9 +135,17 @@ def load_share_offsets(twin, shares, f_sun) -> Float[Array, " N"]:
 
     **Returns:** `e` (m), shape (N,); positive relieves a planet.
     """
+    return _load_share_offsets(twin, jnp.asarray(shares, dtype=jnp.float64),
+                               jnp.asarray(f_sun, dtype=jnp.float64))
+
+
+@eqx.filter_jit
+def _load_share_offsets(twin, shares, f_sun):
+    """:func:`load_share_offsets` as one compiled program (a twin is built outside any `jit`;
+    run operation by operation, its Jacobians cost seconds of compilation in every new
+    process)."""
     lp, n = twin.lp, twin.n_planets
-    s = jnp.asarray(shares, dtype=jnp.float64)
-    s = s / jnp.mean(s)
+    s = shares / jnp.mean(shares)
     rs, _ = twin.kinematic_ratios
     A, keep, K, F, _ = static_balance(
         twin, 2.0 * jnp.pi * jnp.asarray(f_sun, dtype=jnp.float64) / rs)
