@@ -11,25 +11,25 @@ points it at ``.venv/jax-cache`` so that test runs leave the user's cache alone.
 
 JAX never writes a program that calls back to the host to the persistent cache, and equinox's
 run-time checks (``eqx.error_if``, inside diffrax, optimistix and lineax) raise through such a
-callback by default, so the ODE solves and the fits are compiled anew in every process; only
-small programs are read back. With ``EQX_ON_ERROR=nan`` set in the environment before equinox
-is imported (a failed check returns NaN; dtwin runs those solvers with ``throw=False`` and
-reads their result codes, and the motor checks whose message a user needs raise explicitly)
-the solves and fits are cached too: a fit of a 60 s record then took 18 s instead of 27 s on
-its next run, discovery 52 s instead of 61 s. dtwin does not set it for you: in one of two
-full test runs with it, XLA aborted the process while serializing a fit for the cache
-(``Fatal Python error: Aborted`` in ``executable.serialize()``, jax/jaxlib 0.10.2 on the
-2-core CPU; not reproduced alone), and an abort cannot be caught. XLA's CPU compiler has since
-killed test processes without it too (an abort and a segmentation fault inside
-``backend_compile_and_load``), so the setting may not be the cause; it stays opt-in until that
-is known.
+callback by default, which would keep every ODE solve and fit out of the cache. dtwin therefore
+sets ``EQX_ON_ERROR=nan`` in the environment before equinox is imported (unless it is set
+already: ``EQX_ON_ERROR=raise`` restores equinox's default): a failed check returns NaN, dtwin
+runs its solvers with ``throw=False`` and reads their result codes, and the motor checks whose
+message a user needs raise explicitly (``on_error="raise"``). The solves and fits then reach the
+cache, and a second command reads them back instead of compiling them again. (A script that
+imports equinox, diffrax or optimistix before dtwin keeps equinox's default.) It was opt-in for
+a while: XLA once aborted a test process while writing a fit to the cache, the failure that
+running out of memory mappings gives (:mod:`dtwin._maps`, which now keeps processes under the
+limit).
 """
 
 from __future__ import annotations
 
 import os
 
-import jax
+os.environ.setdefault("EQX_ON_ERROR", "nan")  # before equinox is imported (module docstring)
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 

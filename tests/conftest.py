@@ -15,7 +15,7 @@ from _bench import bench_calibration  # noqa: E402,F401
 # the spec calibrated on the independent records' baseline-1, one per session (tests/_independent.py)
 from _independent import independent_calibrated_spec, independent_calibration  # noqa: E402,F401
 
-import dtwin  # noqa: E402,F401  (configures the compilation cache)
+import dtwin  # noqa: E402,F401  (the compilation cache; equinox's checks as NaN: dtwin._config)
 from dtwin import _maps  # noqa: E402
 
 

@@ -67,17 +67,31 @@ print(repr(res.values["sun_fault"]), len(res.loss_history))
 """
 
 
+def test_equinox_checks_return_nan_unless_the_user_says_otherwise():
+    """`import dtwin` sets ``EQX_ON_ERROR=nan`` before equinox is imported, and keeps a value
+    the user set."""
+    import subprocess
+
+    code = "import dtwin, equinox, os; print(os.environ['EQX_ON_ERROR'])"
+    environ = {k: v for k, v in os.environ.items() if k != "EQX_ON_ERROR"}
+    for given, seen in ((None, "nan"), ("raise", "raise")):
+        env = environ if given is None else {**environ, "EQX_ON_ERROR": given}
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                             text=True, timeout=120, check=True).stdout.strip()
+        assert out == seen, (given, out)
+
+
 def test_simulation_and_fit_are_written_to_the_compilation_cache(tmp_path):
-    """With ``EQX_ON_ERROR=nan`` (dtwin._config: equinox's default checks call back to the
-    host), a fit compiles the ODE solve and the solver loop once per machine, not once per
-    process: both programs reach the persistent cache (the fit's own loss history is kept in
-    the solver's state, not sent by a callback, which would keep it out), and a second process
-    reads them back and gets the same fit."""
+    """By default (dtwin._config sets ``EQX_ON_ERROR=nan``: equinox's default checks call back
+    to the host) a fit compiles the ODE solve and the solver loop once per machine, not once
+    per process: both programs reach the persistent cache (the fit's own loss history is kept
+    in the solver's state, not sent by a callback, which would keep it out), and a second
+    process reads them back and gets the same fit."""
     import subprocess
 
     cache = tmp_path / "cache"
-    env = {**os.environ, "DTWIN_JAX_CACHE": str(cache), "JAX_ENABLE_X64": "1",
-           "EQX_ON_ERROR": "nan"}
+    env = {k: v for k, v in os.environ.items() if k != "EQX_ON_ERROR"}
+    env.update({"DTWIN_JAX_CACHE": str(cache), "JAX_ENABLE_X64": "1"})
     outs = [subprocess.run([sys.executable, "-c", _FIT_TWICE], env=env, capture_output=True,
                            text=True, timeout=600, check=True).stdout.split()
             for _ in range(2)]
