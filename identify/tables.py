@@ -28,7 +28,8 @@ def _unit(name: str) -> str:
 def fit_rows(result: Any) -> list[dict[str, Any]]:
     """One row per fitted parameter of a :class:`dtwin.identify.fit.FitResult`: ``parameter``,
     ``unit``, ``initial``, ``fitted``, ``lower_95``, ``upper_95``, ``status`` (ok,
-    unconverged, NOT DETERMINED, widened ×k for lack of fit: ``FitResult.status``)."""
+    unconverged, NOT DETERMINED, widened ×k for lack of fit, residuals not white:
+    ``FitResult.status``)."""
     rows = []
     nd = result.not_determined
     for i, n in enumerate(result.names):
