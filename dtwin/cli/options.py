@@ -604,6 +604,8 @@ def check_speed_against_lines(record: Any, spec: Any, f_sun: float | None, chann
                     raise RecordError(f"{path}: {e}") from None
                 raise RecordError(f"{no_line}: {e}") from None
         return None
+    if op.method == "tacho" and _tacho_varies(record):
+        return op  # a run-up or coast-down: no line stands at its mean speed; the fit follows it
     what = {"given": "--f-sun", "tacho": "the tachometer's speed",
             "metadata": "the record's metadata f_sun"}[op.method]
     res = check_speed(record, spec, op.f_sun, channel=channel, what=what)
@@ -618,6 +620,26 @@ def check_speed_against_lines(record: Any, spec: Any, f_sun: float | None, chann
                           "the record) or correct it")
     warn(f"{path}: {res.message}")
     return op
+
+
+#: Relative spread of the tachometer's speed (2nd to 98th percentile over the median) above
+#: which a record is a run-up or coast-down (as :func:`dtwin.identify.fleet.tasks.runup_range`).
+TACHO_SPEED_CHANGE = 0.03
+
+
+def _tacho_varies(record: Any) -> bool:
+    """Whether the record's tachometer speed changes by more than :data:`TACHO_SPEED_CHANGE`
+    of its median within the record: its mesh lines are then smeared over the speed range, and
+    the mean speed has none to be checked against."""
+    import numpy as np
+
+    from dtwin.order import shaft_speed, tacho_angle
+
+    fs = float(record.sample_rate)
+    sp = np.asarray(shaft_speed(tacho_angle(np.asarray(record.tacho, dtype=float), fs,
+                                            int(record.tacho_ppr)), fs), dtype=float)
+    med = float(np.median(sp))
+    return med > 0 and (np.percentile(sp, 98) - np.percentile(sp, 2)) / med > TACHO_SPEED_CHANGE
 
 
 class progress_line:
