@@ -51,8 +51,10 @@ __all__ = [
     "order_map",
     "order_spectrum",
     "resample_to_angle",
+    "RUNUP_SPEED_CHANGE",
     "shaft_speed",
     "tacho_angle",
+    "tacho_speed_range",
     "tacho_times",
     "waterfall",
 ]
@@ -141,6 +143,20 @@ def tacho_angle(
 def shaft_speed(angle: np.ndarray, sample_rate: float) -> np.ndarray:
     """Shaft rotation frequency (Hz) at every sample: ``dtheta/dt / 2 pi`` (central differences)."""
     return np.gradient(np.asarray(angle, dtype=np.float64)) * float(sample_rate) / (2 * np.pi)
+
+
+#: Relative change of the speed within a record (2nd to 98th percentile over the median) above
+#: which the record is a run-up or coast-down, not a steady run.
+RUNUP_SPEED_CHANGE = 0.03
+
+
+def tacho_speed_range(tacho: np.ndarray, sample_rate: float, ppr: int) -> tuple[float, float, float]:
+    """The 2nd percentile, 98th percentile and median (Hz) of the speed of the shaft a
+    tachometer (`ppr` pulses per revolution) is on, over the record."""
+    fs = float(sample_rate)
+    sp = np.asarray(shaft_speed(tacho_angle(np.asarray(tacho, dtype=np.float64), fs, int(ppr)),
+                                fs), dtype=float)
+    return float(np.percentile(sp, 2)), float(np.percentile(sp, 98)), float(np.median(sp))
 
 
 def _check_angle(angle: np.ndarray, n: int) -> np.ndarray:

@@ -95,8 +95,8 @@ severity beyond their noise — a model-form error that the loss, at the noise l
 show — the interval grows with the disagreement, and the status says "widened by the band
 jackknife". So "ok" means the fit passed all of its own checks: converged, loss at the noise
 level (lack of fit), residuals white past the window's reach
-(:mod:`dtwin.identify.uncertainty`, "Whiteness") and bands that agree. It costs one least-squares step per band on the
-fit's Jacobian; ``jackknife=False`` (``--no-jackknife``) leaves it out, and with fewer than
+(:mod:`dtwin.identify.uncertainty`, "Whiteness") and bands that agree. It costs one
+least-squares step per band on the fit's Jacobian; ``jackknife=False`` (``--no-jackknife``) leaves it out, and with fewer than
 three bands there is nothing to leave out.
 """
 

@@ -622,24 +622,15 @@ def check_speed_against_lines(record: Any, spec: Any, f_sun: float | None, chann
     return op
 
 
-#: Relative spread of the tachometer's speed (2nd to 98th percentile over the median) above
-#: which a record is a run-up or coast-down (as :func:`dtwin.identify.fleet.tasks.runup_range`).
-TACHO_SPEED_CHANGE = 0.03
-
-
 def _tacho_varies(record: Any) -> bool:
-    """Whether the record's tachometer speed changes by more than :data:`TACHO_SPEED_CHANGE`
-    of its median within the record: its mesh lines are then smeared over the speed range, and
-    the mean speed has none to be checked against."""
-    import numpy as np
+    """Whether the record's tachometer speed changes by more than
+    :data:`dtwin.order.RUNUP_SPEED_CHANGE` of its median within the record (a run-up or
+    coast-down): its mesh lines are then smeared over the speed range, and the mean speed has
+    none to be checked against."""
+    from dtwin.order import RUNUP_SPEED_CHANGE, tacho_speed_range
 
-    from dtwin.order import shaft_speed, tacho_angle
-
-    fs = float(record.sample_rate)
-    sp = np.asarray(shaft_speed(tacho_angle(np.asarray(record.tacho, dtype=float), fs,
-                                            int(record.tacho_ppr)), fs), dtype=float)
-    med = float(np.median(sp))
-    return med > 0 and (np.percentile(sp, 98) - np.percentile(sp, 2)) / med > TACHO_SPEED_CHANGE
+    lo, hi, med = tacho_speed_range(record.tacho, record.sample_rate, record.tacho_ppr)
+    return med > 0 and (hi - lo) / med > RUNUP_SPEED_CHANGE
 
 
 class progress_line:

@@ -18,7 +18,7 @@ import numpy as np
 from dtwin.build import SEVERITY_KIND, build_twin, twin_kind
 from dtwin.errors import DtwinError
 from dtwin.io.readers import read_record
-from dtwin.order import shaft_speed, tacho_angle
+from dtwin.order import RUNUP_SPEED_CHANGE, tacho_speed_range
 from dtwin.registry import ensure_parts, set_value
 from dtwin.spec import load_spec
 
@@ -281,11 +281,6 @@ def discover_task(job: Mapping[str, Any], spec_data: Mapping[str, Any], settings
     }
 
 
-
-#: Relative change of the input speed over a record above which it is a run-up (coast-down).
-RUNUP_SPEED_CHANGE = 0.03
-
-
 def runup_range(rec, spec, channel: str | int = 0) -> tuple[float, float] | None:
     """The input-speed range (Hz, with a 3 % margin) of a run-up or coast-down, or None for a
     steady record.
@@ -293,17 +288,14 @@ def runup_range(rec, spec, channel: str | int = 0) -> tuple[float, float] | None
     The speed comes from the tachometer when the record has one (its 2nd and 98th
     percentiles), else from the strongest line near the mesh frequency in each quarter of the
     record (a run-up moves it monotonically). A record is a run-up when the speed changes by
-    more than :data:`RUNUP_SPEED_CHANGE` of its median.
+    more than :data:`dtwin.order.RUNUP_SPEED_CHANGE` of its median.
     """
     fs = float(rec.sample_rate)
     gs = spec.gear_set()
     to_sun = (gs.z_sun + gs.z_ring) / gs.z_sun
     if rec.tacho is not None and rec.tacho_ppr:
-        ang = tacho_angle(np.asarray(rec.tacho), fs, int(rec.tacho_ppr))
-        sp = np.asarray(shaft_speed(ang, fs), dtype=float)
-        if rec.tacho_shaft == "carrier":
-            sp = sp * to_sun
-        lo, hi = float(np.percentile(sp, 2)), float(np.percentile(sp, 98))
+        lo, hi, med = (v * (to_sun if rec.tacho_shaft == "carrier" else 1.0)
+                       for v in tacho_speed_range(rec.tacho, fs, rec.tacho_ppr))
         monotone = True
     else:
         nominal = spec["operating"].get("f_sun")
@@ -322,10 +314,9 @@ def runup_range(rec, spec, channel: str | int = 0) -> tuple[float, float] | None
                 return None
             sp.append(float(f[sel][np.argmax(amp[sel])]) / mesh_order)
         sp = np.asarray(sp)
-        lo, hi = float(sp.min()), float(sp.max())
+        lo, hi, med = float(sp.min()), float(sp.max()), float(np.median(sp))
         d = np.diff(sp)
         monotone = bool(np.all(d >= 0) or np.all(d <= 0))
-    med = float(np.median(sp))
     if med <= 0 or not monotone or (hi - lo) / med <= RUNUP_SPEED_CHANGE:
         return None
     return (0.97 * lo, 1.03 * hi)
