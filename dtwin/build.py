@@ -102,9 +102,22 @@ def spec_parts(spec, *, faults: tuple[AbstractFault, ...] | None = None) -> list
             window_exponent=jnp.asarray(float(sensor["window_exponent"])),
             window_harmonics=(None if sensor["window_harmonics"] is None else
                               jnp.asarray(sensor["window_harmonics"], dtype=jnp.float64)),
+            ring_weight=jnp.asarray(_housing_weight(spec)),
+            force_weight=jnp.asarray(_housing_weight(spec)),
+            highpass_hz=jnp.asarray(float(sensor["mount_hz"])),
         )
     )
     return parts
+
+
+def _housing_weight(spec) -> float:
+    """The transfer path's weights ``m_ring / housing_mass`` (1) of the ring's acceleration and of
+    the windowed mesh forces: the path reads the forces on the ring over the ring's mass, a
+    housing of mass `sensor.housing_mass` (kg) that carries the ring reads them over its own."""
+    mass = spec["sensor"]["housing_mass"]
+    if mass is None:
+        return 1.0
+    return float(lumped_from_spec(spec).m_ring) / float(mass)
 
 
 

@@ -193,6 +193,14 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
         "window_exponent": FieldSpec("float", "1", 4.0, 0.0, 64.0,
                                      doc="transfer-path window ((1 + cos φ)/2)^p of a planet's "
                                          "angle φ to the sensor (dtwin/parts/transfer_path.py)"),
+        "housing_mass": FieldSpec("float", "kg", None, 1e-2, 1e5,
+                                  doc="mass of the housing the sensor sits on, gear set included: "
+                                      "a dynamic mesh force F reads F / housing_mass at the sensor "
+                                      "(none: the ring's mass, a ring without a housing)"),
+        "mount_hz": FieldSpec("float", "Hz", 50.0, 0.1, 1e5,
+                              doc="rigid-body resonance of the housing on its mounts: below it "
+                                  "the sensor sees a slow force through the mounts' stiffness "
+                                  "(acceleration falling as f²), above it through the mass"),
         "passband": FieldSpec("float", "1", 0.45, 0.3, 0.49,
                               doc="end of the DAQ's anti-aliasing pass band, a fraction of "
                                   "sample_rate: 0.45 for a delta-sigma DAQ (the default), "

@@ -7,8 +7,11 @@ default `PlanetPassTransferPath` (McFadden & Smith 1985) sees
 - the ring's translational acceleration, converted from the carrier frame to the fixed frame
   (``R(theta_c) [r'' + 2 W J r' - W^2 r + W' J r]``, ``W = theta_c'``, ``J`` = rotation by 90°),
   projected on the sensor direction; and
-- each planet's ring-mesh contact force ``F_rp_i`` (N) divided by the ring mass (a force → local
-  acceleration scale), weighted by a window of the planet's angle to the sensor,
+- each planet's ring-mesh contact force ``F_rp_i`` (N) divided by the ring mass and multiplied
+  by `force_weight` (a force → acceleration scale; a spec's ``[sensor] housing_mass`` ``M``
+  sets ``force_weight = m_ring / M``, so the force reads ``F / M``: the housing, gear set
+  included, moving as one body above its mounts), weighted by a window of the planet's angle
+  to the sensor,
   ``w(phi) = ((1 + cos phi) / 2) ** window_exponent``, ``phi = theta_c + psi_i - sensor_angle``:
   1 when the planet passes under the sensor, 0 on the far side. ``window_exponent`` controls
   the window width (1: raised cosine; larger: narrower). A calibrated twin gives the window's
@@ -18,8 +21,13 @@ default `PlanetPassTransferPath` (McFadden & Smith 1985) sees
   ODE. An accelerometer on a housing does not
   see the quasi-static part of a force that travels past it (the static mesh load carried round
   by the carrier), only its dynamic part: the windowed force goes through a high-pass
-  ``1 - L(s)``, ``L`` a second-order Butterworth low-pass at `highpass_hz` (default 50 Hz, far
-  below the mesh frequency), whose two states are the part's own. A run therefore needs a
+  ``1 - L(s)``, ``L`` a second-order Butterworth low-pass at `highpass_hz` (a spec's ``[sensor]
+  mount_hz``, default 50 Hz, below the mesh frequency), whose two states are the part's own.
+  ``(1 - L(s)) / M`` is the acceleration of a mass ``M`` on mounts of stiffness
+  ``M (2 pi highpass_hz)²`` (damping ratio 1/√2) driven by the force: above the mounting
+  resonance the mass decides (``F / M``), below it the mounts' stiffness (``F ω² / k``), so a
+  static planet load carried round at the planet-pass frequency reaches the sensor as a
+  deflection of the mounts, not as the housing's free acceleration. A run therefore needs a
   short transient (a few /`highpass_hz`) discarded.
 
 The sensor direction is the unit vector at `direction_angle` in the fixed frame (default
