@@ -197,7 +197,7 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
                                   doc="mass of the housing the sensor sits on, gear set included: "
                                       "a dynamic mesh force F reads F / housing_mass at the sensor "
                                       "(none: the ring's mass, a ring without a housing)"),
-        "mount_hz": FieldSpec("float", "Hz", 50.0, 0.1, 1e5,
+        "mount_hz": FieldSpec("float", "Hz", 50.0, 0.1, 1e4,
                               doc="rigid-body resonance of the housing on its mounts: below it "
                                   "the sensor sees a slow force through the mounts' stiffness "
                                   "(acceleration falling as f²), above it through the mass"),

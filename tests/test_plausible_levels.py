@@ -70,6 +70,8 @@ def test_bad_housing_is_a_clear_error():
 
     with pytest.raises(SpecError, match="housing_mass"):
         _bench({"housing_mass": -1.0})
+    with pytest.raises(SpecError, match="mount_hz"):
+        _bench({"mount_hz": 1e6})  # a mount far stiffer than any housing: a unit slip
 
 
 def test_a_housing_on_its_mounts_reads_a_bench_level():
