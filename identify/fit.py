@@ -54,6 +54,7 @@ from .confounding import calibrated_excitation, calibration_confounding, needs_c
 from .low_band import LOW_BAND_LOCATIONS, with_low_band_problem
 from .operating_point import estimate_speed_profile, nominal_speed, resolve_speed
 from .params import ParameterSet
+from .plausibility import MESHES, flag_implausible
 from .residuals import (
     FAILED_RESIDUAL,
     Features,
@@ -743,6 +744,13 @@ def _as_twin(spec_or_twin, kind: str | None):
     return build_twin(spec, kind=twin_kind(spec, kind))
 
 
+def _spec_of(spec_or_twin) -> Spec | None:
+    """The spec (None: a twin, which carries no geometry to check a fitted value against)."""
+    if isinstance(spec_or_twin, Twin):
+        return None
+    return spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
+
+
 def _calibrated_spec(spec_or_twin) -> Spec | None:
     """The spec when it was written by ``dtwin calibrate`` (None: a twin or an uncalibrated
     spec)."""
@@ -1042,6 +1050,8 @@ def fit(
                 "clearances free) …")
             unc, _ = calibration_confounding(problem, theta, unc, spec, groups=groups,
                                              expected_rss=expected, jacobian=_jacobian)
+        if any(n in MESHES for n in pset.free):
+            unc = flag_implausible(unc, pset.as_dict(theta), _spec_of(spec_or_twin))
     at_bound = pset.at_bound(theta)
     hit_limit = int(steps[best]) >= max_steps
     converged = bool(ok[best]) and not hit_limit
@@ -1183,6 +1193,8 @@ def fit_batch(
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     wall = time.perf_counter() - t0
     spec = _calibrated_spec(spec_or_twin)
+    geometry = (_spec_of(spec_or_twin) if any(n in MESHES for n in problems[0].pset.free)
+                else None)
     out = []
     for i, prob in enumerate(problems):
         pset = prob.pset
@@ -1198,6 +1210,7 @@ def fit_batch(
                     prob, th[i], unc, spec, groups=point_groups(prob.observations),
                     expected_rss=expected_noise_rss(prob.observations),
                     jacobian=_jacobian)
+            unc = flag_implausible(unc, pset.as_dict(th[i]), geometry)
         at_bound = pset.at_bound(th[i])
         out.append(FitResult(
             names=pset.free, values=pset.as_dict(th[i]), theta=th[i],
