@@ -14,7 +14,8 @@ mesh stiffnesses of steel pairs fall within them.
 more than :data:`ISO_FACTOR` times above or below the ISO 6336-1 value of the spec's own
 geometry and material (computed as :func:`dtwin.spec.lumped_from_spec` computes it when the
 spec gives no stiffness) is flagged NOT DETERMINED, with the ratio in the reason and the value
-kept as indicative. A spec whose gears are not steel states its Young's modulus, which the ISO
+kept as indicative; so is every parameter fitted beside it, whose value and interval hold only
+at that stiffness. A spec whose gears are not steel states its Young's modulus, which the ISO
 value follows through ``c'``'s material factor. A twin passed without its spec is not checked.
 """
 
@@ -65,11 +66,17 @@ def implausible_stiffness(values: dict[str, Any], spec) -> dict[str, str]:
 
 def flag_implausible(unc, values: dict[str, Any], spec):
     """`unc` (:class:`dtwin.identify.uncertainty.Uncertainty`) with the implausible mesh
-    stiffnesses of `values` added to ``not_determined`` (a flag already there is kept)."""
+    stiffnesses of `values` (the fit's free parameters) added to ``not_determined``, and every
+    other free parameter flagged as fitted beside them: its value and interval hold only at a
+    stiffness the gear pair cannot have. A flag already there is kept."""
     flags = implausible_stiffness(values, spec)
     if unc is None or not flags:
         return unc
     merged = dict(unc.not_determined)
     for n, why in flags.items():
         merged.setdefault(n, why)
+    bent = ", ".join(flags)
+    for n in values:
+        merged.setdefault(n, f"fitted beside an implausible mesh stiffness ({bent}): its value "
+                             "and interval hold only at that stiffness (value indicative)")
     return dataclasses.replace(unc, not_determined=merged)

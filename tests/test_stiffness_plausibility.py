@@ -66,5 +66,11 @@ def test_the_flag_enters_the_fits_uncertainty():
                   np.arange(m))
     assert unc.not_determined == {}
     flagged = flag_implausible(unc, pset.as_dict(np.zeros(2)), load_spec(MCFADDEN))
-    assert list(flagged.not_determined) == ["k_sun_planet"]
+    assert sorted(flagged.not_determined) == ["k_sun_planet", "sun_fault"]
+    assert "ISO 6336-1" in flagged.not_determined["k_sun_planet"]
+    assert flagged.not_determined["sun_fault"].startswith(
+        "fitted beside an implausible mesh stiffness (k_sun_planet)")
     assert unc.not_determined == {}  # the input is not modified
+    plausible = flag_implausible(unc, {"k_sun_planet": 2.0e8, "sun_fault": 0.3},
+                                 load_spec(MCFADDEN))
+    assert plausible.not_determined == {}
