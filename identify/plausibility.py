@@ -6,17 +6,18 @@ to stand in for it: the fit then finds a value with a narrow interval that only 
 the stand-in is pinned. The interval cannot say that the value is physically out of reach;
 the gear pair's geometry can. ISO 6336-1:2006, clause 9, method B, gives the mean mesh
 stiffness of a steel spur pair from its teeth, profile shifts, face width and load
-(:func:`dtwin.stiffness.mesh_stiffness_mean`); its corrections for rim, basic rack, material and
-load each move the single-pair stiffness ``c'`` by well under a factor of two, and measured
-mesh stiffnesses of steel pairs fall within them.
+(:func:`dtwin.stiffness.mesh_stiffness_mean`); its corrections for rim, basic rack and load
+each move the single-pair stiffness ``c'`` by well under a factor of two. For another material
+pairing ``c'`` scales with the Young's modulus (ISO 6336-1, clause 9: ``c'`` of steel times
+``E / E_steel``, ``E_steel`` = 206 GPa); the check takes the spec's ``[material]
+youngs_modulus`` so.
 
 **The check** (:func:`implausible_stiffness`). A fitted ``k_sun_planet`` or ``k_ring_planet``
 more than :data:`ISO_FACTOR` times above or below the ISO 6336-1 value of the spec's own
 geometry and material (computed as :func:`dtwin.spec.lumped_from_spec` computes it when the
 spec gives no stiffness) is flagged NOT DETERMINED, with the ratio in the reason and the value
 kept as indicative; so is every parameter fitted beside it, whose value and interval hold only
-at that stiffness. A spec whose gears are not steel states its Young's modulus, which the ISO
-value follows through ``c'``'s material factor. A twin passed without its spec is not checked.
+at that stiffness. A twin passed without its spec is not checked.
 """
 
 from __future__ import annotations
@@ -30,19 +31,23 @@ ISO_FACTOR = 3.0
 """How far (a factor, either way) a fitted mean mesh stiffness may lie from the ISO 6336-1
 value of the spec's gear pair before it is flagged."""
 
+E_STEEL = 2.06e11
+"""Young's modulus of steel (Pa), the material ISO 6336-1's ``c'`` is given for."""
+
 MESHES = ("k_sun_planet", "k_ring_planet")
 """The registry names of the mean mesh stiffnesses the check covers (N/m)."""
 
 
 def iso_mesh_stiffness(spec) -> dict[str, float]:
     """ISO 6336-1 mean mesh stiffness (N/m) of each mesh of `spec` (a
-    :class:`dtwin.spec.Spec`), from its geometry, material and load, whatever stiffness the
-    spec itself gives."""
+    :class:`dtwin.spec.Spec`), from its geometry and load, scaled by its Young's modulus over
+    steel's, whatever stiffness the spec itself gives."""
     data = spec_to_dict(spec)
     data.pop("source", None)
     data["mesh"] = {k: v for k, v in data.get("mesh", {}).items() if k not in MESHES}
     lp = lumped_from_spec(load_spec(data))
-    return {name: float(getattr(lp, name)) for name in MESHES}
+    material = float(spec["material"]["youngs_modulus"]) / E_STEEL
+    return {name: float(getattr(lp, name)) * material for name in MESHES}
 
 
 def implausible_stiffness(values: dict[str, Any], spec) -> dict[str, str]:

@@ -42,6 +42,11 @@ def test_iso_value_is_a_steel_pairs_and_ignores_the_specs_own_stiffness():
     d.pop("source", None)
     d["mesh"]["k_sun_planet"] = 1e6
     assert iso_mesh_stiffness(load_spec(d)) == pytest.approx(iso, rel=1e-12)
+    # another material: c' scales with E (ISO 6336-1, clause 9); a polymer pair (E = 3 GPa)
+    d["material"]["youngs_modulus"] = 3e9
+    polymer = iso_mesh_stiffness(load_spec(d))
+    assert polymer["k_sun_planet"] == pytest.approx(iso["k_sun_planet"] * 3e9 / 2.06e11, rel=1e-9)
+    assert not implausible_stiffness({"k_sun_planet": polymer["k_sun_planet"]}, load_spec(d))
 
 
 def test_the_independent_simulators_stiffness_passes_and_the_bent_fit_is_flagged():
