@@ -95,6 +95,7 @@ def spec_parts(spec, *, faults: tuple[AbstractFault, ...] | None = None) -> list
         d_angle = float(sensor["angle"])
     else:  # tangential
         d_angle = float(sensor["angle"]) + math.pi / 2
+    weight = _housing_weight(spec)
     parts.append(
         PlanetPassTransferPath(
             sensor_angle=jnp.asarray(float(sensor["angle"])),
@@ -102,8 +103,8 @@ def spec_parts(spec, *, faults: tuple[AbstractFault, ...] | None = None) -> list
             window_exponent=jnp.asarray(float(sensor["window_exponent"])),
             window_harmonics=(None if sensor["window_harmonics"] is None else
                               jnp.asarray(sensor["window_harmonics"], dtype=jnp.float64)),
-            ring_weight=jnp.asarray(_housing_weight(spec)),
-            force_weight=jnp.asarray(_housing_weight(spec)),
+            ring_weight=jnp.asarray(weight),
+            force_weight=jnp.asarray(weight),
             highpass_hz=jnp.asarray(float(sensor["mount_hz"])),
         )
     )
@@ -118,7 +119,6 @@ def _housing_weight(spec) -> float:
     if mass is None:
         return 1.0
     return float(lumped_from_spec(spec).m_ring) / float(mass)
-
 
 
 def load_part(spec, load_torque: float | None = None) -> LoadPart:

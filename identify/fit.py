@@ -754,10 +754,17 @@ def _spec_of(spec_or_twin) -> Spec | None:
 def _calibrated_spec(spec_or_twin) -> Spec | None:
     """The spec when it was written by ``dtwin calibrate`` (None: a twin or an uncalibrated
     spec)."""
-    if isinstance(spec_or_twin, Twin):
-        return None
-    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
-    return spec if is_calibrated(spec) else None
+    spec = _spec_of(spec_or_twin)
+    return spec if spec is not None and is_calibrated(spec) else None
+
+
+def _checked_stiffness(unc, pset, theta, spec_or_twin):
+    """`unc` with a free mesh stiffness that the spec's gear pair cannot have flagged, and
+    the parameters fitted beside it (:mod:`dtwin.identify.plausibility`); the spec is read only
+    when a mesh stiffness is free."""
+    if unc is None or not any(n in MESHES for n in pset.free):
+        return unc
+    return flag_implausible(unc, pset.as_dict(theta), _spec_of(spec_or_twin))
 
 
 def make_problem(
@@ -1050,8 +1057,7 @@ def fit(
                 "clearances free) …")
             unc, _ = calibration_confounding(problem, theta, unc, spec, groups=groups,
                                              expected_rss=expected, jacobian=_jacobian)
-        if any(n in MESHES for n in pset.free):
-            unc = flag_implausible(unc, pset.as_dict(theta), _spec_of(spec_or_twin))
+        unc = _checked_stiffness(unc, pset, theta, spec_or_twin)
     at_bound = pset.at_bound(theta)
     hit_limit = int(steps[best]) >= max_steps
     converged = bool(ok[best]) and not hit_limit
@@ -1193,8 +1199,6 @@ def fit_batch(
     th, ok, steps, fl = (np.asarray(th), np.asarray(ok), np.asarray(steps), np.asarray(fl))
     wall = time.perf_counter() - t0
     spec = _calibrated_spec(spec_or_twin)
-    geometry = (_spec_of(spec_or_twin) if any(n in MESHES for n in problems[0].pset.free)
-                else None)
     out = []
     for i, prob in enumerate(problems):
         pset = prob.pset
@@ -1210,7 +1214,7 @@ def fit_batch(
                     prob, th[i], unc, spec, groups=point_groups(prob.observations),
                     expected_rss=expected_noise_rss(prob.observations),
                     jacobian=_jacobian)
-            unc = flag_implausible(unc, pset.as_dict(th[i]), geometry)
+            unc = _checked_stiffness(unc, pset, th[i], spec_or_twin)
         at_bound = pset.at_bound(th[i])
         out.append(FitResult(
             names=pset.free, values=pset.as_dict(th[i]), theta=th[i],
