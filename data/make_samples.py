@@ -47,7 +47,7 @@ from dtwin.spec import preset
 OUT = Path(__file__).resolve().parent / "samples"
 F_SUN = 29.7  # Hz: the bench's actual 1782 rpm
 SNR_DB = 25.0
-TRUTH_EXTRA = dict(te_amplitude=0.5e-6, te_harmonics=(1.0, 0.3), planet_position_errors=(0.0, 4e-4, -3e-4))
+TRUTH_EXTRA = dict(te_amplitude=0.5e-6, te_harmonics=(1.0, 0.3), planet_position_errors=(0.0, 1e-4, -7.5e-5))
 
 RECORDS = {
     "bench_healthy": dict(faults=(), duration=4.0, seed=1),
