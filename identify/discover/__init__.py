@@ -10,7 +10,9 @@ base twin simulated over the record; then per step
 2. the candidates whose signature covers at least `min_coverage` of the residual line power
    (measured over model; :func:`coverage`) are each scored at zero amplitude by a score test
    (:func:`~dtwin.identify.discover.statistics.screen_score`: one response column per
-   parameter, no refit) and the best `max_refit` by score are refit;
+   parameter, no refit) and the best `max_refit` by score are refit (when those are all
+   look-alikes of one group, the best candidate of another group too, so that two kinds of
+   explanation are compared);
 3. each is refit about the current model (below) and scored on held-out data: statistic ``T``,
    bootstrap p-value, held-out gap (:mod:`dtwin.identify.gap`) and parameter intervals;
 4. kept: among candidates with ``p <= alpha / K`` (Bonferroni over the K scored; family-wise level

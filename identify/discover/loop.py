@@ -133,6 +133,21 @@ def _labelled(lines, kin, tol, f_max, added_fx=()):
     return lines, combs, mod
 
 
+
+def _refit_set(covering, candidates, max_refit: int):
+    """The candidates a step refits: the first `max_refit` of `covering` (ranked), and, when
+    there are two or more and all of them are look-alikes of one group (members that make the
+    same lines in different ways, :mod:`dtwin.identify.effects`), also the first candidate of
+    another group: a step compares explanations of two kinds, not only two members of one."""
+    ranked = list(covering[:max_refit])
+    groups = {candidates[i].group for _, i, _ in ranked}
+    if len(ranked) >= 2 and len(groups) == 1:
+        other = next((t for t in covering[max_refit:] if candidates[t[1]].group not in groups),
+                     None)
+        if other is not None:
+            ranked.append(other)
+    return ranked
+
 def discover(
     record,
     spec,
@@ -384,8 +399,13 @@ def discover(
                 scores[i] = screen_score(Z0, response_spectra(i), Y, floor, lg0, common)
             covering.sort(key=lambda t: (scores[t[1]][2], -t[0]))
             K_tried = len(covering)
-        ranked = covering[: settings.max_refit]
-        screened_out = covering[settings.max_refit:]
+        ranked = _refit_set(covering, candidates, settings.max_refit)
+        refit_idx = {i for _, i, _ in ranked}
+        screened_out = [t for t in covering if t[1] not in refit_idx]
+        if len(ranked) > settings.max_refit:
+            say(f"  the best {settings.max_refit} are look-alikes of group "
+                f"{candidates[ranked[0][1]].group}: {candidates[ranked[-1][1]].name} "
+                f"(group {candidates[ranked[-1][1]].group}) refit as well")
         if settings.screen == "coverage":
             K_tried = len(ranked)
         for k, (cov, i, _) in enumerate(covering):
