@@ -212,8 +212,13 @@ def test_true_candidate_ranks_first_by_score(name, effect, independent_calibrate
     first = min(cands, key=lambda c: c.score_rank)
     assert first.name == effect, [(c.name, c.score, c.score_rank) for c in cands]
     assert sorted(c.score_rank for c in cands) == list(range(1, len(cands) + 1))
+    # the best max_refit are refit, and the best of another group when those are all of one
+    top = [c for c in cands if c.score_rank <= QUICK["max_refit"]]
+    groups = {c.group for c in top}
+    others = sorted((c for c in cands if c.group not in groups), key=lambda c: c.score_rank)
+    extra = others[0].name if len(top) >= 2 and len(groups) == 1 and others else None
     for c in cands:
-        if c.score_rank > QUICK["max_refit"]:
+        if c.score_rank > QUICK["max_refit"] and c.name != extra:
             assert c.screened == (f"screened out, score {c.score:.3g} ({c.score_df} df), "
                                   f"rank {c.score_rank}")
             assert math.isnan(c.p_value)
