@@ -7,7 +7,8 @@ so that fits on them are not an inverse crime:
 - the full translational model (fits default to the torsional reduction or the spec's kind);
 - 20 stiffness harmonics instead of 12;
 - a static transmission error of 0.5 µm (first and second mesh harmonics);
-- small planet position errors (bench-like manufacturing errors);
+- planet pin-hole position errors of 0.1 and −0.075 mrad (5 and 4 µm: a precision carrier),
+  which load the planets unequally;
 - measurement noise at 25 dB SNR, and the DAQ's anti-aliasing filter (internal rate 4× the
   output rate, FIR low-pass, decimation), as `dtwin.simulate` records every signal.
 

@@ -133,7 +133,6 @@ def _labelled(lines, kin, tol, f_max, added_fx=()):
     return lines, combs, mod
 
 
-
 def _refit_set(covering, candidates, max_refit: int):
     """The candidates a step refits: the first `max_refit` of `covering` (ranked), and, when
     there are two or more and all of them are look-alikes of one group (members that make the
@@ -147,6 +146,7 @@ def _refit_set(covering, candidates, max_refit: int):
         if other is not None:
             ranked.append(other)
     return ranked
+
 
 def discover(
     record,
