@@ -10,7 +10,9 @@ so that fits on them are not an inverse crime:
 - planet pin-hole position errors of 0.1 and −0.075 mrad (5 and 4 µm: a precision carrier),
   which load the planets unequally;
 - measurement noise at 25 dB SNR, and the DAQ's anti-aliasing filter (internal rate 4× the
-  output rate, FIR low-pass, decimation), as `dtwin.simulate` records every signal.
+  output rate, FIR low-pass, decimation), as `dtwin.simulate` records every signal;
+- the `paper-bench` preset's housing, 20 kg on mounts at 200 Hz, so that the levels are a
+  bench's (healthy: 0.21 m/s² RMS, 1.6 mm/s, ISO 20816-3 zone B).
 
 Records (dtwin's own format, `*.dtwin.h5`; metadata hold the truth):
 
