@@ -390,7 +390,7 @@ def discover(
         if settings.screen == "score":
             # 3b. score every covering candidate at zero amplitude (one response column per
             # parameter, no refit), on one bin set shared by all: their signature bins and the
-            # model's lines; refit the best max_refit
+            # model's lines; refit the best max_refit (and another group's best: _refit_set)
             model.ensure_responses([i for _, i, _ in covering])
             common = model_line.copy()
             for _, i, _ in covering:

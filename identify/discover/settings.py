@@ -31,12 +31,11 @@ class DiscoverySettings:
     - `screen`: how the candidates to refit are chosen among those covering `min_coverage`:
       ``"score"`` (default) ranks every one of them by its score statistic at zero amplitude
       (:func:`dtwin.identify.discover.statistics.screen_score`: one response column per
-      parameter, no refit) and refits the best `max_refit` (and, when they are all
-      look-alikes of one group, the best candidate of another group); the Bonferroni
-      correction is then
+      parameter, no refit) and refits the best `max_refit`; the Bonferroni correction is then
       over every candidate scored, so the family-wise level `alpha` holds whatever the
       screening picks. ``"coverage"`` refits the `max_refit` of largest coverage, Bonferroni
-      over those refit.
+      over those refit. Either way, when the `max_refit` chosen are all look-alikes of one
+      group, the best candidate of another group is refit with them.
     - `min_coverage`: a candidate must cover this fraction of the residual line power.
     - `tie_db`: members of one look-alike group whose held-out gaps differ by less are not told
       apart (the group is named).
