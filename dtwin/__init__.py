@@ -8,6 +8,7 @@ these (and the submodules' documented functions).
 from . import (
     _cli_start,  # noqa: F401  (Ctrl-C while the dtwin command starts: one line, exit 130)
     _config,  # noqa: F401  (float64 + compilation cache, before anything else)
+    _moved,  # noqa: F401  (old import paths of moved modules keep working)
 )
 from ._version import __version__ as __version__
 from .build import build_twin as build_twin
