@@ -708,11 +708,56 @@ def _raise_for(result, t1) -> None:
     )
 
 
+def daq_grid(duration: float, discard: float, daq: DAQ) -> tuple[float, np.ndarray, np.ndarray]:
+    """The time grid a record of `duration` (s) after `discard` (s) is simulated on by `daq`:
+    ``(fs_hi, taps, ts)``, the oversampled rate (Hz), the anti-alias filter's taps and the
+    times (s, numpy): the output samples at ``fs_hi`` plus the filter's half-length on each
+    side. Built in numpy, so it serves inside `jit`/`vmap` too."""
+    fs_hi = float(daq.sample_rate) * daq.oversample
+    taps = daq_filter(daq.oversample, daq.passband)
+    half = (len(taps) - 1) // 2
+    n_hi = int(round(duration * float(daq.sample_rate))) * daq.oversample
+    return fs_hi, taps, float(discard) + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
+
+
+def step_limit(twin: Twin, f_sun: float, solver: SolverOptions) -> float:
+    """The solver's largest step (s): ``solver.dtmax``, else a tenth of the mesh period at the
+    input speed `f_sun` (Hz), ``f_mesh = f_sun z_ring / r_s`` with ``r_s`` the sun's kinematic
+    ratio (:attr:`dtwin.twin.Twin.kinematic_ratios`)."""
+    if solver.dtmax is not None:
+        return solver.dtmax
+    rs, _ = twin.kinematic_ratios
+    return 0.1 / max(float(f_sun) / rs * twin.lp.z_ring, 1.0)
+
+
+def drive_speed(twin: Twin, t: float | None = None) -> float:
+    """The input (sun) speed (Hz) the twin's drive is set to: its speed set point at time `t`
+    (s), or where the set point ends (a step's or ramp's final speed) when `t` is None or the
+    set point is not yet positive at `t`. The drive and the sun turn together (the shaft's
+    twist is small), so this is the sun's speed. Raises `SolverError` for a twin without a
+    drive part (pass `f_sun` to :func:`simulate` then)."""
+    drives = twin.find(DrivePart)
+    speed = getattr(drives[0].drive, "speed", None) if drives else None
+    if speed is None:
+        raise SolverError("the twin has no drive with a speed set point to read its input "
+                          "speed from: pass simulate(..., f_sun=HZ), or build the twin from a "
+                          "spec (dtwin.build_twin), which adds its drive")
+    omega = float(speed(jnp.asarray(t))) if t is not None else 0.0
+    if not omega > 0.0:
+        omega = float(speed.final)
+    if not (math.isfinite(omega) and omega > 0.0):
+        raise SolverError(f"the twin's drive is set to {omega / (2 * math.pi):g} Hz: pass "
+                          "simulate(..., f_sun=HZ) with the input speed")
+    # to 12 significant digits: undoes the last-bit rounding of the Hz -> rad/s conversion, so a
+    # twin built at 30 Hz reads 30 Hz (not 29.999999999999996) and runs as when told 30 Hz
+    return float(f"{omega / (2.0 * math.pi):.12g}")
+
+
 def simulate(
     twin: Twin,
     *,
     duration: float,
-    f_sun: float,
+    f_sun: float | None = None,
     daq: DAQ | None = None,
     start: str = "steady",
     discard: float = 0.0,
@@ -728,6 +773,7 @@ def simulate(
     - `twin`: the `Twin` (with a drive part to turn it, a load and a transfer path).
     - `duration`: length of the returned record (s), after `discard`.
     - `f_sun`: nominal input speed (Hz), used for the steady initial state and the step limit.
+      Default: the twin's drive (:func:`drive_speed`), so a twin built from a spec needs none.
     - `daq`: `DAQ` settings (default 5 kHz acceleration, no noise).
     - `start`: ``"steady"`` or ``"rest"`` (see `initial_state`).
     - `discard`: initial transient simulated but not returned (s).
@@ -753,25 +799,22 @@ def simulate(
     if discard < 0:
         raise ValueError(f"discard must be >= 0 s, got {discard}")
     fs_out = float(daq.sample_rate)
-    fs_hi = fs_out * daq.oversample
-    taps = daq_filter(daq.oversample, daq.passband)
-    half = (len(taps) - 1) // 2
     n_out = int(round(duration * fs_out))
     if n_out < 8:
         raise ValueError(f"duration {duration} s gives only {n_out} samples at {fs_out} Hz")
-    n_hi = n_out * daq.oversample
+    fs_hi, taps, _ = daq_grid(duration, 0.0, daq)
+    half = (len(taps) - 1) // 2
     if start == "rest" and discard * fs_hi < half:
         # the filter needs samples before the first output sample; a run from rest starts at 0
         discard = half / fs_hi
     t_start = float(discard)
-    # high-rate grid covering the output samples plus the filter's half-length on each side
-    ts_np = t_start + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
+    _, _, ts_np = daq_grid(duration, t_start, daq)
     t0 = float(ts_np[0]) if start == "steady" else min(0.0, float(ts_np[0]))
     t1 = float(ts_np[-1])
+    if f_sun is None:
+        f_sun = drive_speed(twin, t0 if start == "steady" else None)
     y0 = _initial_state_compiled(twin, f_sun, start)
-    rs, _ = twin.kinematic_ratios
-    f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
-    dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
+    dtmax = step_limit(twin, f_sun, solver)
     # where the start-up transient has not decayed within the settling time: settle longer,
     # and where that fails too (or the response is not periodic) integrate in full
     tried = []

@@ -64,9 +64,10 @@ from dtwin.simulate import (
     DAQ,
     SolverOptions,
     acquire,
-    daq_filter,
+    daq_grid,
     initial_state,
     integrate_observables,
+    step_limit,
 )
 from dtwin.spectrum import analytic_signal, get_window, noise_floor
 from dtwin.units import quantity as unit_quantity
@@ -442,16 +443,6 @@ def _start_speed(obs: Observation) -> float:
     return obs.f_ref
 
 
-def _daq_grid(duration, discard, daq):
-    """The DAQ's oversampled rate (Hz), its anti-alias taps and the simulated time grid (s):
-    the output samples plus the filter's half-length on each side, as `dtwin.simulate`."""
-    fs_hi = float(daq.sample_rate) * daq.oversample
-    taps = daq_filter(daq.oversample, daq.passband)
-    half = (len(taps) - 1) // 2
-    n_hi = int(round(duration * float(daq.sample_rate))) * daq.oversample
-    return fs_hi, taps, float(discard) + np.arange(-half, n_hi + half, dtype=np.float64) / fs_hi
-
-
 def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=None):
     """`dtwin.simulate.simulate` for use inside `jit`/`vmap`/`jacfwd`: the same pipeline
     (steady start, Tsit5 with the sensor computed inside the model, DAQ FIR + decimation) with
@@ -461,12 +452,10 @@ def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=No
     ``(signal, defect)``, `defect` the periodicity defect of a tiled response (None when
     integrated in full; `dtwin.simulate.SimResult.periodic_defect`)."""
     fs_out = float(daq.sample_rate)
-    fs_hi, taps, ts_np = _daq_grid(duration, discard, daq)
+    fs_hi, taps, ts_np = daq_grid(duration, discard, daq)
     t0 = float(ts_np[0])
     y0 = initial_state(twin, f_sun if f_init is None else f_init, "steady")
-    rs, _ = twin.kinematic_ratios
-    f_mesh_est = float(f_sun) / rs * twin.lp.z_ring
-    dtmax = solver.dtmax if solver.dtmax is not None else 0.1 / max(f_mesh_est, 1.0)
+    dtmax = step_limit(twin, f_sun, solver)
     # in full, or over one period of the gear set when `solver.periodic` allows (dtwin.simulate)
     ys, _, nsteps, _, defect = integrate_observables(twin, y0, t0, ts_np, fs_hi, f_sun,
                                                      daq.quantity, solver, dtmax)
