@@ -44,12 +44,10 @@ import numpy as np
 from dtwin.kinematics import Kinematics, OrderBounds, combination_text
 from dtwin.spectrum import noise_floor
 
-from .operating_point import speed_from_spectrum
-
 __all__ = [
     "Comb", "Description", "Kinematics", "LineBounds", "Modulation", "ResidualLine",
     "band_bounds", "chance_match_probability", "comb_label", "comb_lines", "describe",
-    "estimate_speed", "find_combs", "find_modulation", "interpolated_peak", "label_combs",
+    "find_combs", "find_modulation", "interpolated_peak", "label_combs",
     "modulation_lines", "refined_modulation_frequency", "residual_lines",
 ]
 
@@ -198,16 +196,6 @@ def interpolated_peak(freqs: np.ndarray, amp: np.ndarray, k: int) -> float:
     d = 0.0 if den == 0 else 0.5 * (a - c) / den
     d = float(np.clip(d, -0.5, 0.5))
     return float(freqs[k] + d * (freqs[1] - freqs[0]))
-
-
-def estimate_speed(freqs: np.ndarray, amp: np.ndarray, kin: Kinematics,
-                   search: float | None = None) -> float:
-    """Sun speed (Hz) from a measured Hann amplitude spectrum, within ±`search` (relative,
-    default 5 %) of the speed of `kin` (which gives the tooth numbers):
-    :func:`dtwin.identify.operating_point.speed_from_spectrum`, every mesh harmonic and its
-    carrier sidebands scored jointly, the harmonics checked against each other."""
-    return speed_from_spectrum(freqs, amp, kin, float(kin.f_sun),
-                               search=0.05 if search is None else search).f_sun
 
 
 @dataclasses.dataclass(frozen=True)
