@@ -280,6 +280,87 @@ def _check(record, twin, f_sun: float, channel) -> np.ndarray:
     return x
 
 
+def _spectrum_points(x, fs, duration, twin, orders, feats, f_sun, f_round, f_mesh, spacing):
+    """The fitted points of a spectrum (``Features.kind == "spectrum"``): every mesh harmonic
+    below 0.45 `fs` with its carrier sidebands, on the record's bins or on an order grid.
+    **Returns** ``(k, w, a_meas, floor, group, freqs)``: bin and interpolation weight of each
+    point, measured amplitude and noise floor there, harmonic number, frequency (Hz)."""
+    n = x.size
+    amp = _amplitude(x, n)
+    freqs = np.fft.rfftfreq(n, 1.0 / fs)
+    floor_all = noise_floor(amp, feats.floor_bins)
+    hmax = int(np.floor(0.45 * fs / (f_mesh + feats.sidebands * spacing)))
+    if feats.harmonics is not None:
+        hmax = min(hmax, int(feats.harmonics))
+    if hmax < 1:
+        raise RecordError("no mesh harmonic band fits below 0.45 × the sample rate")
+    pts, grp = [], []
+    half = feats.sidebands * spacing / f_sun  # orders
+    if feats.order_domain:
+        half = feats.sidebands * twin.lp.n_planets * orders["carrier"]  # exact orders
+    step = feats.order_step or 1.0 / (duration * f_round)
+    for h in range(1, hmax + 1):
+        c = h * orders["mesh"]
+        if feats.grid == "orders":
+            o = c + np.arange(-np.floor(half / step), np.floor(half / step) + 1) * step
+            fpts = o * f_sun
+        else:
+            nb = int(np.floor(half * f_round * duration))
+            centre = int(round(c * f_sun * duration))
+            sel = np.clip(np.arange(centre - nb, centre + nb + 1), 0, freqs.size - 1)
+            fpts = freqs[sel]
+        pts.append(fpts)
+        grp.append(np.full(fpts.size, h))
+    fpts = np.concatenate(pts)
+    group = np.concatenate(grp)
+    pos = fpts / (fs / n)
+    k = np.clip(np.floor(pos).astype(np.int64), 0, amp.size - 2)
+    w = np.clip(pos - k, 0.0, 1.0)
+    a_meas = (1 - w) * amp[k] + w * amp[k + 1]
+    floor = (1 - w) * floor_all[k] + w * floor_all[k + 1]
+    return k, w, a_meas, floor, group, fpts
+
+
+def _spectrogram_points(x, fs, orders, feats, f_sun, f_end):
+    """The fitted points of a spectrogram (``Features.kind == "spectrogram"``): every bin of
+    the band in every frame. **Returns** ``(seg, k, w, a_meas, floor, group, freqs)``, `seg`
+    the frame length (samples), `group` the frame number."""
+    n = x.size
+    seg = int(round(feats.segment * fs))
+    seg += seg % 2
+    if seg > n // 2:
+        raise RecordError(f"spectrogram segment {feats.segment} s is longer than half the record")
+    frames = _frames(n, seg)
+    amp2 = _amplitude(x[frames], seg)  # (frames, bins)
+    floor2 = _stationary_floor(amp2, feats.floor_bins)
+    freqs = np.fft.rfftfreq(seg, 1.0 / fs)
+    lo, hi = feats.band or (0.5 * orders["mesh"] * min(f_sun, f_end or f_sun), 0.45 * fs)
+    sel = np.flatnonzero((freqs >= lo) & (freqs <= hi))
+    if sel.size == 0:
+        raise RecordError(f"spectrogram band {lo:.0f}–{hi:.0f} Hz holds no bin")
+    nb = freqs.size
+    k = (np.arange(frames.shape[0])[:, None] * nb + sel[None, :]).reshape(-1)
+    w = np.zeros(k.size)
+    a_meas = amp2.reshape(-1)[k]
+    floor = floor2.reshape(-1)[k]
+    group = np.repeat(np.arange(frames.shape[0]), sel.size)
+    pfreqs = np.tile(freqs[sel], frames.shape[0])
+    return seg, k, w, a_meas, floor, group, pfreqs
+
+
+def _envelope_points(x, fs, feats, f_hi):
+    """The envelope spectrum's bins up to ``Features.envelope_max_order`` × `f_hi` (Hz), their
+    log levels and floor; empty when the envelope is not weighted."""
+    n = x.size
+    if not feats.envelope_weight > 0:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    env = _envelope(x, n)
+    efreqs = np.fft.rfftfreq(n, 1.0 / fs)
+    env_k = np.flatnonzero((efreqs > 0) & (efreqs <= feats.envelope_max_order * f_hi))
+    efloor = noise_floor(env, feats.floor_bins)[env_k]
+    return env_k, np.log(env[env_k] + efloor), efloor
+
+
 def observe(
     record,
     twin,
@@ -328,68 +409,13 @@ def observe(
     spacing = twin.lp.n_planets * orders["carrier"] * f_round
     if feats.kind == "spectrum":
         seg = n
-        amp = _amplitude(x, n)
-        freqs = np.fft.rfftfreq(n, 1.0 / fs)
-        floor_all = noise_floor(amp, feats.floor_bins)
-        hmax = int(np.floor(0.45 * fs / (f_mesh + feats.sidebands * spacing)))
-        if feats.harmonics is not None:
-            hmax = min(hmax, int(feats.harmonics))
-        if hmax < 1:
-            raise RecordError("no mesh harmonic band fits below 0.45 × the sample rate")
-        pts, grp = [], []
-        half = feats.sidebands * spacing / f_sun  # orders
-        if feats.order_domain:
-            half = feats.sidebands * twin.lp.n_planets * orders["carrier"]  # exact orders
-        step = feats.order_step or 1.0 / (record.duration * f_round)
-        for h in range(1, hmax + 1):
-            c = h * orders["mesh"]
-            if feats.grid == "orders":
-                o = c + np.arange(-np.floor(half / step), np.floor(half / step) + 1) * step
-                fpts = o * f_sun
-            else:
-                nb = int(np.floor(half * f_round * record.duration))
-                centre = int(round(c * f_sun * record.duration))
-                sel = np.clip(np.arange(centre - nb, centre + nb + 1), 0, freqs.size - 1)
-                fpts = freqs[sel]
-            pts.append(fpts)
-            grp.append(np.full(fpts.size, h))
-        fpts = np.concatenate(pts)
-        group = np.concatenate(grp)
-        pos = fpts / (fs / n)
-        k = np.clip(np.floor(pos).astype(np.int64), 0, amp.size - 2)
-        w = np.clip(pos - k, 0.0, 1.0)
-        a_meas = (1 - w) * amp[k] + w * amp[k + 1]
-        floor = (1 - w) * floor_all[k] + w * floor_all[k + 1]
-        pfreqs = fpts
+        k, w, a_meas, floor, group, pfreqs = _spectrum_points(
+            x, fs, record.duration, twin, orders, feats, f_sun, f_round, f_mesh, spacing)
     else:
-        seg = int(round(feats.segment * fs))
-        seg += seg % 2
-        if seg > n // 2:
-            raise RecordError(f"spectrogram segment {feats.segment} s is longer than half the record")
-        frames = _frames(n, seg)
-        amp2 = _amplitude(x[frames], seg)  # (frames, bins)
-        floor2 = _stationary_floor(amp2, feats.floor_bins)
-        freqs = np.fft.rfftfreq(seg, 1.0 / fs)
-        lo, hi = feats.band or (0.5 * orders["mesh"] * min(f_sun, f_end or f_sun), 0.45 * fs)
-        sel = np.flatnonzero((freqs >= lo) & (freqs <= hi))
-        if sel.size == 0:
-            raise RecordError(f"spectrogram band {lo:.0f}–{hi:.0f} Hz holds no bin")
-        nb = freqs.size
-        k = (np.arange(frames.shape[0])[:, None] * nb + sel[None, :]).reshape(-1)
-        w = np.zeros(k.size)
-        a_meas = amp2.reshape(-1)[k]
-        floor = floor2.reshape(-1)[k]
-        group = np.repeat(np.arange(frames.shape[0]), sel.size)
-        pfreqs = np.tile(freqs[sel], frames.shape[0])
+        seg, k, w, a_meas, floor, group, pfreqs = _spectrogram_points(
+            x, fs, orders, feats, f_sun, f_end)
     strong = (a_meas > floor * 10 ** (_STRONG_DB / 20)).astype(np.float64)
-    if feats.envelope_weight > 0:
-        env = _envelope(x, n)
-        efreqs = np.fft.rfftfreq(n, 1.0 / fs)
-        env_k = np.flatnonzero((efreqs > 0) & (efreqs <= feats.envelope_max_order * f_hi))
-        efloor = noise_floor(env, feats.floor_bins)[env_k]
-        env_meas = np.log(env[env_k] + efloor)
-    else:
-        env_k, env_meas, efloor = np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    env_k, env_meas, efloor = _envelope_points(x, fs, feats, f_hi)
     f_ref = round(float(f_sun) - (0.0 if f_end is None else
                                   (f_end - f_sun) / record.duration * discard), 1)
     return Observation(
