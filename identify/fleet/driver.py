@@ -50,6 +50,23 @@ class FleetRun:
 
 
 
+def _engine(engine: str, address: str | None) -> tuple[str, list[str]]:
+    """The engine `run_fleet` runs on (``auto``: Ray where installed or a cluster is named,
+    else local) and a note when ``auto`` falls back to local."""
+    if engine not in ("auto", "ray", "local"):
+        raise SettingsError(f"engine must be auto, ray or local, got {engine!r}")
+    notes: list[str] = []
+    if engine == "auto":
+        engine = "ray" if (ray_engine.ray_available() or address) else "local"
+        if engine == "local":
+            notes.append("Ray is not installed: records run one after another in this process "
+                         "(pip install 'dtwin[fleet]' for Ray)")
+    if engine == "ray" and not ray_engine.ray_available():
+        raise ImportError("engine 'ray' needs Ray: pip install 'dtwin[fleet]' (ray>=2.9), or "
+                          "run without --ray-address for the local engine")
+    return engine, notes
+
+
 def run_fleet(
     records: Sequence[str | os.PathLike],
     spec,
@@ -90,17 +107,7 @@ def run_fleet(
     """
     t0 = time.perf_counter()
     check_free(list(settings.free))  # unknown names fail before anything is read
-    if engine not in ("auto", "ray", "local"):
-        raise SettingsError(f"engine must be auto, ray or local, got {engine!r}")
-    notes: list[str] = []
-    if engine == "auto":
-        engine = "ray" if (ray_engine.ray_available() or address) else "local"
-        if engine == "local":
-            notes.append("Ray is not installed: records run one after another in this process "
-                         "(pip install 'dtwin[fleet]' for Ray)")
-    if engine == "ray" and not ray_engine.ray_available():
-        raise ImportError("engine 'ray' needs Ray: pip install 'dtwin[fleet]' (ray>=2.9), or "
-                          "run without --ray-address for the local engine")
+    engine, notes = _engine(engine, address)
     spec = spec if isinstance(spec, Spec) else load_spec(spec)
     spec_data = spec_to_dict(spec)
     settings = settings.resolved(spec_data)
