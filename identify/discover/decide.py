@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..gap import segment_spectra
-from .candidates import signature_labels
+from .coverage import signature_labels
 from .results import CandidateResult, DiscoveryResult, Step
 
 if TYPE_CHECKING:

@@ -12,9 +12,9 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 
-from ..effects import registered_effects
 from .confirm import confirm
 from .decide import accept, outcome
+from .effects import registered_effects
 from .locate import locate
 from .propose import propose, screened_results
 from .refit import refit_all
@@ -46,7 +46,7 @@ def discover(
     - `spec`: the gearbox spec (`dtwin.spec.Spec`, path or mapping): kinematics, DAQ and the
       base twin (``build_twin(spec, kind=kind)``) unless `base_twin` is given (e.g. the twin
       fitted by :func:`dtwin.identify.fit.fit`).
-    - `candidates`: effects to try (default: :func:`dtwin.identify.effects.registered_effects`).
+    - `candidates`: effects to try (default: :func:`dtwin.identify.discover.effects.registered_effects`).
     - `settings`: :class:`DiscoverySettings`.
     - `log`: a callable receiving progress lines (default: silent).
 

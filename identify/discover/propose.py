@@ -1,7 +1,7 @@
 """Propose: which candidates a step refits.
 
 The candidates whose signature covers at least `min_coverage` of the residual line power
-(:func:`dtwin.identify.discover.candidates.coverage`), scored at zero amplitude by a score test
+(:func:`dtwin.identify.discover.coverage.coverage`), scored at zero amplitude by a score test
 (:func:`~dtwin.identify.discover.statistics.screen_score`, one response column per parameter,
 no refit) on one bin set shared by all, and the refit set (:func:`_refit_set`): the best
 `max_refit` by score, and another group's best when those are all look-alikes of one group.
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..gap import segment_spectra
-from .candidates import _bins_of, _dilate, coverage
+from .coverage import _bins_of, _dilate, coverage
 from .results import CandidateResult
 from .statistics import screen_score
 
@@ -94,7 +94,7 @@ def _covering(search: Search, state: State, lines) -> tuple[list, dict[str, floa
 def _refit_set(covering, candidates, max_refit: int):
     """The candidates a step refits: the first `max_refit` of `covering` (ranked), and, when
     there are two or more and all of them are look-alikes of one group (members that make the
-    same lines in different ways, :mod:`dtwin.identify.effects`), also the first candidate of
+    same lines in different ways, :mod:`dtwin.identify.discover.effects`), also the first candidate of
     another group: a step compares explanations of two kinds, not only two members of one."""
     ranked = list(covering[:max_refit])
     groups = {candidates[i].group for _, i, _ in ranked}

@@ -19,10 +19,10 @@ from dtwin.spec import Spec, load_spec
 from dtwin.spectrum import amplitude_spectrum, as_signal, noise_floor
 from dtwin.units import quantity as unit_quantity
 
-from ..effects.base import EffectContext
 from ..gap import FLOOR_BINS, gap, named_bands, segment_spectra
 from ..lines import Kinematics, band_bounds, chance_match_probability
 from ..operating_point import resolve_speed
+from .effects.base import EffectContext
 from .locate import _log_gain
 from .model import ExtendedModel
 from .results import Step

@@ -19,10 +19,10 @@ from dtwin.build import build_twin, twin_kind
 from dtwin.errors import DtwinError
 from dtwin.spectrum import amplitude_spectrum, noise_floor
 
-from ..effects.base import EffectContext
 from ..gap import FLOOR_BINS, segment_spectra
 from ..lines import residual_lines
-from .candidates import _adapted, coverage
+from .coverage import _adapted, coverage
+from .effects.base import EffectContext
 from .locate import Current, _labelled, _log_gain, locate
 from .model import extended_model
 from .search import State
