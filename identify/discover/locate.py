@@ -33,8 +33,8 @@ def _log_gain(Y, Z0, floor, thr_db, n_lines: int = 20) -> float:
     log ratio over the bins where both stand `thr_db` over the floor, started from the model's
     `n_lines` strongest lines and iterated (three passes). Starting from every bin where the
     measurement has a line would let lines the model lacks (a fault's comb, where the model
-    holds only numerical leakage) set the gain: on the independent sun-fault record that
-    put the model 54 dB too high."""
+    holds only numerical leakage) set the gain (benchmarks/README.md, "Moved from module
+    docstrings")."""
     a0 = np.abs(Z0)
     if not np.any(a0 > 0):
         return 0.0

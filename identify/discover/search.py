@@ -145,9 +145,9 @@ def open_search(record, spec, sample_rate, f_sun, settings: DiscoverySettings,
                        fallback=False)
     f_est = op.f_sun
     # the spec's speed unless the estimate moves the top of the band by more than half the
-    # line tolerance (a calibrated spec carries its baseline's speed: 30.0011 Hz against
-    # 30.0002 Hz on the independent load-fluctuation record, 0.07 Hz at 4 fm — more than the
-    # 0.06 Hz tolerance of a 4 s record)
+    # line tolerance (a calibrated spec carries its baseline's speed, which can differ from the
+    # record's by more than that at the top of the band: benchmarks/README.md, "Moved from
+    # module docstrings")
     rel = abs(f_est / kin0.f_sun - 1)
     df_full = float(freqs_full[1] - freqs_full[0])
     f_sun = (kin0.f_sun if op.method == "spectrum" and rel < 2e-4
