@@ -31,9 +31,9 @@ def main(argv=None) -> int:
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
 
-    import dtwin.identify.effects as E
     from dtwin.build import build_twin, daq_from_spec
     from dtwin.identify.discover import DiscoverySettings, discover, extended_model
+    from dtwin.identify.discover import effects as E
     from dtwin.identify.lines import Kinematics
     from dtwin.spec import load_spec, preset, spec_to_dict
 

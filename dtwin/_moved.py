@@ -16,7 +16,10 @@ import sys
 __all__ = ["MOVED", "install", "new_name"]
 
 #: old dotted module path → new dotted module path (a package's submodules follow it)
-MOVED: dict[str, str] = {}
+MOVED: dict[str, str] = {
+    "dtwin.identify.discover.candidates": "dtwin.identify.discover.coverage",
+    "dtwin.identify.effects": "dtwin.identify.discover.effects",
+}
 
 
 def new_name(name: str) -> str | None:

@@ -124,7 +124,7 @@ def test_effects_do_not_change_the_global_registry():
     registry (RegistryView) and the global table stays as it was."""
     from dtwin.build import daq_from_spec
     from dtwin.identify.discover import ExtendedModel
-    from dtwin.identify.effects import registered_effects
+    from dtwin.identify.discover.effects import registered_effects
     from dtwin.identify.lines import Kinematics
 
     spec = preset("paper-sim")

@@ -74,8 +74,8 @@ def test_fault_signature_covers_its_comb(name, effect, symbol):
     """A tooth fault's lines — the low-frequency impulse comb and the mesh sidebands — lie on
     its effect's signature, and the comb is found as one family whose chance of arising from
     as many random lines is negligible."""
-    import dtwin.identify.effects as E
     from dtwin.identify.discover import coverage
+    from dtwin.identify.discover import effects as E
     from dtwin.identify.lines import find_combs, label_combs
 
     lines, kin, tol = _lines_against_healthy(name)

@@ -223,7 +223,7 @@ def test_a_modulation_is_located_off_a_combination_its_line_falls_near():
     combination it lies off. The same family at fp − 2fc itself is a gearbox frequency: not
     located. Once the fluctuation is added, the lines left on its family are labelled as its
     own, and no second modulation is located from them."""
-    from dtwin.identify.discover.loop import _labelled
+    from dtwin.identify.discover.locate import _labelled
     from dtwin.identify.lines import find_combs, find_modulation, label_combs
 
     kin, f, meas, healthy = _modulated_records(3.30)

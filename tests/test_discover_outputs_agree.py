@@ -298,8 +298,8 @@ def test_a_label_symbol_needs_its_definition_and_the_docs_list_them_all():
     """combination_text refuses a symbol that dtwin.kinematics.SYMBOLS lacks; the effects'
     hand-made labels (torque ripple, load fluctuation) are written by it; the table of
     docs/signal_processing.md is the code's table."""
-    from dtwin.identify.effects.load_fluctuation import LoadFluctuationEffect
-    from dtwin.identify.effects.torque_ripple import TorqueRippleEffect
+    from dtwin.identify.discover.effects.load_fluctuation import LoadFluctuationEffect
+    from dtwin.identify.discover.effects.torque_ripple import TorqueRippleEffect
     from dtwin.io.html_report import symbol_glossary_markdown
     from dtwin.kinematics import Kinematics, combination_text, symbol_of
 

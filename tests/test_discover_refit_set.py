@@ -1,4 +1,4 @@
-"""Which candidates a discovery step refits (``identify/discover/loop.py``): the best
+"""Which candidates a discovery step refits (``identify/discover/propose.py``): the best
 ``max_refit`` by score, and the best of another look-alike group when those are all of one.
 
 The bundled ``bench_sun_fault`` record is the case that needs it: a sun fault's comb
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from dtwin.identify.discover.loop import _refit_set
+from dtwin.identify.discover.propose import _refit_set
 
 
 def _covering(*groups):

@@ -129,8 +129,10 @@ def test_a_rebuild_that_fails_leaves_the_current_model_slow(sequential, monkeypa
 
     from dtwin.errors import FitError
 
-    # the module, not the function `discover` that the package exports under that name
+    # the modules, not the function `discover` that the package exports under that name;
+    # the base model and the rebuild are both built in `specialise`
     loop = importlib.import_module("dtwin.identify.discover.loop")
+    specialise = importlib.import_module("dtwin.identify.discover.specialise")
 
     built = []
 
@@ -140,8 +142,8 @@ def test_a_rebuild_that_fails_leaves_the_current_model_slow(sequential, monkeypa
             raise FitError("injected")
         return extended_model(*args, **kw)
 
-    extended_model = loop.extended_model
-    monkeypatch.setattr(loop, "extended_model", failing)
+    extended_model = specialise.extended_model
+    monkeypatch.setattr(specialise, "extended_model", failing)
     lines = []
     res = loop.discover(sequential[1], sequential[0],
                         settings=loop.DiscoverySettings(**QUICK), log=lines.append)

@@ -21,10 +21,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import dtwin.identify.effects as E
 from dtwin.build import build_twin, daq_from_spec
 from dtwin.identify.discover import DiscoverySettings, discover, extended_model
-from dtwin.identify.effects.base import (
+from dtwin.identify.discover import effects as E
+from dtwin.identify.discover.effects.base import (
     AbstractEffect,
     EffectContext,
     EffectParameter,

@@ -8,10 +8,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import dtwin.identify.effects as E
 from dtwin.build import build_twin
-from dtwin.identify.effects.base import EffectContext
-from dtwin.identify.effects.transfer_path import locate_resonance
+from dtwin.identify.discover import effects as E
+from dtwin.identify.discover.effects.base import EffectContext
+from dtwin.identify.discover.effects.transfer_path import locate_resonance
 from dtwin.identify.lines import Kinematics
 from dtwin.parts.bearing_defect import PlanetBearingDefect, bearing_frequencies
 from dtwin.parts.housing_resonance import HousingResonance, resonance_gain
@@ -178,7 +178,7 @@ def test_time_varying_path_signature_is_allowed_lines():
 
 
 def test_window_mean_closed_form():
-    from dtwin.identify.effects.transfer_path import window_mean
+    from dtwin.identify.discover.effects.transfer_path import window_mean
 
     phi = np.linspace(0, 2 * np.pi, 20001)[:-1]
     for p in (0.0, 1.0, 4.0, 2.5):
@@ -191,7 +191,7 @@ def test_mount_path_is_its_line_and_nothing_else():
     periodic at constant speed, with either nonzero it does not (a line at f_x is not a gearbox
     frequency). The located modulation's flat-path scale is the closed form
     ``c_0 Zr / ((Zs + Zr) r_b,ring m_ring)``."""
-    from dtwin.identify.effects.modulation import _flat_path
+    from dtwin.identify.discover.effects.modulation import _flat_path
     from dtwin.parts.mount_path import MountPath
     from dtwin.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
     from dtwin.periodic import hunting_cycles, periodic_reason
@@ -264,7 +264,7 @@ def test_planet_fault_candidate_has_a_severity_per_flank():
     and the ring mesh of planet 0 what a ring-flank Pitting of that severity removes; both
     together are the sum; the main value is the worse flank's; a fixed flank keeps one."""
     from dtwin.faults import Pitting
-    from dtwin.identify.effects.local_fault import LocalFaultEffect
+    from dtwin.identify.discover.effects.local_fault import LocalFaultEffect
 
     tw = build_twin(preset("paper-sim"), kind="torsional")
     kin = Kinematics.from_gear_set(tw.lp, 30.0)

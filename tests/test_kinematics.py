@@ -79,7 +79,7 @@ def test_combination_text_is_the_shortest_form():
     assert combination_text((("fm", 0), ("fc", -1))) == "−fc"
     assert combination_text(()) == "DC"
     # spectrum labels, residual-line descriptions and effect signatures write alike
-    from dtwin.identify.effects.base import carrier_grid
+    from dtwin.identify.discover.effects.base import carrier_grid
 
     k = Kinematics.from_spec(preset("paper-sim"))
     f = k.f_mesh - 7 * k.f_carrier

@@ -12,7 +12,7 @@ import sys
 import pytest
 
 #: Imported only when a command or function needs them (seconds each on two cores).
-HEAVY = ("scipy.signal", "matplotlib", "ray", "pyarrow", "pandas", "dtwin.identify.effects")
+HEAVY = ("scipy.signal", "matplotlib", "ray", "pyarrow", "pandas", "dtwin.identify.discover.effects")
 
 _REPORT = """
 import json, sys

@@ -54,18 +54,26 @@ measurement hold only noise; its distribution is drawn by a parametric bootstrap
 the whole fit on noise spectra with the measured floor's level and the Hann window's bin
 correlation, the floor re-estimated in every draw (:func:`null_statistics`), so the p-value is calibrated without asymptotics.
 
-**Modules:** ``settings`` (:class:`DiscoverySettings`), ``statistics`` (the linearised fit,
-the held-out statistic, its bootstrap null, intervals), ``model`` (:class:`ExtendedModel` and
-its cache), ``candidates`` (coverage, signatures), ``results`` (result types), ``loop``
-(:func:`discover`).
+**Modules.** The stages, in the order a step walks them (``loop``: :func:`discover`):
+``search`` (the run's fixed inputs and the state its steps change), ``locate`` (the residual
+lines and the current model's held-out gaps), ``specialise`` (the candidates specialised to the
+machine, the record and again after a step; the extended model about them), ``propose``
+(covering candidates, the score screen, the refit set), ``refit`` (a candidate's linearised
+fit, held-out statistic, bootstrap p-value and intervals), ``confirm`` (the best simulated in
+full), ``decide`` (naming, the step's record, the search's result). Their tools: ``settings``
+(:class:`DiscoverySettings`), ``statistics`` (the linearised fit, the held-out statistic, its
+bootstrap null, intervals), ``model`` (:class:`ExtendedModel` and its cache), ``coverage``
+(coverage, signature bins and labels, specialisation), ``in_range`` (a refit inside the
+physical range), ``depth`` (fault depths), ``results`` (result types), ``effects`` (the
+candidate effects).
 
 Arrays are padded to fixed sizes (parameters to the smallest of ``P_SIZES`` that holds the
 effect's, bins to a multiple of ``BIN_BLOCK``) so that one compilation serves every candidate of
 a size.
 """
 
-from .candidates import coverage as coverage
-from .candidates import signature_labels as signature_labels
+from .coverage import coverage as coverage
+from .coverage import signature_labels as signature_labels
 from .depth import fault_depths as fault_depths
 from .loop import discover as discover
 from .model import ExtendedModel as ExtendedModel

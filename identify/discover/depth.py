@@ -25,7 +25,7 @@ from .results import DiscoveryResult
 
 __all__ = ["fault_depths", "tooth_fault_location"]
 
-#: discovery's local tooth-fault effects (:class:`dtwin.identify.effects.LocalFaultEffect`
+#: discovery's local tooth-fault effects (:class:`dtwin.identify.discover.effects.LocalFaultEffect`
 #: names, ``<location>_local_fault`` and a planet's ``planet_local_fault_<flank>``)
 _SUFFIX = "_local_fault"
 

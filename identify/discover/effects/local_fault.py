@@ -22,7 +22,7 @@ class LocalFaultEffect(AbstractEffect):
 
     Part: :class:`dtwin.parts.local_fault.LocalFault` of a :class:`dtwin.faults.Pitting`
     (stiffness loss linear in the severity). Lines: the impulse comb of the tooth meeting its
-    mates (:func:`~dtwin.identify.effects.base.comb_grid`), at low frequency and as mesh
+    mates (:func:`~dtwin.identify.discover.effects.base.comb_grid`), at low frequency and as mesh
     sidebands: sun ``k fs/N + n fc`` (fm = Zs fs/N: this holds ``m fm + j fs/N + n fc``);
     planet ``k fp + n fc`` (fm = Zp fp), |n| ≤ 2; ring ``k fc`` (fr = N fc, its sidebands and
     the mesh sidebands all lie on the carrier grid: the ring fault belongs to the

@@ -12,7 +12,7 @@ from dtwin.parts.loads import FluctuatingLoad
 from dtwin.parts.mount_path import MountPath
 from dtwin.parts.speed_fluctuation import SpeedFluctuation
 
-from ..lines import find_modulation, modulation_lines
+from ...lines import find_modulation, modulation_lines
 from .base import AbstractEffect, EffectParameter, SignatureLine, rms
 from .transfer_path import _sensor_path, window_mean
 

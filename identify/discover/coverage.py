@@ -1,5 +1,6 @@
-"""Candidates of a discrepancy search: their signature bins, coverage of the residual lines,
-specialisation to the machine and record, and the labels of the lines they match."""
+"""Which residual lines a candidate covers (:func:`coverage`), its signature bins, the
+labels of the lines it matches (:func:`signature_labels`) and the candidates specialised to the
+machine and record (:func:`_adapted`)."""
 
 from __future__ import annotations
 
@@ -39,7 +40,7 @@ def coverage(effect, kin: Kinematics, lines: list[ResidualLine], tol: float, f_m
 
 
 def _adapted(effects, context) -> list:
-    """The effects specialised by their :meth:`~dtwin.identify.effects.AbstractEffect.adapt` (those
+    """The effects specialised by their :meth:`~dtwin.identify.discover.effects.AbstractEffect.adapt` (those
     returning ``None`` withdrawn)."""
     out = []
     for e in effects:

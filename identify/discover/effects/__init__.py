@@ -1,4 +1,4 @@
-"""The library of candidate effects (see :mod:`dtwin.identify.effects.base`).
+"""The library of candidate effects (see :mod:`dtwin.identify.discover.effects.base`).
 
 Default candidates, in their look-alike groups:
 
