@@ -136,16 +136,12 @@ def _structure(problem):
     return static, shapes
 
 
-def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
-             settings: FleetSettings, *, fingerprint: str, engine: str = "local",
-             inject: str | None = None, attempts_dir: str | None = None) -> list[dict[str, Any]]:
-    """Fit the records of one task (module docstring); one entry per record, ``ok`` or
-    ``failed``. A `DtwinError` of one record is reported for that record; any other exception
-    propagates (Ray retries the task)."""
-    spec = load_spec(spec_data)
-    settings = settings.resolved(spec_data)
-    kw = settings.fit_kwargs()
-    free = list(settings.free)
+def _read_jobs(jobs, spec, settings: FleetSettings, free, kw, *, fingerprint: str, engine: str,
+               inject: str | None, attempts_dir: str | None):
+    """Read a task's records: a run-up is fitted at once (alone); a steady record is cut to
+    its fit window (:func:`dtwin.identify.segment.segment_for_fit`) and its problem made.
+    **Returns** ``(entries, ready, windows)``: the entries done (run-ups, read failures), the
+    ``(job, record, problem)`` left to fit, and the fit window of each windowed record."""
     entries: dict[str, dict[str, Any]] = {}
     ready: list[tuple[Mapping[str, Any], Any, Any]] = []
     windows: dict[str, dict[str, Any]] = {}  # a long steady record is fitted on a window
@@ -165,7 +161,12 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
             ready.append((job, rec, prob))
         except DtwinError as e:
             entries[job["key"]] = failure_entry(job, e, stage="read", fingerprint=fingerprint)
+    return entries, ready, windows
 
+
+def _by_structure(ready):
+    """The ready ``(job, record, problem)`` items in groups of one problem structure (one
+    compiled batch each), in order of first appearance."""
     groups: list[list[tuple[Mapping[str, Any], Any, Any]]] = []
     sigs: list[Any] = []
     for item in ready:
@@ -177,6 +178,22 @@ def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
         else:
             groups.append([item])
             sigs.append(s)
+    return groups
+
+
+def fit_task(jobs: Sequence[Mapping[str, Any]], spec_data: Mapping[str, Any],
+             settings: FleetSettings, *, fingerprint: str, engine: str = "local",
+             inject: str | None = None, attempts_dir: str | None = None) -> list[dict[str, Any]]:
+    """Fit the records of one task (module docstring); one entry per record, ``ok`` or
+    ``failed``. A `DtwinError` of one record is reported for that record; any other exception
+    propagates (Ray retries the task)."""
+    spec = load_spec(spec_data)
+    settings = settings.resolved(spec_data)
+    kw = settings.fit_kwargs()
+    free = list(settings.free)
+    entries, ready, windows = _read_jobs(jobs, spec, settings, free, kw, fingerprint=fingerprint,
+                                         engine=engine, inject=inject, attempts_dir=attempts_dir)
+    groups = _by_structure(ready)
 
     location = fault_location(free)
     if location is not None and settings.kind is None:  # a tooth fault's twin (one path)
