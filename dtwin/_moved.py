@@ -16,7 +16,9 @@ import sys
 __all__ = ["MOVED", "install", "new_name"]
 
 #: old dotted module path → new dotted module path (a package's submodules follow it)
-MOVED: dict[str, str] = {}
+MOVED: dict[str, str] = {
+    "dtwin.identify.split": "dtwin.identify.excitation_response",
+}
 
 
 def new_name(name: str) -> str | None:

@@ -130,7 +130,7 @@ def calibration_confounding(problem, theta, unc: Uncertainty, spec, *, groups, e
     """`unc` with the parameters that the calibrated excitation and load-share clearances
     confound flagged (module docstring).
 
-    **Arguments:** `problem` (:class:`dtwin.identify.fit.Problem`) and its optimum `theta`;
+    **Arguments:** `problem` (:class:`dtwin.identify.problem.Problem`) and its optimum `theta`;
     `unc`: the analysis with the calibration held; `spec`: the calibrated spec; `groups`,
     `expected_rss`: as for :func:`dtwin.identify.uncertainty.analyse`; `jacobian(theta,
     problem) -> (r, J)`: the residuals and forward-mode Jacobian of a problem.

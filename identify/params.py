@@ -261,7 +261,7 @@ class ParameterSet(eqx.Module):
     def twin_indices(self) -> tuple[int, ...]:
         """Positions in `free` of the parameters that change the twin (all but signal gains
         such as ``sensor_gain``, which scale the simulated signal after the solve): only these
-        need tangents through the ODE (`dtwin.identify.fit._value_and_jacfwd`)."""
+        need tangents through the ODE (`dtwin.identify.solve.value_and_jacfwd`)."""
         return tuple(i for i, n in enumerate(self.free) if lookup(n).address.changes_twin)
 
     def gain(self, values) -> jax.Array:

@@ -83,13 +83,13 @@ def test_fit_uses_the_solvers_last_residuals_and_jacobian(severity_fit):
     simulation): they equal a fresh evaluation there, to the ODE solver's noise."""
     import jax.numpy as jnp
 
-    from dtwin.identify.fit import _jacobian
     from dtwin.identify.residuals import point_groups
+    from dtwin.identify.solve import jacobian_at
     from dtwin.identify.uncertainty import analyse
 
     res = severity_fit.fit
     prob = res.problem
-    r, J = _jacobian(jnp.asarray(res.theta), prob)
+    r, J = jacobian_at(jnp.asarray(res.theta), prob)
     np.testing.assert_allclose(res.residuals, np.asarray(r), atol=1e-3 * np.sqrt(np.mean(r**2)))
     fresh = analyse(prob.pset, res.theta, np.asarray(r), np.asarray(J),
                     point_groups(prob.observations), n_profiled_gains=prob.n_profiled_gains)
@@ -126,7 +126,7 @@ def test_gauss_newton_step_in_sigma_matches_least_squares():
     squares, and a dependent column gets no step."""
     import jax.numpy as jnp
 
-    from dtwin.identify.fit import _gauss_newton_step
+    from dtwin.identify.stopping import _gauss_newton_step
 
     rng = np.random.default_rng(0)
     J = rng.normal(size=(200, 4)) * np.array([1.0, 1e3, 1e-3, 5.0])
@@ -211,19 +211,20 @@ def test_starts_refined_by_vmap_and_by_map_agree(truth_record, spec):
 
 def test_gain_column_outside_the_ode_is_exact(truth_record, spec):
     """With the sensor gain free, only the twin's parameters ride through the ODE
-    (`_value_and_jacfwd`); the chain rule gives the Jacobian of forward mode through everything."""
+    (`dtwin.identify.solve.value_and_jacfwd`); the chain rule gives the Jacobian of forward mode through everything."""
     import equinox as eqx
     import jax
     import jax.numpy as jnp
 
-    from dtwin.identify.fit import _jacobian, make_problem
+    from dtwin.identify.problem import make_problem
     from dtwin.identify.residuals import Features
+    from dtwin.identify.solve import jacobian_at
 
     prob, _ = make_problem(truth_record, spec, ["sun_fault", "sensor_gain"], f_sun=F_SUN_TRUE,
                            initial={"sun_fault": 0.4}, features=Features(gain="fixed"))
     assert prob.pset.twin_indices == (0,)
     theta = jnp.asarray([0.1, -0.2])
-    r, J = _jacobian(theta, prob)
+    r, J = jacobian_at(theta, prob)
 
     def both(t):
         x = prob.residuals(t)
