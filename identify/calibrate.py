@@ -85,6 +85,7 @@ frequency in epicyclic gear vibration", Proc. IMechE C 199(1).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -179,7 +180,6 @@ def _quantity(spec: Spec, unit: str | None = None) -> str:
     return "acceleration" if q == "ring_velocity" else q
 
 
-# ------------------------------------------------------------------------------------ the driver
 def calibrate(
     records: Sequence[Record | str | os.PathLike],
     spec: Spec | str | os.PathLike,
@@ -213,173 +213,61 @@ def calibrate(
     say = progress or (lambda _m: None)
     if not isinstance(spec, Spec):
         spec = load_spec(spec)
-    if not records:
-        raise RecordError("calibration needs at least one healthy record")
-    recs, names = zip(*(_as_record(r) for r in records), strict=True)
-    X, fs = _signal_rows(recs, channel)
-    unit = _records_unit(recs, channel)
-    quantity, measured = _quantity(spec, unit), unit_quantity(unit)
-    n_rec, n = X.shape
-    n_half = n // 2
-    g = spec["gears"]
-    if spec["operating"]["f_sun"] is None:
-        raise SpecError([("operating.f_sun", "calibration needs the nominal input speed (Hz)")])
-    kin0 = Kinematics.from_spec(spec)
-    if n / fs < MIN_CARRIER_PERIODS / kin0.f_carrier * (1.0 - 1e-9):
-        raise RecordError(f"{n / fs:.3g} s is shorter than {MIN_CARRIER_PERIODS:g} carrier "
-                          f"periods ({MIN_CARRIER_PERIODS / kin0.f_carrier:.3g} s): the "
-                          "sidebands at f_c cannot be resolved in each half; calibrate on "
-                          "longer records")
-    # the speed: given, or each record's (tachometer, metadata, lines), the mean over records
-    # a record that holds no mesh line of this gearbox cannot calibrate it: refuse at once
-    ops = [resolve_speed(r, spec, f_sun, channel=channel, fallback=False) for r in recs]
-    f_sun = float(np.mean([op.f_sun for op in ops]))
-    kin = Kinematics.from_gears(g["z_sun"], g["z_planet"], g["z_ring"], g["n_planets"], f_sun)
-    say(f"speed {f_sun:.4f} Hz from {n_rec} record(s) ({ops[0].source})")
-    stamp = _Stamp(f_sun, fs, measured, tuple(names), kind)  # what a calibrated spec records
-    n_harm = mesh_harmonics(settings, fs, kin.f_mesh)
-    # spectra of each half of each record
-    freqs, Ymeas = segment_spectra(X, fs, 2)  # (rec, 2, bins)
-    A = np.abs(Ymeas)
-    F = noise_floor(A, FLOOR_BINS)
-    n_orders = _carrier_order_lines(kin, freqs, A, F)
-    fit_shares = settings.load_sharing == "on" or (settings.load_sharing == "auto"
-                                                    and n_orders >= 2)
-    if fit_shares:
-        say(f"{n_orders} carrier orders k f_c (k not a multiple of {kin.n_planets}) above the "
-            "line threshold: fitting the planets' load shares")
-    twin, i_path, i_exc, layout = _prepare_twin(spec, f_sun, kind, settings, n_harm, fit_shares)
-    # the records' rate, not the spec's `sensor.sample_rate` (which describes other records)
-    daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=quantity, frf_hz=None,
-                        frf_db=None)
-    say(f"simulating the twin and its response to {layout.size} parameters "
-        f"({n / fs:.1f} s at {fs:g} Hz)")
-    theta0 = jnp.zeros(layout.size)
+    c = _Calibration.of(records, spec, kind, channel, settings, say, f_sun)
+    gap_before = c.gap_before()
+    tried, gap_held, held_fits = _final_fits(c, gap_before)
+    best = min(range(len(tried)), key=lambda i: tried[i].gap.total)
+    chosen = tried[best]
+    if best > 0:
+        say("cross-validation again, about the chosen linearisation point")
+        gap_held, held_fits = c.cross_validated(chosen.lin, chosen.theta)
+        say(f"held-out gap {gap_held.total:.2f} dB")
+    params = _intervals(chosen.theta, chosen.gains, chosen.fit_data, c.layout, c.knots, c.Wl,
+                        c.B, c.twin, c.i_exc, settings)
+    data, gap_conf, a_after = chosen.spec_data, chosen.gap, chosen.amplitudes
+    calibrated_conf = float(gap_conf.total)
+    departs = bool(chosen.departure > settings.relinearize_db)
+    held_full = None
+    if departs and gap_held.total < gap_before.total and calibrated_conf < gap_before.total:
+        # the held-out gap scores a response the twin does not follow: cross-validate the
+        # twin itself, each half's values simulated in full and scored on the other half
+        say("cross-validation of the twin simulated in full (it departs from the fitted "
+            "response)")
+        held_full = float(c.cross_validated_in_full(held_fits).total)
+        say(f"held-out gap simulated in full {held_full:.2f} dB")
+    why = adoption(gap_before.total, gap_held.total, calibrated_conf, held_full)
+    if why:
+        data, a_after, gap_conf = c.kept(why)
+    c.record_in_spec(data, gap_conf, a_after)
+    return CalibrationResult(data, params, c.f_sun, gap_before, gap_held, gap_conf, c.freqs,
+                             c.a_meas, c.a_before, a_after, c.noise_rms, list(c.names),
+                             chosen.steps, chosen.converged, best + 1, float(chosen.departure),
+                             departs, bool(why), calibrated_conf, held_full)
 
-    def linearised(theta_lin):
-        """The model's halves (the same for every record) and their response at `theta_lin`."""
-        y, J = _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings, theta_lin)
-        _, Z = segment_spectra(y, fs, 2)  # (2, bins)
-        _, JZ = segment_spectra(J.T, fs, 2)  # (P, 2, bins)
-        return Z, np.moveaxis(JZ, 0, -1), np.asarray(theta_lin)  # JZ: (2, bins, P)
 
-    lin = lin0 = linearised(theta0)
-    Z0 = lin[0]
-    # the noise floor as an rms: a Hann amplitude spectrum of white noise of variance σ² has
-    # Rayleigh amplitudes of median sqrt(2 ln 2 · 3 σ² / n_half)
-    noise_rms = float(np.sqrt(np.median(F) ** 2 * n_half / (6.0 * math.log(2.0))))
-    fam = _family_bins(kin, freqs)
-    strong = A > F * 10.0 ** (THRESHOLD_DB / 20.0)
-    # the scored band ends where the DAQ's anti-aliasing pass band does (the spec's)
-    band_top = float(spec["sensor"]["passband"]) * fs
-    band = (freqs >= 0.5 * kin.f_carrier) & (freqs <= band_top)
-    S = (fam[None, None, :] | strong) & band[None, None, :]
-    Wl = strong & band[None, None, :]
-    knots = np.geomspace(0.8 * kin.n_planets * kin.f_carrier, band_top, settings.n_knots)
-    B = knot_basis(freqs, knots)
-    prior = np.concatenate([np.full(layout.n_window, settings.window_prior),
-                            np.full(2 * n_harm, settings.te_prior / _TE_UNIT),
-                            np.full(layout.n_share, settings.share_prior / _SHARE_UNIT),
-                            [settings.zeta_prior]])
-
-    def data_for(rows_rec, rows_half, lin):
-        Z, JZ, theta_lin = lin
-        return _Data(
-            Z0=jnp.asarray(Z[rows_half]), JZ=jnp.asarray(JZ[rows_half]),
-            theta_lin=jnp.asarray(theta_lin),
-            A=jnp.asarray(A[rows_rec, rows_half]), F=jnp.asarray(F[rows_rec, rows_half]),
-            S=jnp.asarray(S[rows_rec, rows_half].astype(float)),
-            W=jnp.asarray(Wl[rows_rec, rows_half].astype(float)), B=jnp.asarray(B),
-            prior_sd=jnp.asarray(prior), smooth=settings.smooth_db,
-            frf_prior=settings.frf_prior_db,
-        )
-
-    rec_idx = np.repeat(np.arange(n_rec), 2)
-    half_idx = np.tile(np.arange(2), n_rec)
-    bands = named_bands(kin, band_top)
-    a_meas = A.reshape(-1, A.shape[-1])
-
-    # the model's amplitudes at θ (response solved on `fit_rows`), on the rows `score_rows`
-    def amp_at(theta, fit_rows, score_rows, lin):
-        _, G = _model_amp(jnp.asarray(theta), data_for(rec_idx[fit_rows], half_idx[fit_rows],
-                                                        lin))
-        d = data_for(rec_idx[score_rows], half_idx[score_rows], lin)
-        Z = d.Z0 + jnp.einsum("rbp,p->rb", d.JZ, jnp.asarray(theta - lin[2], d.JZ.dtype))
-        return np.asarray(10.0 ** ((B @ np.asarray(G)) / 20.0))[None, :] * np.abs(np.asarray(Z))
-
-    # before: the spec's twin with its best response level (one gain), scored per half
-    B1 = knot_basis(freqs, knots[:1])
-
-    def before_amp(train_half, score_half):
-        tr = half_idx == train_half
-        d = data_for(rec_idx[tr], half_idx[tr], lin)
-        d = eqx.tree_at(lambda x: x.B, d, jnp.asarray(B1))
-        _, G = _model_amp(theta0, d)
-        sc = half_idx == score_half
-        return float(10.0 ** (float(G[0]) / 20.0)) * np.abs(Z0[half_idx[sc]])
-
-    def cross_validated(lin, warm):
-        """The held-out gap about linearisation `lin` (fitted on each half, scored on the other
-        with the linearised response) and the halves' fits, ``[(θ, data)]``. Each half is
-        fitted from the linearisation point and from `warm` (the fit on all the records), and
-        keeps the fit with the lower loss on its own half: a half's fit from the linearisation
-        point alone can stall far above its minimum (the window and the load shares multiply
-        each other), which would score the optimiser, not the model."""
-        a_held = np.empty_like(a_meas)
-        fits = []
-        for h in (0, 1):
-            tr = half_idx == h
-            d = data_for(rec_idx[tr], half_idx[tr], lin)
-            # each run's own final loss on this half (the fit computes it) picks the start
-            theta_h = min((_fit(d, start, settings.max_steps, settings.loss_rtol,
-                                settings.run_steps, settings.restart_rtol)
-                           for start in (lin[2], warm)), key=lambda run: run[3])[0]
-            a_held[half_idx != h] = amp_at(theta_h, tr, half_idx != h, lin)
-            fits.append((theta_h, d))
-        return gap(freqs, a_meas, a_held, bands), fits
-
-    def cross_validated_in_full(fits):
-        """The held-out gap of the halves' fits `fits` (:func:`cross_validated`), each half's
-        values simulated in full and scored on the other half."""
-        a_held = np.empty_like(a_meas)
-        for h, (theta_h, d) in enumerate(fits):
-            _, G = _model_amp(jnp.asarray(theta_h), d)
-            a = confirmed(_calibrated_data(spec, theta_h, np.asarray(G), knots, layout, twin,
-                                           i_exc, stamp))[0]
-            a_held[half_idx != h] = a[half_idx != h]
-        return gap(freqs, a_meas, a_held, bands)
-
-    a_before = np.empty_like(a_meas)
-    for h in (0, 1):
-        a_before[half_idx != h] = before_amp(h, 1 - h)
-    gap_before = gap(freqs, a_meas, a_before, bands)
-
-    def confirmed(data):
-        """Amplitudes (rows: record × half) and gap of the twin of spec `data` simulated in
-        full over the records, nothing refitted."""
-        cal_spec = _spec_from_data(data)
-        y = np.asarray(simulate(
-            build_twin(cal_spec, kind=kind, f_sun=f_sun), duration=n / fs, f_sun=f_sun,
-            daq=daq_from_spec(cal_spec, sample_rate=fs, snr_db=None, quantity=quantity),
-            discard=settings.discard, solver=settings.solver).signal[:n])
-        a = np.abs(segment_spectra(y, fs, 2)[1])[half_idx]
-        return a, gap(freqs, a_meas, a, bands)
-
-    every = np.ones(len(half_idx), bool)
+def _final_fits(c: _Calibration, gap_before: GapResult
+                ) -> tuple[list[_Attempt], GapResult, list]:
+    """``(tried, gap_held, held_fits)``: the final fit on all data, confirmed by a full
+    simulation, at the first linearisation point and, while the full simulation departs from
+    the linearised response or is no closer to the records than the spec as written, at the
+    fitted values again (`CalibrationSettings.relinearize`; module docstring,
+    "Linearisation"); the cross-validation about the first point."""
+    settings, say, lin = c.settings, c.say, c.lin0
     tried: list[_Attempt] = []  # one per linearisation point
     for attempt in range(settings.relinearize + 1):
         say("final fit on all data" if attempt == 0 else
             f"final fit on all data, linearised at the fitted values ({attempt} of "
             f"{settings.relinearize})")
-        d_all = data_for(rec_idx, half_idx, lin)
+        d_all = c.data_for(c.rec_idx, c.half_idx, lin)
         theta, steps, converged, _ = _fit(d_all, lin[2], settings.max_steps, settings.loss_rtol,
                                           settings.run_steps, settings.restart_rtol)
-        gap_lin = gap(freqs, a_meas, amp_at(theta, every, every, lin), bands)
+        gap_lin = gap(c.freqs, c.a_meas, c.amp_at(theta, c.every, c.every, lin), c.bands)
         # the calibrated spec, then its confirmation by a full simulation
         _, G = _model_amp(jnp.asarray(theta), d_all)
-        data = _calibrated_data(spec, theta, np.asarray(G), knots, layout, twin, i_exc, stamp)
+        data = _calibrated_data(c.spec, theta, np.asarray(G), c.knots, c.layout, c.twin,
+                                c.i_exc, c.stamp)
         say("confirming: the calibrated twin simulated in full")
-        a_after, gap_conf = confirmed(data)
+        a_after, gap_conf = c.confirmed(data)
         tried.append(_Attempt(gap_conf, theta, lin, steps, converged, data, a_after,
                               gap_conf.total - gap_lin.total, d_all, np.asarray(G)))
         say(f"confirmed gap {gap_conf.total:.2f} dB; the linearised twin's "
@@ -387,7 +275,7 @@ def calibrate(
                                                           ", stopped at the step limit") + ")")
         if attempt == 0:
             say("cross-validation: fitting on each half, scoring on the other")
-            gap_held, held_fits = cross_validated(lin, theta)
+            gap_held, held_fits = c.cross_validated(lin, theta)
             say(f"held-out gap {gap_before.total:.2f} dB before, {gap_held.total:.2f} dB "
                 "calibrated")
         # the response is first order in the excitation and the load shares (and bilinear in
@@ -405,50 +293,258 @@ def calibrate(
                  f"the full simulation is no closer to the records than the spec as written "
                  f"({gap_conf.total:.2f} dB against {gap_before.total:.2f} dB)")
                 + ": linearising again at the fitted values")
-            lin = linearised(theta)
-    best = min(range(len(tried)), key=lambda i: tried[i].gap.total)
-    chosen = tried[best]
-    if best > 0:
-        say("cross-validation again, about the chosen linearisation point")
-        gap_held, held_fits = cross_validated(chosen.lin, chosen.theta)
-        say(f"held-out gap {gap_held.total:.2f} dB")
-    params = _intervals(chosen.theta, chosen.gains, chosen.fit_data, layout, knots, Wl, B, twin,
-                        i_exc, settings)
-    data, gap_conf, a_after = chosen.spec_data, chosen.gap, chosen.amplitudes
-    calibrated_conf = float(gap_conf.total)
-    departs = bool(chosen.departure > settings.relinearize_db)
-    held_full = None
-    if departs and gap_held.total < gap_before.total and calibrated_conf < gap_before.total:
-        # the held-out gap scores a response the twin does not follow: cross-validate the
-        # twin itself, each half's values simulated in full and scored on the other half
-        say("cross-validation of the twin simulated in full (it departs from the fitted "
-            "response)")
-        held_full = float(cross_validated_in_full(held_fits).total)
-        say(f"held-out gap simulated in full {held_full:.2f} dB")
-    why = adoption(gap_before.total, gap_held.total, calibrated_conf, held_full)
-    kept = bool(why)
-    if kept:
-        # the calibrated values fit the training half in directions the records do not
-        # determine and generalise worse than the spec as written, or the twin simulated in
-        # full does not bear them out (adoption): keep the spec, with the level the "before"
-        # model fitted, on all the data
-        say(f"the calibrated values are not adopted ({why}): keeping the spec's values, with "
-            "its fitted response level")
-        d_flat = eqx.tree_at(lambda x: x.B, data_for(rec_idx, half_idx, lin0), jnp.asarray(B1))
-        _, G1 = _model_amp(theta0, d_flat)
-        data = _kept_data(spec, float(G1[0]), knots, stamp, why)
-        a_after, gap_conf = confirmed(data)
-        say(f"confirmed gap of the spec as written {gap_conf.total:.2f} dB")
-    data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
-    # what the calibrated twin still leaves unexplained on the healthy records: discovery
-    # refuses a candidate whose evidence lies there (dtwin.identify.shortfall)
-    orders, excess = shortfall_lines(freqs, a_meas, a_after, kin, band_top)
-    data["calibration"]["shortfall_orders"] = [round(o, 6) for o in orders]
-    data["calibration"]["shortfall_db"] = [round(e, 2) for e in excess]
-    return CalibrationResult(data, params, f_sun, gap_before, gap_held, gap_conf, freqs,
-                             a_meas, a_before, a_after, noise_rms, list(names),
-                             chosen.steps, chosen.converged, best + 1, float(chosen.departure),
-                             departs, kept, calibrated_conf, held_full)
+            lin = c.linearised(theta)
+    return tried, gap_held, held_fits
+
+
+@dataclasses.dataclass
+class _Calibration:
+    """One calibration's records, twin and linearised response (:func:`calibrate`'s state):
+    the records' spectra (rows: record × half) and noise floor, the bins scored, the response
+    knots and priors, the twin with its parameter layout, and the first linearisation."""
+
+    spec: Spec
+    kind: str | None
+    settings: CalibrationSettings
+    say: Callable[[str], None]
+    names: tuple[str, ...]
+    fs: float
+    n: int
+    quantity: str
+    f_sun: float
+    kin: Kinematics
+    stamp: _Stamp
+    freqs: np.ndarray
+    A: np.ndarray
+    F: np.ndarray
+    twin: Any
+    i_path: int
+    i_exc: int
+    layout: Any
+    daq: Any
+    band_top: float = 0.0
+    lin0: Any = None
+    noise_rms: float = 0.0
+    S: np.ndarray | None = None
+    Wl: np.ndarray | None = None
+    knots: np.ndarray | None = None
+    B: np.ndarray | None = None
+    B1: np.ndarray | None = None
+    prior: np.ndarray | None = None
+    rec_idx: np.ndarray | None = None
+    half_idx: np.ndarray | None = None
+    every: np.ndarray | None = None
+    bands: Any = None
+    a_meas: np.ndarray | None = None
+    a_before: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, records, spec: Spec, kind, channel: int, settings: CalibrationSettings, say,
+           f_sun: float | None) -> _Calibration:
+        """The records read and checked, their speed and spectra, the twin prepared, its
+        response linearised at the spec's values, and the bins and priors of the fits."""
+        if not records:
+            raise RecordError("calibration needs at least one healthy record")
+        recs, names = zip(*(_as_record(r) for r in records), strict=True)
+        X, fs = _signal_rows(recs, channel)
+        unit = _records_unit(recs, channel)
+        quantity, measured = _quantity(spec, unit), unit_quantity(unit)
+        n_rec, n = X.shape
+        f_sun, kin, how = _speed(spec, recs, X, fs, f_sun, channel)
+        say(f"speed {f_sun:.4f} Hz from {n_rec} record(s) ({how})")
+        stamp = _Stamp(f_sun, fs, measured, tuple(names), kind)  # what a calibrated spec records
+        n_harm = mesh_harmonics(settings, fs, kin.f_mesh)
+        # spectra of each half of each record
+        freqs, Ymeas = segment_spectra(X, fs, 2)  # (rec, 2, bins)
+        A = np.abs(Ymeas)
+        F = noise_floor(A, FLOOR_BINS)
+        n_orders = _carrier_order_lines(kin, freqs, A, F)
+        fit_shares = settings.load_sharing == "on" or (settings.load_sharing == "auto"
+                                                        and n_orders >= 2)
+        if fit_shares:
+            say(f"{n_orders} carrier orders k f_c (k not a multiple of {kin.n_planets}) above "
+                "the line threshold: fitting the planets' load shares")
+        twin, i_path, i_exc, layout = _prepare_twin(spec, f_sun, kind, settings, n_harm,
+                                                    fit_shares)
+        # the records' rate, not the spec's `sensor.sample_rate` (which describes other records)
+        daq = daq_from_spec(spec, sample_rate=fs, snr_db=None, quantity=quantity, frf_hz=None,
+                            frf_db=None)
+        say(f"simulating the twin and its response to {layout.size} parameters "
+            f"({n / fs:.1f} s at {fs:g} Hz)")
+        c = cls(spec, kind, settings, say, names, fs, n, quantity, f_sun, kin, stamp, freqs, A,
+                F, twin, i_path, i_exc, layout, daq)
+        c.lin0 = c.linearised(jnp.zeros(layout.size))
+        c._scored(n_rec, n_harm)
+        return c
+
+    def _scored(self, n_rec: int, n_harm: int) -> None:
+        """The noise floor as an rms, the bins scored, the response knots, the priors, the
+        rows (record × half) and the named bands."""
+        settings, kin, freqs, A, F, fs = (self.settings, self.kin, self.freqs, self.A, self.F,
+                                          self.fs)
+        # the noise floor as an rms: a Hann amplitude spectrum of white noise of variance σ² has
+        # Rayleigh amplitudes of median sqrt(2 ln 2 · 3 σ² / n_half)
+        self.noise_rms = float(np.sqrt(np.median(F) ** 2 * (self.n // 2)
+                                       / (6.0 * math.log(2.0))))
+        fam = _family_bins(kin, freqs)
+        strong = A > F * 10.0 ** (THRESHOLD_DB / 20.0)
+        # the scored band ends where the DAQ's anti-aliasing pass band does (the spec's)
+        self.band_top = band_top = float(self.spec["sensor"]["passband"]) * fs
+        band = (freqs >= 0.5 * kin.f_carrier) & (freqs <= band_top)
+        self.S = (fam[None, None, :] | strong) & band[None, None, :]
+        self.Wl = strong & band[None, None, :]
+        self.knots = np.geomspace(0.8 * kin.n_planets * kin.f_carrier, band_top, settings.n_knots)
+        self.B = knot_basis(freqs, self.knots)
+        layout = self.layout
+        self.prior = np.concatenate([np.full(layout.n_window, settings.window_prior),
+                                     np.full(2 * n_harm, settings.te_prior / _TE_UNIT),
+                                     np.full(layout.n_share, settings.share_prior / _SHARE_UNIT),
+                                     [settings.zeta_prior]])
+        self.rec_idx = np.repeat(np.arange(n_rec), 2)
+        self.half_idx = np.tile(np.arange(2), n_rec)
+        self.every = np.ones(len(self.half_idx), bool)
+        self.bands = named_bands(kin, band_top)
+        self.a_meas = A.reshape(-1, A.shape[-1])
+        # before: the spec's twin with its best response level (one gain), scored per half
+        self.B1 = knot_basis(freqs, self.knots[:1])
+
+    def linearised(self, theta_lin):
+        """The model's halves (the same for every record) and their response at `theta_lin`."""
+        y, J = _response(self.twin, self.layout, self.i_path, self.i_exc, self.daq, self.n,
+                         self.f_sun, self.settings, theta_lin)
+        _, Z = segment_spectra(y, self.fs, 2)  # (2, bins)
+        _, JZ = segment_spectra(J.T, self.fs, 2)  # (P, 2, bins)
+        return Z, np.moveaxis(JZ, 0, -1), np.asarray(theta_lin)  # JZ: (2, bins, P)
+
+    def data_for(self, rows_rec, rows_half, lin):
+        Z, JZ, theta_lin = lin
+        return _Data(
+            Z0=jnp.asarray(Z[rows_half]), JZ=jnp.asarray(JZ[rows_half]),
+            theta_lin=jnp.asarray(theta_lin),
+            A=jnp.asarray(self.A[rows_rec, rows_half]), F=jnp.asarray(self.F[rows_rec, rows_half]),
+            S=jnp.asarray(self.S[rows_rec, rows_half].astype(float)),
+            W=jnp.asarray(self.Wl[rows_rec, rows_half].astype(float)), B=jnp.asarray(self.B),
+            prior_sd=jnp.asarray(self.prior), smooth=self.settings.smooth_db,
+            frf_prior=self.settings.frf_prior_db,
+        )
+
+    def amp_at(self, theta, fit_rows, score_rows, lin):
+        """The model's amplitudes at θ (response solved on `fit_rows`), on the rows
+        `score_rows`."""
+        rec_idx, half_idx = self.rec_idx, self.half_idx
+        _, G = _model_amp(jnp.asarray(theta), self.data_for(rec_idx[fit_rows],
+                                                             half_idx[fit_rows], lin))
+        d = self.data_for(rec_idx[score_rows], half_idx[score_rows], lin)
+        Z = d.Z0 + jnp.einsum("rbp,p->rb", d.JZ, jnp.asarray(theta - lin[2], d.JZ.dtype))
+        return np.asarray(10.0 ** ((self.B @ np.asarray(G)) / 20.0))[None, :] * np.abs(np.asarray(Z))
+
+    def gap_before(self) -> GapResult:
+        """The held-out gap of the spec as written with its best response level (one gain),
+        fitted on each half and scored on the other; keeps the amplitudes in `a_before`."""
+        rec_idx, half_idx = self.rec_idx, self.half_idx
+        self.a_before = np.empty_like(self.a_meas)
+        for h in (0, 1):
+            tr = half_idx == h
+            d = self.data_for(rec_idx[tr], half_idx[tr], self.lin0)
+            d = eqx.tree_at(lambda x: x.B, d, jnp.asarray(self.B1))
+            _, G = _model_amp(jnp.zeros(self.layout.size), d)
+            sc = half_idx == 1 - h
+            self.a_before[half_idx != h] = float(10.0 ** (float(G[0]) / 20.0)) * np.abs(
+                self.lin0[0][half_idx[sc]])
+        return gap(self.freqs, self.a_meas, self.a_before, self.bands)
+
+    def cross_validated(self, lin, warm):
+        """The held-out gap about linearisation `lin` (fitted on each half, scored on the other
+        with the linearised response) and the halves' fits, ``[(θ, data)]``. Each half is
+        fitted from the linearisation point and from `warm` (the fit on all the records), and
+        keeps the fit with the lower loss on its own half: a half's fit from the linearisation
+        point alone can stall far above its minimum (the window and the load shares multiply
+        each other), which would score the optimiser, not the model."""
+        settings, rec_idx, half_idx = self.settings, self.rec_idx, self.half_idx
+        a_held = np.empty_like(self.a_meas)
+        fits = []
+        for h in (0, 1):
+            tr = half_idx == h
+            d = self.data_for(rec_idx[tr], half_idx[tr], lin)
+            # each run's own final loss on this half (the fit computes it) picks the start
+            theta_h = min((_fit(d, start, settings.max_steps, settings.loss_rtol,
+                                settings.run_steps, settings.restart_rtol)
+                           for start in (lin[2], warm)), key=lambda run: run[3])[0]
+            a_held[half_idx != h] = self.amp_at(theta_h, tr, half_idx != h, lin)
+            fits.append((theta_h, d))
+        return gap(self.freqs, self.a_meas, a_held, self.bands), fits
+
+    def cross_validated_in_full(self, fits):
+        """The held-out gap of the halves' fits `fits` (:meth:`cross_validated`), each half's
+        values simulated in full and scored on the other half."""
+        half_idx = self.half_idx
+        a_held = np.empty_like(self.a_meas)
+        for h, (theta_h, d) in enumerate(fits):
+            _, G = _model_amp(jnp.asarray(theta_h), d)
+            a = self.confirmed(_calibrated_data(self.spec, theta_h, np.asarray(G), self.knots,
+                                                self.layout, self.twin, self.i_exc,
+                                                self.stamp))[0]
+            a_held[half_idx != h] = a[half_idx != h]
+        return gap(self.freqs, self.a_meas, a_held, self.bands)
+
+    def confirmed(self, data):
+        """Amplitudes (rows: record × half) and gap of the twin of spec `data` simulated in
+        full over the records, nothing refitted."""
+        n, fs, f_sun = self.n, self.fs, self.f_sun
+        cal_spec = _spec_from_data(data)
+        y = np.asarray(simulate(
+            build_twin(cal_spec, kind=self.kind, f_sun=f_sun), duration=n / fs, f_sun=f_sun,
+            daq=daq_from_spec(cal_spec, sample_rate=fs, snr_db=None, quantity=self.quantity),
+            discard=self.settings.discard, solver=self.settings.solver).signal[:n])
+        a = np.abs(segment_spectra(y, fs, 2)[1])[self.half_idx]
+        return a, gap(self.freqs, self.a_meas, a, self.bands)
+
+    def kept(self, why: str):
+        """``(data, amplitudes, gap)`` of the spec as written, kept: the calibrated values fit
+        the training half in directions the records do not determine and generalise worse than
+        the spec as written, or the twin simulated in full does not bear them out
+        (:func:`adoption`): the spec, with the level the "before" model fitted, on all the
+        data."""
+        self.say(f"the calibrated values are not adopted ({why}): keeping the spec's values, "
+                 "with its fitted response level")
+        d_flat = eqx.tree_at(lambda x: x.B, self.data_for(self.rec_idx, self.half_idx, self.lin0),
+                             jnp.asarray(self.B1))
+        _, G1 = _model_amp(jnp.zeros(self.layout.size), d_flat)
+        data = _kept_data(self.spec, float(G1[0]), self.knots, self.stamp, why)
+        a_after, gap_conf = self.confirmed(data)
+        self.say(f"confirmed gap of the spec as written {gap_conf.total:.2f} dB")
+        return data, a_after, gap_conf
+
+    def record_in_spec(self, data, gap_conf: GapResult, a_after) -> None:
+        """The confirmed gap and what the calibrated twin still leaves unexplained on the
+        healthy records (discovery refuses a candidate whose evidence lies there,
+        :mod:`dtwin.identify.shortfall`), written into `data`'s ``[calibration]``."""
+        data["calibration"]["heldout_gap_db"] = round(float(gap_conf.total), 3)
+        orders, excess = shortfall_lines(self.freqs, self.a_meas, a_after, self.kin,
+                                         self.band_top)
+        data["calibration"]["shortfall_orders"] = [round(o, 6) for o in orders]
+        data["calibration"]["shortfall_db"] = [round(e, 2) for e in excess]
+
+
+def _speed(spec: Spec, recs, X, fs: float, f_sun: float | None, channel: int):
+    """``(f_sun, kinematics, how)``: the records' speed, given or each record's (tachometer,
+    metadata, lines) averaged over the records, after the spec's nominal speed and the records'
+    length are checked; a record that holds no mesh line of this gearbox cannot calibrate it:
+    refused at once."""
+    n = X.shape[1]
+    g = spec["gears"]
+    if spec["operating"]["f_sun"] is None:
+        raise SpecError([("operating.f_sun", "calibration needs the nominal input speed (Hz)")])
+    kin0 = Kinematics.from_spec(spec)
+    if n / fs < MIN_CARRIER_PERIODS / kin0.f_carrier * (1.0 - 1e-9):
+        raise RecordError(f"{n / fs:.3g} s is shorter than {MIN_CARRIER_PERIODS:g} carrier "
+                          f"periods ({MIN_CARRIER_PERIODS / kin0.f_carrier:.3g} s): the "
+                          "sidebands at f_c cannot be resolved in each half; calibrate on "
+                          "longer records")
+    ops = [resolve_speed(r, spec, f_sun, channel=channel, fallback=False) for r in recs]
+    f_sun = float(np.mean([op.f_sun for op in ops]))
+    kin = Kinematics.from_gears(g["z_sun"], g["z_planet"], g["z_ring"], g["n_planets"], f_sun)
+    return f_sun, kin, ops[0].source
 
 
 
