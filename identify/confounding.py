@@ -38,8 +38,7 @@ a transmission-error amplitude on top of the calibrated one (registry sections `
 free parameter, per calibrated harmonic and per clearance. It does not run for a fit of tooth
 faults alone, although the excitation moves a severity too: with the excitation free, a
 fault's sidebands stand against mesh lines whose level the excitation sets, and the interval
-widens (4.5× for a sun fault on a four-planet record; enough to flag a torsional mesh-band fit
-of an independent record). The severity's own rules — the lack-of-fit widening, the band
+widens (by how much: benchmarks/README.md, "Moved from module docstrings (#52)"). The severity's own rules — the lack-of-fit widening, the band
 jackknife, the loss shapes (:mod:`dtwin.identify.severity`) — are what its intervals carry.
 """
 

@@ -92,8 +92,7 @@ def batch_mode(batch: str = "auto") -> str:
     one after the other, un-batched). ``"auto"``: ``"vmap"`` on a GPU/TPU, ``"map"`` on a CPU,
     where a vmapped ODE solve costs more than the same solves in sequence: the batch runs the
     solver loop until its slowest member ends, every step as selects over the whole carry
-    (measured on a 2 s record at 5 kHz: 2 vmapped residual evaluations 2.2–2.8× one, 2 mapped
-    1.94×; benchmarks/README.md "Fit")."""
+    (benchmarks/README.md, "Moved from module docstrings (#52)")."""
     if batch not in BATCH_MODES:
         raise SettingsError(f"batch must be one of {BATCH_MODES}, got {batch!r}")
     if batch == "auto":

@@ -32,10 +32,7 @@ __all__ = ["SIGMA_TOL", "SOLVERS", "StallStopping", "gauss_newton_step_in_sigma"
 SOLVERS = ("lm", "gauss-newton", "dogleg")
 #: Default statistical stopping rule: stop when the optimum is within this many standard
 #: errors of the accepted point (:func:`gauss_newton_step_in_sigma`). Above the ODE solver's
-#: noise floor: at rtol = 1e-4 the Gauss–Newton step at points within 0.03 in θ of the optimum
-#: of the benchmark fit measures 0.03–0.13 σ (benchmarks/README.md, "Fit"); with
-#: 0.05 a fit could spend 15 steps chasing that noise. A step of 0.1 σ moves no interval
-#: noticeably.
+#: noise floor (benchmarks/README.md, "Moved from module docstrings (#52)"); a step of 0.1 σ moves no interval noticeably.
 SIGMA_TOL = 0.1
 
 
@@ -220,21 +217,18 @@ def make_solver(name: str, rtol: float, atol: float, sigma_tol: float, history: 
 
     - the Cauchy test (both the step in θ and the change of the residuals below
       ``atol + rtol |·|``), with the RMS norm, not optimistix's default max norm: the residuals
-      carry the ODE solver's own noise (two solves of one θ differ by up to 1e-5 at rtol 1e-5,
-      2e-4 between rtol 1e-4 and 1e-5, on a 4 s record, measured before
-      `SolverOptions.rate_scale_hz`; the present defaults' error is ~4× larger), so a max over ~2000 points against
-      an atol of 1e-6 was met only by chance: fits ran to `max_steps`;
+      carry the ODE solver's own noise, which a max over ~2000 points meets only by chance
+      (benchmarks/README.md, "Moved from module docstrings (#52)");
     - the statistical test (`sigma_tol` > 0): the Gauss–Newton step from the last accepted
       point is below `sigma_tol` standard errors (:func:`gauss_newton_step_in_sigma`): going
       on cannot move the estimate by a meaningful fraction of its uncertainty. Without it, a
-      fit near its optimum spends steps chasing the ODE solver's noise in the residuals (4 s
-      record, 3 parameters: the loss settled to 1e-5 after 4–5 steps, the Cauchy test stopped
-      it after 13–19; benchmarks/README.md "Fit");
+      fit near its optimum spends steps chasing the ODE solver's noise in the residuals;
     - the stall test (with `sigma_tol` > 0, :func:`_noise_stopping`): the step is within
       `_STALL_SIGMA` standard errors and the last `_STALL_EVALUATIONS` evaluations did not
       lower the loss by ½ (`sigma_tol` s)². Where the ODE solver's noise in the loss exceeds
-      that amount, the statistical test is met only by chance (a 4 s record's fit sat at its
-      minimum from step 3 and stopped at step 30 on the Cauchy test).
+      that amount, the statistical test is met only by chance.
+
+    What each rule saved, as measured: benchmarks/README.md, "Moved from module docstrings (#52)".
 
     The loss of the first `history` residual evaluations is kept in the solver's state
     (:class:`LossRecording`, read by :func:`dtwin.identify.solve.outcome`)."""
