@@ -13,7 +13,7 @@ and evaluates, with nothing else refitted:
 - the same loss per band of the observation (band 0: the low band; band m: the m-th mesh
   band), so that one can read which lines pull the depth where;
 - with ``--splits``, all of it again for the other end of the calibration's
-  excitation/response split (:func:`dtwin.identify.split.stiffness_split`), which ``dtwin
+  excitation/response split (:func:`dtwin.identify.excitation_response.stiffness_split`), which ``dtwin
   severity`` fits too.
 
 A kind whose least loss lies far from the truth while the other's lies near it is a model-form
@@ -101,7 +101,7 @@ def main(argv=None) -> int:
     record = read_record(folder / f"{args.record}.csv")
     out = dict(machine=args.machine, record=args.record, location=location,
                true_peak=true_peak, kinds=[])
-    from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS, stiffness_split
+    from dtwin.identify.excitation_response import SPLIT_CALIBRATED, SPLIT_STIFFNESS, stiffness_split
 
     specs = [(SPLIT_CALIBRATED, args.spec)]
     if args.splits and stiffness_split(args.spec) is not None:
