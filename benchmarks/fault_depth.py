@@ -101,7 +101,11 @@ def main(argv=None) -> int:
     record = read_record(folder / f"{args.record}.csv")
     out = dict(machine=args.machine, record=args.record, location=location,
                true_peak=true_peak, kinds=[])
-    from dtwin.identify.excitation_response import SPLIT_CALIBRATED, SPLIT_STIFFNESS, stiffness_split
+    from dtwin.identify.excitation_response import (
+        SPLIT_CALIBRATED,
+        SPLIT_STIFFNESS,
+        stiffness_split,
+    )
 
     specs = [(SPLIT_CALIBRATED, args.spec)]
     if args.splits and stiffness_split(args.spec) is not None:
