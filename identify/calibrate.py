@@ -73,9 +73,9 @@ spec as written's held-out gap with one fitted level; otherwise the calibrated s
 spec's values with that level, and says why.
 
 The rooms: the settings (:mod:`dtwin.identify.calibration_settings`), the linearised model and
-its fits (:mod:`dtwin.identify.calibration_model`), the result, its intervals and the
-calibrated spec (:mod:`dtwin.identify.calibration_result`); here the records, the driver's
-stages, the adoption rule and the held-out gap of a calibrated spec.
+its fits (:mod:`dtwin.identify.calibration_model`), the result, its intervals, the calibrated
+spec and the adoption rule (:mod:`dtwin.identify.calibration_result`); here the records, the
+driver's stages and the held-out gap of a calibrated spec.
 
 References: Golub & Pereyra (1973), "The differentiation of pseudo-inverses and nonlinear least
 squares problems whose variables separate", SIAM J. Numer. Anal. 10(2); McFadden & Smith
