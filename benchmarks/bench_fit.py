@@ -18,7 +18,7 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
   through diffrax, called twice with different starts: the first call includes compilation
   (persistent cache off unless `--cache`), the second is the cost of a fit once compiled
   (wall, CPU, LM steps, intervals). Then one residual evaluation (= one simulation and the
-  spectrum) and one forward-mode Jacobian (``dtwin.identify.fit._jacobian``: residuals and Jacobian
+  spectrum) and one forward-mode Jacobian (``dtwin.identify.solve.jacobian_at``: residuals and Jacobian
   from one primal-and-tangents solve), each timed after compilation, five times interleaved:
   the Jacobian's cost relative to one simulation as the median of the five pairs' ratios.
 - **SciPy** (what a user without JAX writes): the same residual vector computed from
@@ -92,9 +92,10 @@ def main(argv=None) -> int:
     jax.config.update("jax_enable_x64", True)
     from dtwin.build import build_twin
     from dtwin.faults import MissingTooth
-    from dtwin.identify.fit import _jacobian, fit, make_problem
+    from dtwin.identify.fit import fit, make_problem
     from dtwin.identify.params import current_value
     from dtwin.identify.residuals import Features, observation_residuals, observe
+    from dtwin.identify.solve import jacobian_at
     from dtwin.simulate import DAQ, daq_filter, initial_state, simulate
     from dtwin.spec import preset
 
@@ -152,14 +153,14 @@ def main(argv=None) -> int:
 
     res_fn = eqx.filter_jit(lambda t, pr: pr.residuals(t))
     jax.block_until_ready(res_fn(theta, prob))
-    jax.block_until_ready(_jacobian(theta, prob))
+    jax.block_until_ready(jacobian_at(theta, prob))
     # interleaved repeats (simulation, Jacobian, simulation, …) so that drift in the machine's
     # load hits both alike; each figure is the median of its repeats, the ratio theirs
     reps = 5 if args.duration >= 2 else 9
     sims, jacs = [], []
     for _ in range(reps):
         sims.append(timed(lambda: jax.block_until_ready(res_fn(theta, prob)))[1:])
-        jacs.append(timed(lambda: jax.block_until_ready(_jacobian(theta, prob)))[1:])
+        jacs.append(timed(lambda: jax.block_until_ready(jacobian_at(theta, prob)))[1:])
     sim_wall, sim_cpu = (float(np.median(v)) for v in zip(*sims, strict=True))
     jac_wall, jac_cpu = (float(np.median(v)) for v in zip(*jacs, strict=True))
     out["simulation_s"] = sim_wall

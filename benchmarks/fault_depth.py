@@ -13,7 +13,7 @@ and evaluates, with nothing else refitted:
 - the same loss per band of the observation (band 0: the low band; band m: the m-th mesh
   band), so that one can read which lines pull the depth where;
 - with ``--splits``, all of it again for the other end of the calibration's
-  excitation/response split (:func:`dtwin.identify.split.stiffness_split`), which ``dtwin
+  excitation/response split (:func:`dtwin.identify.excitation_response.stiffness_split`), which ``dtwin
   severity`` fits too.
 
 A kind whose least loss lies far from the truth while the other's lies near it is a model-form
@@ -42,10 +42,11 @@ def _loss_profile(record, spec, location: str, kind: str, peaks: np.ndarray) -> 
     import jax.numpy as jnp
 
     from dtwin.faults import severity_for_peak_loss
-    from dtwin.identify.fit import _batched_residuals, make_problem
+    from dtwin.identify.fit import make_problem
     from dtwin.identify.low_band import LOW_BAND_LOCATIONS, with_low_band_problem
     from dtwin.identify.residuals import point_groups
     from dtwin.identify.severity import _fault_index, _name, _peak
+    from dtwin.identify.solve import batched_residuals
 
     name = _name(location)
     problem, _ = make_problem(record, spec, [name], kind=kind, initial={name: 0.1})
@@ -57,7 +58,7 @@ def _loss_profile(record, spec, location: str, kind: str, peaks: np.ndarray) -> 
     sev = np.clip(sev, 1e-4, 1.0)
     thetas = jnp.asarray(np.stack([problem.pset.theta([s]) for s in sev]))
     t0 = time.perf_counter()
-    r = np.asarray(_batched_residuals(thetas, problem, "map"))
+    r = np.asarray(batched_residuals(thetas, problem, "map"))
     wall = time.perf_counter() - t0
     n_prior = len(problem.pset.priors)
     groups = point_groups(problem.observations)
@@ -100,7 +101,11 @@ def main(argv=None) -> int:
     record = read_record(folder / f"{args.record}.csv")
     out = dict(machine=args.machine, record=args.record, location=location,
                true_peak=true_peak, kinds=[])
-    from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS, stiffness_split
+    from dtwin.identify.excitation_response import (
+        SPLIT_CALIBRATED,
+        SPLIT_STIFFNESS,
+        stiffness_split,
+    )
 
     specs = [(SPLIT_CALIBRATED, args.spec)]
     if args.splits and stiffness_split(args.spec) is not None:

@@ -19,6 +19,7 @@ __all__ = ["MOVED", "install", "new_name"]
 MOVED: dict[str, str] = {
     "dtwin.identify.discover.candidates": "dtwin.identify.discover.coverage",
     "dtwin.identify.effects": "dtwin.identify.discover.effects",
+    "dtwin.identify.split": "dtwin.identify.excitation_response",
 }
 
 

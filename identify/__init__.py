@@ -7,6 +7,7 @@ import dtwin as _dtwin  # noqa: F401  (float64 + compilation cache)
 
 from .api import Features as Features
 from .api import FitResult as FitResult
+from .api import FitSettings as FitSettings
 from .api import Observation as Observation
 from .api import OperatingPoint as OperatingPoint
 from .api import ParameterSet as ParameterSet
@@ -43,6 +44,7 @@ __all__ = [
     "fit",
     "fit_batch",
     "FitResult",
+    "FitSettings",
     "make_problem",
     "Observation",
     "observe",

@@ -3,7 +3,7 @@
     from dtwin.identify.api import fit, estimate_severity, severity_series, ParameterSet, Features
 
     res = fit(records, "bench.toml", ["k_sun_planet", "k_ring_planet", "zeta_mesh", "sun_fault"],
-              starts=9, refine=3)
+              starts=9, refine=3)   # or fit(records, spec, free, FitSettings(starts=9, refine=3))
     seg = segment_for_fit(long_record, "bench.toml")   # a steady window of a long record
     res = fit(seg.record, "bench.toml", ["sun_fault"]); print(seg.describe())
     print(res.table())           # values, 95 % intervals, "NOT DETERMINED" flags
@@ -19,18 +19,18 @@ import numpy as np
 from dtwin.kinematics import Kinematics
 from dtwin.spectrum import label_frequency
 
-from .fit import SOLVERS as SOLVERS
-from .fit import FitResult as FitResult
-from .fit import Problem as Problem
 from .fit import fit as fit
-from .fit import fit_batch as fit_batch
-from .fit import make_problem as make_problem
-from .fit import stack_problems as stack_problems
+from .fit_batch import fit_batch as fit_batch
+from .fit_batch import stack_problems as stack_problems
+from .fit_result import FitResult as FitResult
+from .fit_settings import FitSettings as FitSettings
 from .operating_point import OperatingPoint as OperatingPoint
 from .operating_point import SpeedProfileEstimate as SpeedProfileEstimate
 from .operating_point import estimate_speed as estimate_speed
 from .operating_point import estimate_speed_profile as estimate_speed_profile
 from .params import ParameterSet as ParameterSet
+from .problem import Problem as Problem
+from .problem import make_problem as make_problem
 from .residuals import Features as Features
 from .residuals import Observation as Observation
 from .residuals import drive_at as drive_at
@@ -42,11 +42,12 @@ from .severity import SeverityEstimate as SeverityEstimate
 from .severity import SeveritySeries as SeveritySeries
 from .severity import estimate_severity as estimate_severity
 from .severity import severity_series as severity_series
+from .stopping import SOLVERS as SOLVERS
 from .uncertainty import Uncertainty as Uncertainty
 from .uncertainty import analyse as analyse
 
 __all__ = [
-    "SOLVERS", "Features", "FitResult", "FitWindow", "Observation", "OperatingPoint",
+    "SOLVERS", "Features", "FitResult", "FitSettings", "FitWindow", "Observation", "OperatingPoint",
     "ParameterSet", "Problem", "Segment", "SeverityEstimate", "SeveritySeries", "SpeedProfileEstimate", "Uncertainty",
     "analyse", "drive_at", "estimate_severity", "estimate_speed", "estimate_speed_profile",
     "fit", "fit_batch", "make_problem", "stack_problems", "observe", "plot_fit", "plot_severity_series", "segment_for_fit", "severity_series",

@@ -38,8 +38,7 @@ a transmission-error amplitude on top of the calibrated one (registry sections `
 free parameter, per calibrated harmonic and per clearance. It does not run for a fit of tooth
 faults alone, although the excitation moves a severity too: with the excitation free, a
 fault's sidebands stand against mesh lines whose level the excitation sets, and the interval
-widens (4.5× for a sun fault on a four-planet record; enough to flag a torsional mesh-band fit
-of an independent record). The severity's own rules — the lack-of-fit widening, the band
+widens (by how much: benchmarks/README.md, "Moved from module docstrings (#52)"). The severity's own rules — the lack-of-fit widening, the band
 jackknife, the loss shapes (:mod:`dtwin.identify.severity`) — are what its intervals carry.
 """
 
@@ -130,7 +129,7 @@ def calibration_confounding(problem, theta, unc: Uncertainty, spec, *, groups, e
     """`unc` with the parameters that the calibrated excitation and load-share clearances
     confound flagged (module docstring).
 
-    **Arguments:** `problem` (:class:`dtwin.identify.fit.Problem`) and its optimum `theta`;
+    **Arguments:** `problem` (:class:`dtwin.identify.problem.Problem`) and its optimum `theta`;
     `unc`: the analysis with the calibration held; `spec`: the calibrated spec; `groups`,
     `expected_rss`: as for :func:`dtwin.identify.uncertainty.analyse`; `jacobian(theta,
     problem) -> (r, J)`: the residuals and forward-mode Jacobian of a problem.

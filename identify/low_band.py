@@ -8,7 +8,7 @@ bin from ``LOW_BAND_START × N f_c`` (the lowest knot of a calibrated sensor res
 first mesh band to an observation as band 0; :func:`with_low_band_problem` does so for each
 observation of a fit's problem. A severity fit uses it (:mod:`dtwin.identify.severity`, "The
 low band"), and so does the scoring of a calibration's excitation/response splits
-(:func:`dtwin.identify.fit.low_band_losses`). Frequencies in Hz.
+(:func:`dtwin.identify.excitation_response.low_band_losses`). Frequencies in Hz.
 """
 
 from __future__ import annotations

@@ -124,53 +124,12 @@ class ParameterSet(eqx.Module):
         free = list(free)
         if not free:
             raise ParameterError("no free parameter given; name at least one registry parameter")
-        infos: list[ParameterInfo] = [lookup(n) for n in free]  # unknown names raise here
-        for n in list(fixed or {}) + list(initial or {}) + list(bounds or {}) + list(priors or {}):
-            lookup(n)
-        if len(set(free)) != len(free):
-            raise ParameterError(f"free parameters repeat a name: {free}")
-        for info in infos:
-            if info.name == "f_sun":
-                raise ParameterError(
-                    "f_sun is the operating point: it is estimated from the record before the "
-                    "fit (dtwin.identify.operating_point) and held fixed; do not list it as free"
-                )
-            if not settable(info.name):
-                raise ParameterError(f"parameter {info.name!r} cannot be fitted by identify yet")
-            for t in info.ties:
-                if t in free:
-                    raise ParameterError(f"{info.name} ties {', '.join(info.ties)}: do not free "
-                                         f"{t} as well")
+        infos = _checked_names(free, fixed, initial, bounds, priors)
         fixed = dict(fixed or {})
         both = set(fixed) & set(free)
         if both:
             raise ParameterError(f"parameters both free and fixed: {sorted(both)}")
-        frees = []
-        for info in infos:
-            lo, hi = (bounds or {}).get(info.name, info.bounds)
-            lo, hi = float(lo), float(hi)
-            tr = info.transform
-            if tr == "log" and math.isfinite(hi) and lo > 0 and (bounds or {}).get(info.name):
-                tr = "logit"
-            if (initial or {}).get(info.name) is not None:
-                x0 = float(initial[info.name])
-            elif twin is not None:
-                x0 = current_value(twin, info.name)
-            else:
-                raise ParameterError(f"{info.name}: give an initial value or a twin to read it")
-            if tr == "log":
-                if not x0 > 0:
-                    raise ParameterError(
-                        f"{info.name} starts at {x0:g} {info.unit}; its log transform needs a "
-                        "positive initial value: pass initial={...}"
-                    )
-            elif tr == "logit":
-                if not (lo <= x0 <= hi):
-                    raise ParameterError(f"{info.name} = {x0:g} lies outside its bounds "
-                                         f"[{lo:g}, {hi:g}] {info.unit}")
-                span = hi - lo
-                x0 = min(max(x0, lo + _EDGE * span), hi - _EDGE * span)
-            frees.append(_Free(info.name, tr, x0, lo, hi))
+        frees = [_free(info, twin, initial, bounds) for info in infos]
         pri = tuple((n, float(m), float(s)) for n, (m, s) in (priors or {}).items())
         for n, _, s in pri:
             if n not in free:
@@ -261,7 +220,7 @@ class ParameterSet(eqx.Module):
     def twin_indices(self) -> tuple[int, ...]:
         """Positions in `free` of the parameters that change the twin (all but signal gains
         such as ``sensor_gain``, which scale the simulated signal after the solve): only these
-        need tangents through the ODE (`dtwin.identify.fit._value_and_jacfwd`)."""
+        need tangents through the ODE (`dtwin.identify.solve.value_and_jacfwd`)."""
         return tuple(i for i, n in enumerate(self.free) if lookup(n).address.changes_twin)
 
     def gain(self, values) -> jax.Array:
@@ -310,3 +269,56 @@ class ParameterSet(eqx.Module):
 def describe_free(names: Sequence[str]) -> list[dict[str, Any]]:
     """Registry entries of `names` as dicts (unit, description, transform, bounds)."""
     return [dataclasses.asdict(lookup(n)) for n in names]
+
+
+def _checked_names(free: list[str], fixed, initial, bounds, priors) -> list[ParameterInfo]:
+    """The registry entries of `free`, after every name given is checked: unknown, repeated,
+    the operating point, not settable, or freed beside a parameter that ties it."""
+    infos: list[ParameterInfo] = [lookup(n) for n in free]  # unknown names raise here
+    for n in list(fixed or {}) + list(initial or {}) + list(bounds or {}) + list(priors or {}):
+        lookup(n)
+    if len(set(free)) != len(free):
+        raise ParameterError(f"free parameters repeat a name: {free}")
+    for info in infos:
+        if info.name == "f_sun":
+            raise ParameterError(
+                "f_sun is the operating point: it is estimated from the record before the "
+                "fit (dtwin.identify.operating_point) and held fixed; do not list it as free"
+            )
+        if not settable(info.name):
+            raise ParameterError(f"parameter {info.name!r} cannot be fitted by identify yet")
+        for t in info.ties:
+            if t in free:
+                raise ParameterError(f"{info.name} ties {', '.join(info.ties)}: do not free "
+                                     f"{t} as well")
+    return infos
+
+
+def _free(info: ParameterInfo, twin, initial, bounds) -> _Free:
+    """A free parameter: its transform (``log`` with finite bounds given becomes ``logit``),
+    initial value (given, else the twin's; checked against the transform, and kept off a
+    ``logit`` parameter's bounds) and bounds."""
+    lo, hi = (bounds or {}).get(info.name, info.bounds)
+    lo, hi = float(lo), float(hi)
+    tr = info.transform
+    if tr == "log" and math.isfinite(hi) and lo > 0 and (bounds or {}).get(info.name):
+        tr = "logit"
+    if (initial or {}).get(info.name) is not None:
+        x0 = float(initial[info.name])
+    elif twin is not None:
+        x0 = current_value(twin, info.name)
+    else:
+        raise ParameterError(f"{info.name}: give an initial value or a twin to read it")
+    if tr == "log":
+        if not x0 > 0:
+            raise ParameterError(
+                f"{info.name} starts at {x0:g} {info.unit}; its log transform needs a "
+                "positive initial value: pass initial={...}"
+            )
+    elif tr == "logit":
+        if not (lo <= x0 <= hi):
+            raise ParameterError(f"{info.name} = {x0:g} lies outside its bounds "
+                                 f"[{lo:g}, {hi:g}] {info.unit}")
+        span = hi - lo
+        x0 = min(max(x0, lo + _EDGE * span), hi - _EDGE * span)
+    return _Free(info.name, tr, x0, lo, hi)

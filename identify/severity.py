@@ -47,11 +47,11 @@ a severity"). Where the spec was calibrated with the other twin, its calibrated 
 window and response are taken as they are and the estimate's `note` says so.
 
 **The calibration's split** (``splits=None``: on for a calibrated spec with a calibrated mesh
-excitation or response shape; :mod:`dtwin.identify.split`). A healthy record cannot tell the
+excitation or response shape; :mod:`dtwin.identify.excitation_response`). A healthy record cannot tell the
 calibration's transmission error and raised response from the stiffness waveform's excitation
 and a flat response; a tooth fault's sidebands pass the response uncancelled, so the faulty
 record can. Every loss shape is fitted with both ends of the split
-(:func:`~dtwin.identify.split.stiffness_split`), and the splits are scored as the loss shapes
+(:func:`~dtwin.identify.excitation_response.stiffness_split`), and the splits are scored as the loss shapes
 are: the split of least loss is reported (`SeverityEstimate.excitation`), and the intervals are
 the union over the splits the record cannot reject. One more fit per shape.
 
@@ -115,21 +115,22 @@ from dtwin.build import SEVERITY_KIND, is_calibrated
 from dtwin.errors import ParameterError, SettingsError
 from dtwin.faults import MIN_SPREAD, peak_stiffness_loss
 from dtwin.registry import lookup
-from dtwin.spec import Spec, load_spec
-from dtwin.twin import Twin
 
-from .fit import FitResult, _batched_loss, _jacobian, fit, make_problem
-from .low_band import LOW_BAND_LOCATIONS as LOW_BAND_LOCATIONS
-from .low_band import LOW_BAND_START as LOW_BAND_START
-from .low_band import with_low_band as with_low_band
-from .low_band import with_low_band_problem as with_low_band_problem
-from .residuals import point_groups
-from .split import (
+from .excitation_response import (
     SPLIT_CALIBRATED,
     SPLIT_STIFFNESS,
     model_form_tolerance,
     other_split,
 )
+from .fit import fit
+from .fit_result import FitResult
+from .low_band import LOW_BAND_LOCATIONS as LOW_BAND_LOCATIONS
+from .low_band import LOW_BAND_START as LOW_BAND_START
+from .low_band import with_low_band as with_low_band
+from .low_band import with_low_band_problem as with_low_band_problem
+from .problem import make_problem, spec_of
+from .residuals import point_groups
+from .solve import batched_loss, jacobian_at
 from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, band_jackknife
 
 __all__ = ["RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity",
@@ -183,8 +184,8 @@ class SeverityEstimate:
     kind departs from the one the spec was calibrated with, what that means (module
     docstring, "The twin"); `low_band`: whether the fit held the low
     band (:func:`with_low_band`); `excitation`: of a calibrated spec's two excitation/response
-    splits, the one the reported fit used (:data:`~dtwin.identify.split.SPLIT_CALIBRATED`,
-    :data:`~dtwin.identify.split.SPLIT_STIFFNESS`; module docstring, "The calibration's
+    splits, the one the reported fit used (:data:`~dtwin.identify.excitation_response.SPLIT_CALIBRATED`,
+    :data:`~dtwin.identify.excitation_response.SPLIT_STIFFNESS`; module docstring, "The calibration's
     split"), empty when one was fitted; `flank`: for a planet fault, the flank of the planet
     tooth the reported fit put it on (``both``, ``sun``, ``ring``; module docstring, "A planet fault's flank"), empty for a sun or ring fault."""
 
@@ -320,9 +321,9 @@ def _twin_kind(spec_or_twin, kind: str | None) -> tuple[str | None, str]:
     """``(kind, note)``: the twin kind a severity fit builds from `spec_or_twin` (None for a
     twin, which is its own) and, where the default departs from the kind the spec was
     calibrated with, a note saying so (module docstring, "The twin")."""
-    if isinstance(spec_or_twin, Twin) or kind is not None:
+    spec = None if kind is not None else spec_of(spec_or_twin)
+    if spec is None:
         return kind, ""
-    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
     own = spec["model"]["kind"]
     if is_calibrated(spec) and own != SEVERITY_KIND:
         return SEVERITY_KIND, (
@@ -343,9 +344,9 @@ def _named_flank(spec_or_twin) -> bool:
     """Whether `spec_or_twin` says which flank its planet fault is on: a twin always does (its
     planet fault part's flank; the registry's default part, on both flanks, where it has none),
     a spec where a ``[[faults]]`` entry at the planet names ``flank``."""
-    if isinstance(spec_or_twin, Twin):
+    spec = spec_of(spec_or_twin)
+    if spec is None:
         return True
-    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
     return any(f.get("location") == "planet" and f.get("flank") for f in spec["faults"])
 
 
@@ -394,10 +395,10 @@ def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_ban
     is (``ramps=None``), and the twin's note (:func:`_twin_kind`); with `low_band` the
     observation holds the low band too (:func:`with_low_band`; None: for a sun or ring fault on
     a steady spectrum record, :data:`LOW_BAND_LOCATIONS`; returned as used). With `splits`
-    (None: where :func:`~dtwin.identify.split.stiffness_split` gives one) every shape is fitted
+    (None: where :func:`~dtwin.identify.excitation_response.stiffness_split` gives one) every shape is fitted
     again with the spec's other excitation/response split, and with `flanks` (:func:`_flanks`)
     on each planet-tooth flank. `tags` names what varies beyond the shape: ``"excitation"``
-    (:data:`~dtwin.identify.split.SPLIT_CALIBRATED`, :data:`~dtwin.identify.split.SPLIT_STIFFNESS`)
+    (:data:`~dtwin.identify.excitation_response.SPLIT_CALIBRATED`, :data:`~dtwin.identify.excitation_response.SPLIT_STIFFNESS`)
     where two splits were fitted, ``"flank"`` where several flanks were."""
     location = names[0].removesuffix("_fault")
     flank_list = _flanks(spec_or_twin, location, flanks)
@@ -442,7 +443,7 @@ def _jackknife_interval(res: FitResult, name: str) -> tuple[float, float]:
     if res.residuals is not None and res.jacobian is not None:
         r, J = res.residuals, res.jacobian
     else:
-        r, J = _jacobian(theta, prob)
+        r, J = jacobian_at(theta, prob)
     n_prior = len(prob.pset.priors)
     groups = np.concatenate([point_groups(prob.observations), -1 - np.arange(n_prior)])
     half, _ = band_jackknife(np.asarray(theta), np.asarray(r), np.asarray(J), groups)
@@ -468,7 +469,7 @@ def _healthy_accepted(res: FitResult, name: str, best_loss: float, tol: float) -
     vals[name] = float(res.problem.pset.lower[res.names.index(name)])  # pulled inside the
     # logit range by ParameterSet.theta
     theta0 = jnp.asarray(res.problem.pset.theta(vals))[None, :]
-    loss0 = float(np.asarray(_batched_loss(theta0, res.problem, "map"))[0])
+    loss0 = float(np.asarray(batched_loss(theta0, res.problem, "map"))[0])
     return bool(np.isfinite(loss0) and 2.0 * (loss0 - best_loss) <= tol)
 
 
@@ -575,7 +576,7 @@ def estimate_severity(
     too (None: for a sun or ring fault on a steady record, :data:`LOW_BAND_LOCATIONS`);
     `jackknife`: widen the interval by the band jackknife where the bands disagree (module
     docstring; on by default); `splits`: fit a calibrated spec's other excitation/response split too (None:
-    where it has one, :func:`~dtwin.identify.split.stiffness_split`; module docstring, "The
+    where it has one, :func:`~dtwin.identify.excitation_response.stiffness_split`; module docstring, "The
     calibration's split");
     `flanks`: for a planet fault, the planet-tooth flanks to fit (True: :data:`PLANET_FLANKS`;
     a sequence of them; False: the fault's own; None: all three unless the spec names the

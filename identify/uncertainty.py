@@ -398,66 +398,20 @@ def analyse(
     lo = np.asarray(pset.values(np.clip(lo_t, -50, 50)))
     hi = np.asarray(pset.values(np.clip(hi_t, -50, 50)))
     interval = np.stack([np.minimum(lo, hi), np.maximum(lo, hi)], axis=1)
-    profiled = []
-    better = None
+    profiled, better = [], None
     if profile_fn is not None:
-        for i, n in enumerate(names):
-            if not n.endswith("_fault") or pset.transforms[i] != "logit":
-                continue
-            near = (values[i] - pset.lower[i] < 2 * abs(d[i]) * std_t[i]
-                    or pset.upper[i] - values[i] < 2 * abs(d[i]) * std_t[i])
-            if not near or not np.isfinite(std_t[i]):
-                continue
-            out = _profile_interval(pset, theta, r, J, i, widen * s2 * inflation[i],
-                                    profile_fn, m_data)
-            if out is None:
-                continue
-            interval[i], (th_best, rss_best) = out
-            profiled.append(n)
-            # a profile point whose loss lies below the optimum's by more than the χ²₁ level:
-            # the optimum is a local one (fit refits from it, dtwin.identify.fit)
-            if (rss - rss_best) / (widen * s2 * inflation[i]) > CHI2_95 and (
-                    better is None or rss_best < better[2]):
-                better = (n, np.asarray(th_best), rss_best)
+        better = _profile_severities(pset, theta, r, J, values, d, std_t, widen * s2, inflation,
+                                     profile_fn, m_data, rss, interval, profiled)
     std = np.abs(d) * std_t
 
     def flag(i, n):
-        half = 0.5 * (interval[i, 1] - interval[i, 0])
-        ref = half_width_scale(values[i], pset.transforms[i], pset.lower[i], pset.upper[i])
-        out = None
-        if not np.isfinite(half) or half > HALF_WIDTH_LIMIT * ref:
-            out = (f"95 % half-width {half:.3g} exceeds {100 * HALF_WIDTH_LIMIT:.0f} % of "
-                   f"{ref:.3g}")
-        for v, s in zip(null, sv[ratio < NULL_RATIO], strict=True):
-            if abs(v[i]) > 0.3:
-                others = [names[j] for j in range(p) if j != i and abs(v[j]) > 0.3]
-                out = (f"near-null singular direction (σ/σmax = {s / sv[0]:.1e})"
-                       + (f" shared with {', '.join(others)}" if others else ""))
-        return out
+        return _flag(i, interval, values, pset, null, sv, ratio, names, p)
 
     flags: dict[str, str] = {n: f for i, n in enumerate(names) if (f := flag(i, n))}
-    # the scan, of the parameters the Gaussian analysis finds determined (a value that looks
-    # determined is what a second minimum would make wrong)
     scanned = []
     if profile_fn is not None:
-        for i, n in enumerate(names):
-            if (n not in scan or n in flags or pset.transforms[i] != "log"
-                    or not np.isfinite(std_t[i])):
-                continue
-            s2_i = widen * s2 * inflation[i]
-            span, far, (th_best, rss_best) = _profile_scan(pset, theta, r, J, i, s2_i,
-                                                           profile_fn, m_data)
-            scanned.append(n)
-            if span is not None:
-                interval[i] = [min(interval[i, 0], span[0]), max(interval[i, 1], span[1])]
-            if far is not None:
-                flags[n] = (f"the loss along it comes back within the 95 % level at "
-                            f"{far:.4g} (a second minimum the record does not rule out); "
-                            f"95 % range [{interval[i, 0]:.4g}, {interval[i, 1]:.4g}]")
-            elif (f := flag(i, n)):
-                flags[n] = f
-            if (rss - rss_best) / s2_i > CHI2_95 and (better is None or rss_best < better[2]):
-                better = (n, np.asarray(th_best), rss_best)
+        better = _scan_determined(pset, theta, r, J, std_t, widen * s2, inflation, profile_fn,
+                                  m_data, rss, interval, flags, scan, scanned, better, flag)
     if np.isfinite(lack) and lack > MODEL_FORM_LIMIT:  # a model-form failure, not a precise answer
         why = f"{MODEL_FORM_REASON} (loss {lack:.3g}× the noise)"
         flags = {n: why + (f"; {flags[n]}" if n in flags else "") for n in names}
@@ -468,6 +422,77 @@ def analyse(
         lack_of_fit=float(lack), widened=float(np.sqrt(widen)), better=better,
         scanned=tuple(scanned), whiteness=white_q, whiteness_p=white_p,
     )
+
+
+def _profile_severities(pset, theta, r, J, values, d, std_t, w_s2, inflation, profile_fn,
+                        m_data, rss, interval, profiled):
+    """The profile likelihood of each free severity (``logit``, ``*_fault``) whose interval
+    reaches within two standard errors of a bound: its interval (in `interval`, in place) and
+    its name (appended to `profiled`). **Returns:** ``better``, ``(name, θ, rss)`` of a profile
+    point whose loss lies below the optimum's by more than the χ²₁ level, or None."""
+    better = None
+    for i, n in enumerate(pset.free):
+        if not n.endswith("_fault") or pset.transforms[i] != "logit":
+            continue
+        near = (values[i] - pset.lower[i] < 2 * abs(d[i]) * std_t[i]
+                or pset.upper[i] - values[i] < 2 * abs(d[i]) * std_t[i])
+        if not near or not np.isfinite(std_t[i]):
+            continue
+        out = _profile_interval(pset, theta, r, J, i, w_s2 * inflation[i], profile_fn, m_data)
+        if out is None:
+            continue
+        interval[i], (th_best, rss_best) = out
+        profiled.append(n)
+        # a profile point whose loss lies below the optimum's by more than the χ²₁ level:
+        # the optimum is a local one (fit refits from it, dtwin.identify.fit)
+        if (rss - rss_best) / (w_s2 * inflation[i]) > CHI2_95 and (
+                better is None or rss_best < better[2]):
+            better = (n, np.asarray(th_best), rss_best)
+    return better
+
+
+def _flag(i, interval, values, pset, null, sv, ratio, names, p) -> str | None:
+    """Why parameter `i` is not determined (its 95 % half-width against its scale, a
+    near-null singular direction it takes part in), or None."""
+    half = 0.5 * (interval[i, 1] - interval[i, 0])
+    ref = half_width_scale(values[i], pset.transforms[i], pset.lower[i], pset.upper[i])
+    out = None
+    if not np.isfinite(half) or half > HALF_WIDTH_LIMIT * ref:
+        out = (f"95 % half-width {half:.3g} exceeds {100 * HALF_WIDTH_LIMIT:.0f} % of "
+               f"{ref:.3g}")
+    for v, s in zip(null, sv[ratio < NULL_RATIO], strict=True):
+        if abs(v[i]) > 0.3:
+            others = [names[j] for j in range(p) if j != i and abs(v[j]) > 0.3]
+            out = (f"near-null singular direction (σ/σmax = {s / sv[0]:.1e})"
+                   + (f" shared with {', '.join(others)}" if others else ""))
+    return out
+
+
+def _scan_determined(pset, theta, r, J, std_t, w_s2, inflation, profile_fn, m_data, rss,
+                     interval, flags, scan, scanned, better, flag):
+    """The scan (module docstring, "Scan") of the parameters in `scan` the Gaussian analysis
+    finds determined (a value that looks determined is what a second minimum would make
+    wrong): `interval`, `flags` and `scanned` updated in place. **Returns:** `better`, or a
+    scanned point of lower loss (as :func:`_profile_severities`)."""
+    for i, n in enumerate(pset.free):
+        if (n not in scan or n in flags or pset.transforms[i] != "log"
+                or not np.isfinite(std_t[i])):
+            continue
+        s2_i = w_s2 * inflation[i]
+        span, far, (th_best, rss_best) = _profile_scan(pset, theta, r, J, i, s2_i,
+                                                       profile_fn, m_data)
+        scanned.append(n)
+        if span is not None:
+            interval[i] = [min(interval[i, 0], span[0]), max(interval[i, 1], span[1])]
+        if far is not None:
+            flags[n] = (f"the loss along it comes back within the 95 % level at "
+                        f"{far:.4g} (a second minimum the record does not rule out); "
+                        f"95 % range [{interval[i, 0]:.4g}, {interval[i, 1]:.4g}]")
+        elif (f := flag(i, n)):
+            flags[n] = f
+        if (rss - rss_best) / s2_i > CHI2_95 and (better is None or rss_best < better[2]):
+            better = (n, np.asarray(th_best), rss_best)
+    return better
 
 
 def _profile_rss(pset, theta, J, i, xs, profile_fn, m_data):

@@ -176,8 +176,9 @@ def test_calibrated_bench_flags_stiffness_confounded_with_the_calibration(calibr
 
     from dtwin import read_record
     from dtwin.identify.confounding import calibrated_excitation, calibration_confounding
-    from dtwin.identify.fit import _value_and_jacfwd, make_problem
+    from dtwin.identify.problem import make_problem
     from dtwin.identify.residuals import point_groups
+    from dtwin.identify.solve import value_and_jacfwd
     from dtwin.identify.uncertainty import analyse, expected_noise_rss
     from dtwin.spec import load_spec
 
@@ -187,12 +188,12 @@ def test_calibrated_bench_flags_stiffness_confounded_with_the_calibration(calibr
     problem, _ = make_problem(read_record(SAMPLES / "bench_sun_fault.dtwin.h5"), calibrated,
                               ["k_sun_planet", "sun_fault"], initial={"sun_fault": 0.5})
     groups, rss = point_groups(problem.observations), expected_noise_rss(problem.observations)
-    r, J = _value_and_jacfwd(jnp.zeros(2), problem)
+    r, J = value_and_jacfwd(jnp.zeros(2), problem)
     held = analyse(problem.pset, np.zeros(2), np.asarray(r), np.asarray(J), groups,
                    n_profiled_gains=problem.n_profiled_gains, expected_rss=rss)
     assert held.not_determined == {}
     free, wide = calibration_confounding(problem, np.zeros(2), held, spec, groups=groups,
-                                         expected_rss=rss, jacobian=_value_and_jacfwd)
+                                         expected_rss=rss, jacobian=value_and_jacfwd)
     print(free.not_determined, wide)
     assert list(free.not_determined) == ["k_sun_planet"]
     assert free.not_determined["k_sun_planet"].startswith(

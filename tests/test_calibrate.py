@@ -152,7 +152,7 @@ def _toy_fit_data(seed: int = 0):
     """A calibration fit of known form: 3 parameters, 2 response knots, 1 row of 400 bins."""
     import jax.numpy as jnp
 
-    from dtwin.identify.calibrate import _Data
+    from dtwin.identify.calibration_model import _Data
     from dtwin.sensor_response import knot_basis
 
     rng = np.random.default_rng(seed)
@@ -179,7 +179,7 @@ def test_calibration_fit_stops_when_its_loss_stalls_and_says_when_it_did_not():
     import jax.numpy as jnp
     import optimistix as optx
 
-    from dtwin.identify.calibrate import _fit, _residuals
+    from dtwin.identify.calibration_model import _fit, _residuals
 
     data = _toy_fit_data()
     theta0 = jnp.zeros(3)
@@ -203,7 +203,8 @@ def test_joint_determination_is_read_from_the_posterior():
     ``J^T J / s2 + I / prior^2``."""
     import numpy as np
 
-    from dtwin.identify.calibrate import CalibratedParameter, _joint
+    from dtwin.identify.calibrate import CalibratedParameter
+    from dtwin.identify.calibration_result import _joint
 
     prior = np.ones(4)
     J = np.array([[1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]]) * 100.0
@@ -274,6 +275,7 @@ def test_calibration_linearises_again_where_the_full_twin_departs(slow_settling_
     # the settled response: tiling the transient instead (as the calibration did before it
     # checked the periodicity) misleads the first fit further
     import dtwin.identify.calibrate as cal
+    import dtwin.identify.calibration_model as cal_model
 
     real = cal.simulate
 
@@ -282,7 +284,8 @@ def test_calibration_linearises_again_where_the_full_twin_departs(slow_settling_
         # the linearisation (check=False) sees no periodicity defect, so it keeps the tiles
         return res if check else dataclasses.replace(res, periodic_defect=None)
 
-    monkeypatch.setattr(cal, "simulate", unsettled)
+    monkeypatch.setattr(cal, "simulate", unsettled)  # the confirmations
+    monkeypatch.setattr(cal_model, "simulate", unsettled)  # the linearisation
     tiled = calibrate([rec], spec, kind="torsional", settings=CalibrationSettings(relinearize=0))
     assert tiled.gap_confirmed.total > once.gap_confirmed.total + 3.0, (
         tiled.gap_confirmed.total, once.gap_confirmed.total)
@@ -295,7 +298,7 @@ def test_response_tangents_in_batches_are_the_jacobian(monkeypatch):
     that three equally spaced planets pass on; it acts linearly after the solve) and the first
     mesh harmonic's transmission errors (through the solve; ±100 nm, far above the solver's
     noise and within the linear range of the engaged contact)."""
-    import dtwin.identify.calibrate as cal
+    import dtwin.identify.calibration_model as cal
     from dtwin.build import daq_from_spec
 
     spec = preset("paper-sim")

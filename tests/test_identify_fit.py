@@ -83,13 +83,13 @@ def test_fit_uses_the_solvers_last_residuals_and_jacobian(severity_fit):
     simulation): they equal a fresh evaluation there, to the ODE solver's noise."""
     import jax.numpy as jnp
 
-    from dtwin.identify.fit import _jacobian
     from dtwin.identify.residuals import point_groups
+    from dtwin.identify.solve import jacobian_at
     from dtwin.identify.uncertainty import analyse
 
     res = severity_fit.fit
     prob = res.problem
-    r, J = _jacobian(jnp.asarray(res.theta), prob)
+    r, J = jacobian_at(jnp.asarray(res.theta), prob)
     np.testing.assert_allclose(res.residuals, np.asarray(r), atol=1e-3 * np.sqrt(np.mean(r**2)))
     fresh = analyse(prob.pset, res.theta, np.asarray(r), np.asarray(J),
                     point_groups(prob.observations), n_profiled_gains=prob.n_profiled_gains)
@@ -126,7 +126,7 @@ def test_gauss_newton_step_in_sigma_matches_least_squares():
     squares, and a dependent column gets no step."""
     import jax.numpy as jnp
 
-    from dtwin.identify.fit import _gauss_newton_step
+    from dtwin.identify.stopping import _gauss_newton_step
 
     rng = np.random.default_rng(0)
     J = rng.normal(size=(200, 4)) * np.array([1.0, 1e3, 1e-3, 5.0])
@@ -146,13 +146,14 @@ def _noisy_decay_fit(theta0: float, max_steps: int = 60):
     ODE-solver-like noise: a chaotic function of θ (amplitude 0.4 × the data's noise) that the
     Jacobian does not see. Returns (θ, steps, converged) and the noise-free optimum with its
     standard error."""
-    import importlib
 
     import jax
     import jax.numpy as jnp
     from scipy.optimize import least_squares
 
-    fitmod = importlib.import_module("dtwin.identify.fit")
+    from dtwin.identify.solve import least_squares as solve_least_squares
+    from dtwin.identify.stopping import make_solver
+
     rng = np.random.default_rng(1)
     x = np.linspace(0.0, 1.0, 400)
     y = np.exp(-2.1 * x) + 0.05 * rng.normal(size=x.size)
@@ -162,9 +163,9 @@ def _noisy_decay_fit(theta0: float, max_steps: int = 60):
         noise = 0.02 * jnp.sin(1e7 * theta[0] + phase)
         return jnp.exp(-3.0 * theta[0] * x) + jax.lax.stop_gradient(noise) - y, None
 
-    solver = fitmod._make_solver("lm", 1e-3, 1e-3, 0.1, history=max_steps + 1)
-    th, ok, steps = fitmod._least_squares(residuals, solver, jnp.asarray([theta0]), None,
-                                          "fwd", max_steps)[:3]
+    solver = make_solver("lm", 1e-3, 1e-3, 0.1, history=max_steps + 1)
+    th, ok, steps = solve_least_squares(residuals, solver, jnp.asarray([theta0]), None,
+                                        "fwd", max_steps)[:3]
     clean = least_squares(lambda t: np.exp(-3.0 * t[0] * x) - y, [theta0], xtol=1e-14)
     J = clean.jac
     se = float(np.sqrt(np.sum(clean.fun ** 2) / (x.size - 1) / (J[:, 0] @ J[:, 0])))
@@ -180,10 +181,10 @@ def test_a_fit_stalled_in_the_solvers_noise_stops(monkeypatch):
     minimum at step 3, stopped at step 30)."""
     import importlib
 
-    fitmod = importlib.import_module("dtwin.identify.fit")
+    stopping = importlib.import_module("dtwin.identify.stopping")
     starts = (0.3, 1.0, 1.2)  # truth 0.7; fits whose statistical stop was not met by chance
     with_stall = [_noisy_decay_fit(t0) for t0 in starts]
-    monkeypatch.setattr(fitmod, "_STALL_EVALUATIONS", 10**6)
+    monkeypatch.setattr(stopping, "_STALL_EVALUATIONS", 10**6)
     without = [_noisy_decay_fit(t0) for t0 in starts]
     for (th, steps, ok, best, se), (_, steps_off, _, _, _) in zip(with_stall, without,
                                                                    strict=True):
@@ -211,19 +212,20 @@ def test_starts_refined_by_vmap_and_by_map_agree(truth_record, spec):
 
 def test_gain_column_outside_the_ode_is_exact(truth_record, spec):
     """With the sensor gain free, only the twin's parameters ride through the ODE
-    (`_value_and_jacfwd`); the chain rule gives the Jacobian of forward mode through everything."""
+    (`dtwin.identify.solve.value_and_jacfwd`); the chain rule gives the Jacobian of forward mode through everything."""
     import equinox as eqx
     import jax
     import jax.numpy as jnp
 
-    from dtwin.identify.fit import _jacobian, make_problem
+    from dtwin.identify.problem import make_problem
     from dtwin.identify.residuals import Features
+    from dtwin.identify.solve import jacobian_at
 
     prob, _ = make_problem(truth_record, spec, ["sun_fault", "sensor_gain"], f_sun=F_SUN_TRUE,
                            initial={"sun_fault": 0.4}, features=Features(gain="fixed"))
     assert prob.pset.twin_indices == (0,)
     theta = jnp.asarray([0.1, -0.2])
-    r, J = _jacobian(theta, prob)
+    r, J = jacobian_at(theta, prob)
 
     def both(t):
         x = prob.residuals(t)

@@ -20,8 +20,9 @@ import pytest
 
 from dtwin.build import build_twin
 from dtwin.faults import MissingTooth
-from dtwin.identify.fit import _jacobian, make_problem
+from dtwin.identify.problem import make_problem
 from dtwin.identify.residuals import drive_at, point_groups
+from dtwin.identify.solve import jacobian_at
 from dtwin.identify.uncertainty import analyse
 from dtwin.simulate import DAQ, simulate
 from dtwin.spec import preset
@@ -49,7 +50,7 @@ def _analyse_at_truth(record, spec, tw, free, **kw):
     prob, _ = make_problem(record, spec, free, initial={n: _truth_values(tw)[n] for n in free
                                                         if n in _truth_values(tw)}, **kw)
     p = len(free)
-    r, J = _jacobian(jnp.zeros(p), prob)
+    r, J = jacobian_at(jnp.zeros(p), prob)
     return analyse(prob.pset, np.zeros(p), np.asarray(r), np.asarray(J),
                    point_groups(prob.observations), n_profiled_gains=prob.n_profiled_gains)
 

@@ -1,5 +1,5 @@
 """A calibrated spec's excitation/response split in `dtwin identify` and `dtwin fleet`
-(dtwin.identify.split): a faulty record that rejects the calibration's split is read through the
+(dtwin.identify.excitation_response): a faulty record that rejects the calibration's split is read through the
 other end of it, as `dtwin severity` reads it, and against the fault's true stiffness loss."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ def test_which_fits_get_the_other_split():
     """Both ends are fitted where a fault severity is free (None), wherever the spec has a split
     (True), never (False); an uncalibrated spec has none and `splits=True` says what to change."""
     from dtwin.errors import SettingsError
-    from dtwin.identify.split import fault_names, other_split
+    from dtwin.identify.excitation_response import fault_names, other_split
     from dtwin.spec import load_spec
 
     cal = load_spec(CALIBRATED)
@@ -75,8 +75,8 @@ def test_identify_reads_a_fault_through_the_split_the_record_prefers(crack):
     tests/test_severity_rules.py). Measured: identify 0.488 (32.8 %; calibrated split 0.202,
     loss 80.7 against 77.8); the crack's 36.0 %. `run_fleet` on the same record is the slow
     test below."""
+    from dtwin.identify.excitation_response import SPLIT_CALIBRATED, SPLIT_STIFFNESS, choose_split
     from dtwin.identify.fit import fit
-    from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS, choose_split
 
     rec, _, truth = crack
     res = fit(rec, CALIBRATED, ["sun_fault"])
@@ -116,10 +116,10 @@ def test_fleet_reads_a_fault_through_the_split_the_record_prefers(crack, tmp_pat
     """`run_fleet` fits the crack's two copies in one batch (fit_batch), each split a batch of
     its own, and reports the split `fit` reports, its interval overlapping fit's. Measured:
     fleet (one record alone) 0.492 [0.477, 0.508], identify 0.488."""
+    from dtwin.identify.excitation_response import SPLIT_STIFFNESS
     from dtwin.identify.fit import fit
     from dtwin.identify.fleet import FleetSettings, run_fleet
     from dtwin.identify.fleet.table import table_rows
-    from dtwin.identify.split import SPLIT_STIFFNESS
 
     _, folder, _ = crack
     res = fit(crack[0], CALIBRATED, ["sun_fault"])
@@ -140,8 +140,8 @@ def test_fleet_discovery_builds_the_split_the_fit_reported(monkeypatch, tmp_path
     """`dtwin fleet identify --discover`: discovery runs about the fitted twin of the split the
     fit reported, the calibrated spec's or its other end (flat response, no transmission error);
     discovery itself is a stand-in that records what it was handed."""
+    from dtwin.identify.excitation_response import SPLIT_CALIBRATED, SPLIT_STIFFNESS
     from dtwin.identify.fleet import FleetSettings, tasks
-    from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS
     from dtwin.spec import load_spec, spec_to_dict
 
     seen = []

@@ -23,9 +23,9 @@ from dtwin.registry import ensure_parts, set_value
 from dtwin.spec import load_spec
 
 from ..discover import DiscoverySettings, discover
+from ..excitation_response import SPLIT_STIFFNESS, stiffness_split
 from ..segment import segment_for_fit
 from ..severity import estimate_severity, fault_location
-from ..split import SPLIT_STIFFNESS, stiffness_split
 from .settings import FAIL_ENV, SCHEMA, FleetSettings
 from .store import _now
 

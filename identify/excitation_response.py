@@ -17,14 +17,15 @@ a flat response (:data:`SPLIT_STIFFNESS`, :func:`stiffness_split`); window, damp
 shares stay as calibrated. The fits are scored by one rule (:func:`model_form_tolerance`): the
 split of least loss is reported (for a sun or ring fault fitted on the mesh bands, the loss
 with the low band added, which the fits did not use:
-:func:`dtwin.identify.fit.low_band_losses`; there a small
+:func:`low_band_losses`; there a small
 fault's comb stands tens of dB over the floor where its mesh sidebands stand a few, and the
 mesh lines, which the calibrated split was chosen to fit, would otherwise decide), and a split whose ``‖r‖²`` exceeds it by no more than the
 larger of ``χ²₁(95 %)`` in units of the residual variance and what the best fit leaves
 unexplained beyond the noise cannot be rejected. :func:`choose_split` applies it to two
-:class:`~dtwin.identify.fit.FitResult` (used by :func:`dtwin.identify.fit.fit` and
-:func:`~dtwin.identify.fit.fit_batch`, so by ``dtwin identify`` and ``dtwin fleet``);
-:mod:`dtwin.identify.severity` applies it over its loss shapes and flanks too.
+:class:`~dtwin.identify.fit_result.FitResult`; :func:`fit_both_ends` and
+:func:`fit_batch_both_ends` fit both ends and choose (called by :func:`dtwin.identify.fit.fit`
+and :func:`~dtwin.identify.fit_batch.fit_batch`, so by ``dtwin identify`` and ``dtwin fleet``);
+:mod:`dtwin.identify.severity` applies the rule over its loss shapes and flanks too.
 """
 
 from __future__ import annotations
@@ -33,27 +34,35 @@ import dataclasses
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+import jax.numpy as jnp
 import numpy as np
 
-from dtwin.build import is_calibrated
-from dtwin.errors import SettingsError
+from dtwin.errors import DtwinError, FitError, SettingsError
 from dtwin.registry import lookup
 from dtwin.spec import Spec, load_spec, spec_to_dict
-from dtwin.twin import Twin
 
 from .confounding import calibrated_excitation
+from .low_band import LOW_BAND_LOCATIONS, with_low_band_problem
+from .problem import calibrated_spec, make_problem
+from .residuals import Features
+from .solve import batched_loss
 from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, Uncertainty, half_width_scale
 
 if TYPE_CHECKING:
-    from .fit import FitResult
+    from .fit_result import FitResult
+    from .fit_settings import FitSettings
 
-__all__ = ["SPLIT_CALIBRATED", "SPLIT_STIFFNESS", "choose_split",
-           "fault_names", "model_form_tolerance", "other_split",
-           "stiffness_split"]
+__all__ = ["LOW_BAND_FAULTS", "SPLIT_CALIBRATED", "SPLIT_STIFFNESS", "choose_split",
+           "fault_names", "fit_batch_both_ends", "fit_both_ends", "low_band_losses",
+           "model_form_tolerance", "other_split", "stiffness_split"]
 
 #: What each end of a calibrated spec's excitation/response split is called in results.
 SPLIT_CALIBRATED = "calibrated"
 SPLIT_STIFFNESS = "stiffness waveform, flat response"
+#: Fault severities whose split is scored with the low band too: those of
+#: :data:`dtwin.identify.low_band.LOW_BAND_LOCATIONS` (the sun's and the ring's comb lies where
+#: the records put it).
+LOW_BAND_FAULTS = tuple(f"{loc}_fault" for loc in LOW_BAND_LOCATIONS)
 
 
 def stiffness_split(spec_or_twin) -> Spec | None:
@@ -63,10 +72,8 @@ def stiffness_split(spec_or_twin) -> Spec | None:
     knots' mean level (dB); window, damping and load shares as calibrated. None for a twin, an
     uncalibrated spec, or a calibrated spec that has neither (a calibration that kept the spec's
     values). The spec handed in is not modified."""
-    if isinstance(spec_or_twin, Twin):
-        return None
-    spec = spec_or_twin if isinstance(spec_or_twin, Spec) else load_spec(spec_or_twin)
-    if not is_calibrated(spec):
+    spec = calibrated_spec(spec_or_twin)
+    if spec is None:
         return None
     data = spec_to_dict(spec)
     data.pop("source", None)
@@ -122,7 +129,7 @@ def model_form_tolerance(unc: Uncertainty | None, loss: float) -> float:
 def choose_split(fits: Sequence[tuple[str, FitResult]],
                  scores: Sequence[float] | None = None) -> FitResult:
     """The fit of least loss among `fits` (``(split, FitResult)``, the same parameters, one
-    record set), or of least `scores` where given (:func:`dtwin.identify.fit.low_band_losses`), with
+    record set), or of least `scores` where given (:func:`low_band_losses`), with
     ``excitation`` set to its split and ``splits`` to a row per fit (split, loss, score, values,
     95 % intervals, accepted). Where another split is accepted (its loss or score within
     :func:`model_form_tolerance` of the best fit's) every interval is the union over the
@@ -169,3 +176,75 @@ def choose_split(fits: Sequence[tuple[str, FitResult]],
     best.splits = rows
     best.wall_time = float(sum(r.wall_time for _, r in fits))
     return best
+
+
+def low_band_losses(fits: Sequence[tuple[Any, FitResult]], records, names: Sequence[str],
+                    problem_kwargs: dict[str, Any]) -> list[float] | None:
+    """Each fit's loss (½‖r‖²) over its own points and the low band of `records` (the fault's
+    comb below the first mesh band, :func:`dtwin.identify.low_band.with_low_band`), at its fitted
+    values: `fits` are ``(spec, FitResult)`` of one record set. The low band is where a small
+    sun or ring fault makes its strongest lines and where the fit did not look, so it scores the
+    splits on data the fits did not use. A fit on the DFT grid is scored with its own problem
+    and the low band added; one in the order domain with a DFT-grid problem of the same record
+    at the fitted values and operating point. None where it does not apply (the fits are then
+    scored by their own losses): no sun or ring fault among `names` (:data:`LOW_BAND_FAULTS`), a
+    run-up, a fit without uncertainty, or a score that could not be computed."""
+    if not any(n in LOW_BAND_FAULTS for n in names):
+        return None
+    recs = list(records) if isinstance(records, (list, tuple)) else [records]
+    channel = problem_kwargs.get("channel", 0)
+    keep = {k: v for k, v in problem_kwargs.items()
+            if k not in ("features", "weights", "f_sun", "initial", "runup")}
+    out = []
+    for spec, res in fits:
+        prob = res.problem
+        if prob is None or res.uncertainty is None or \
+                any(o.kind != "spectrum" or o.ramp for o in prob.observations):
+            return None
+        theta = np.asarray(res.theta)
+        if any(o.order_domain for o in prob.observations):
+            f_sun = [op.get("f_sun") for op in res.operating_points]
+            if len(f_sun) != len(recs) or any(f is None for f in f_sun):
+                return None
+            try:
+                prob, _ = make_problem(recs, spec, list(res.names), initial=dict(res.values),
+                                       f_sun=f_sun, features=Features(), **keep)
+            except DtwinError:  # scored by the fits' own losses then
+                return None
+            theta = np.zeros_like(theta)
+        if len(prob.observations) != len(recs):
+            return None
+        prob = with_low_band_problem(prob, recs, channel=channel)
+        out.append(float(np.asarray(batched_loss(jnp.asarray(theta)[None], prob, "map"))[0]))
+    return out if all(np.isfinite(out)) else None
+
+
+def fit_both_ends(fit_one, records, specs: tuple[Any, Spec], free, names: Sequence[str],
+                  settings: FitSettings, problem_kwargs: dict[str, Any]) -> FitResult:
+    """`records` fitted with each of `specs` (the spec as given, :data:`SPLIT_CALIBRATED`, and
+    its :func:`stiffness_split`, :data:`SPLIT_STIFFNESS`) by ``fit_one(records, spec, free,
+    settings, **problem_kwargs)`` (:func:`dtwin.identify.fit.fit_one`), and the split chosen
+    (:func:`choose_split`, scored with the low band where it applies: :func:`low_band_losses`).
+    With ``settings.throw`` a result not converged or at a bound raises `FitError`."""
+    each = dataclasses.replace(settings, splits=False, throw=False)
+    pair = [(spec, fit_one(records, spec, free, each, **problem_kwargs)) for spec in specs]
+    res = choose_split([(SPLIT_CALIBRATED, pair[0][1]), (SPLIT_STIFFNESS, pair[1][1])],
+                       low_band_losses(pair, records, names, problem_kwargs))
+    if settings.throw and (not res.converged or res.at_bound):
+        raise FitError(res.message)
+    return res
+
+
+def fit_batch_both_ends(fit_batch, records: Sequence, specs: tuple[Any, Spec], free,
+                        names: Sequence[str], settings: FitSettings,
+                        problem_kwargs: dict[str, Any]) -> list[FitResult]:
+    """:func:`fit_both_ends` for a batch: ``fit_batch(records, spec, free, settings,
+    **problem_kwargs)`` (:func:`dtwin.identify.fit_batch.fit_batch`) with each of `specs`, a
+    batch each, and the split chosen per record."""
+    each = dataclasses.replace(settings, splits=False)
+    a_fits = fit_batch(records, specs[0], free, each, **problem_kwargs)
+    b_fits = fit_batch(records, specs[1], free, each, **problem_kwargs)
+    return [choose_split([(SPLIT_CALIBRATED, a), (SPLIT_STIFFNESS, b)],
+                         low_band_losses([(specs[0], a), (specs[1], b)], rec, names,
+                                         problem_kwargs))
+            for rec, a, b in zip(records, a_fits, b_fits, strict=True)]
