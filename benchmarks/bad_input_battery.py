@@ -190,7 +190,7 @@ def make_big(w: Path, duration: float = 60.0, rate: float = 25600.0) -> None:
     import numpy as np
     from scipy.io import wavfile
 
-    from dtwin.memory import available_bytes, calibration_bytes
+    from dtwin.simulation.memory import available_bytes, calibration_bytes
 
     avail = available_bytes() or 0
     while calibration_bytes(duration * rate) <= 2 * avail and duration < 3600:

@@ -10,7 +10,7 @@ fit benchmark's 1e-4). Three models:
 - **condensed, n kept** (`--kept`; with every mode kept, 6 for the torsional twin, it is the
   full twin in modal coordinates: the control of the code): the modes of the linearised twin (mean mesh stiffness,
   `Twin.linear_stiffness(modal=False)` plus the drive shaft's stiffness, coordinates `z` of
-  `dtwin.twin`) split into the `n` lowest, integrated (Tsit5, same controller), and the others,
+  `dtwin.model.twin`) split into the `n` lowest, integrated (Tsit5, same controller), and the others,
   given their quasi-static response (modal truncation with a static correction: Craig, Structural
   Dynamics, 1981; the "mode-acceleration" idea of Cornwell, Craig & Johnson 1983)::
 
@@ -64,8 +64,8 @@ def _condensation_code():
     import jax
     import jax.numpy as jnp
 
-    from dtwin.simulate import _observe, state_scales
-    from dtwin.twin import contact_force
+    from dtwin.model.twin import contact_force
+    from dtwin.simulation.simulate import _observe, state_scales
 
     def parts_forces(twin, t, q, qdot, aux, mesh):
         G, aux_dot, _ = twin.part_forces(t, q, qdot, aux, mesh)
@@ -271,12 +271,12 @@ def main(argv=None) -> int:
     import jax.numpy as jnp
 
     jax.config.update("jax_enable_x64", True)
-    import dtwin.simulate  # noqa: F401  (the module, not the function dtwin exports)
-    from dtwin.build import build_twin
-    from dtwin.faults import MissingTooth
+    import dtwin.simulation.simulate  # noqa: F401  (the module, not the function dtwin exports)
+    from dtwin.model.faults import MissingTooth
     from dtwin.spec import preset
+    from dtwin.spec.build import build_twin
 
-    S = sys.modules["dtwin.simulate"]
+    S = sys.modules["dtwin.simulation.simulate"]
     code = _condensation_code()
     load_start = load_average()
     f_sun, fs, over, discard = 30.0, 5000.0, 4, 0.05

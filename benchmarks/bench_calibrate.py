@@ -34,7 +34,7 @@ def main(argv=None) -> int:
         records, spec, name = [IND / "baseline-1.csv"], IND / "gearbox.toml", "independent"
     else:
         records = [ROOT / "data" / "samples" / "bench_healthy.dtwin.h5"]
-        spec = ROOT / "dtwin" / "presets" / "paper-bench.toml"
+        spec = ROOT / "dtwin" / "spec" / "presets" / "paper-bench.toml"
         name = "bench_healthy"
     stages: list[tuple[float, str]] = []
     t0 = time.perf_counter()

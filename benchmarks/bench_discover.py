@@ -31,11 +31,11 @@ def main(argv=None) -> int:
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
 
-    from dtwin.build import build_twin, daq_from_spec
     from dtwin.identify.discover import DiscoverySettings, discover, extended_model
     from dtwin.identify.discover import effects as E
     from dtwin.identify.lines import Kinematics
     from dtwin.spec import load_spec, preset, spec_to_dict
+    from dtwin.spec.build import build_twin, daq_from_spec
 
     duration = 2.0 if args.quick else args.duration
     settings = DiscoverySettings(max_steps=1) if args.quick else DiscoverySettings()

@@ -31,7 +31,7 @@ twin, sun missing tooth of severity 0.5, ideal speed source), `--duration` s (de
   number of simulations: (steps + 1) × (1 + p), the LM steps taken from the JAX fit (stated as
   an assumption: SciPy's LM on the same problem takes a similar number of steps).
 
-`--periodic` fits with ``periodic="auto"`` (`dtwin.simulate.SolverOptions.periodic`: the record
+`--periodic` fits with ``periodic="auto"`` (`dtwin.simulation.simulate.SolverOptions.periodic`: the record
 simulated over a 0.1 s settling time and one hunting period, 1.13 s here, and tiled; issue #21
 lever 2) when the library has it; without it the fit simulates the whole record
 (``periodic="off"``, or a library without the option: `benchmarks/compare.py` then puts the
@@ -90,14 +90,14 @@ def main(argv=None) -> int:
     import numpy as np
 
     jax.config.update("jax_enable_x64", True)
-    from dtwin.build import build_twin
-    from dtwin.faults import MissingTooth
     from dtwin.identify.fit import fit, make_problem
     from dtwin.identify.params import current_value
     from dtwin.identify.residuals import Features, observation_residuals, observe
     from dtwin.identify.solve import jacobian_at
-    from dtwin.simulate import DAQ, daq_filter, initial_state, simulate
+    from dtwin.model.faults import MissingTooth
+    from dtwin.simulation.simulate import DAQ, daq_filter, initial_state, simulate
     from dtwin.spec import preset
+    from dtwin.spec.build import build_twin
 
     load_start = load_average()
     f_sun, fs = 30.0, 5000.0

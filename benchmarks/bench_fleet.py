@@ -63,10 +63,10 @@ def _fleet(n: int, duration: float | None, snr: float | None, path: str | None):
     snr = 30.0 if snr is None else snr
     import jax
 
-    from dtwin.build import build_twin
-    from dtwin.faults import MissingTooth
-    from dtwin.simulate import DAQ, simulate
+    from dtwin.model.faults import MissingTooth
+    from dtwin.simulation.simulate import DAQ, simulate
     from dtwin.spec import preset
+    from dtwin.spec.build import build_twin
 
     spec = preset("paper-sim")
     sev = np.linspace(0.35, 0.65, n)

@@ -46,9 +46,9 @@ def main(argv=None) -> list[dict]:
     jax.config.update("jax_enable_x64", True)
     import jax.numpy as jnp
 
-    from dtwin.build import build_twin
-    from dtwin.faults import parse_fault
+    from dtwin.model.faults import parse_fault
     from dtwin.spec import preset
+    from dtwin.spec.build import build_twin
 
     spec = preset("paper-sim")
     f_sun = float(spec["operating"]["f_sun"])
@@ -133,8 +133,8 @@ def _periodic_problem(tw, f_sun: float, n: int) -> dict:
     import jax.numpy as jnp
     import numpy as np
 
-    from dtwin.periodic import hunting_cycles, mesh_frequency
-    from dtwin.simulate import initial_state
+    from dtwin.simulation.periodic import hunting_cycles, mesh_frequency
+    from dtwin.simulation.simulate import initial_state
 
     ops = tw.operators()
     z0, zd0, aux0 = initial_state(tw, f_sun)

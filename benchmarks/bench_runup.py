@@ -4,7 +4,7 @@ no slower than today").
 The paper's gearbox (``build_twin(preset("paper-sim"))``, translational twin, sun missing tooth
 of severity 0.5, ideal speed source) run up linearly from 20 to 40 Hz over `--duration` s
 (default 0.5) after a 0.05 s discard, recorded by an accelerometer at 25.6 kHz
-(`dtwin.simulate.DAQ`, 4× oversampling). A run-up is never tiled (its speed is not constant),
+(`dtwin.simulation.simulate.DAQ`, 4× oversampling). A run-up is never tiled (its speed is not constant),
 so this measures the whole-record solve: `simulate` is called twice with the persistent
 compilation cache as the environment sets it (``benchmarks/compare.py`` turns it off); the
 first call includes compilation, the second is the cost of a run once compiled (wall and CPU
@@ -29,11 +29,11 @@ def main(argv=None) -> int:
 
     import numpy as np
 
-    from dtwin.build import build_twin
-    from dtwin.faults import MissingTooth
     from dtwin.identify.residuals import drive_at
-    from dtwin.simulate import DAQ, simulate
+    from dtwin.model.faults import MissingTooth
+    from dtwin.simulation.simulate import DAQ, simulate
     from dtwin.spec import preset
+    from dtwin.spec.build import build_twin
 
     discard = 0.05
     twin = build_twin(preset("paper-sim"), kind="translational",

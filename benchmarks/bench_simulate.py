@@ -4,7 +4,7 @@ For each model kind (translational, torsional) of ``build_twin(preset("paper-sim
 missing tooth (severity 0.5), ideal speed source at 30 Hz, 50 N·m load, 5 kHz acceleration
 record:
 
-- `dtwin.simulate.simulate` for `--duration` seconds (default 4): first call (compile + run)
+- `dtwin.simulation.simulate.simulate` for `--duration` seconds (default 4): first call (compile + run)
   and second call (run); compile time = first − second; simulated seconds per wall second,
   accepted steps per simulated second, wall time per step; the cost of one right-hand side
   evaluation in a jitted loop (what a step costs at the least: Tsit5 takes 6 per step);
@@ -132,10 +132,17 @@ def bench_kind(kind, args):
     import scipy.integrate
     import scipy.signal
 
-    from dtwin.build import build_twin
-    from dtwin.faults import MissingTooth
-    from dtwin.simulate import DAQ, SolverOptions, daq_filter, initial_state, simulate, state_scales
+    from dtwin.model.faults import MissingTooth
+    from dtwin.simulation.simulate import (
+        DAQ,
+        SolverOptions,
+        daq_filter,
+        initial_state,
+        simulate,
+        state_scales,
+    )
     from dtwin.spec import preset
+    from dtwin.spec.build import build_twin
 
     sys.path.insert(0, str(HERE.parent / "tests"))  # the test oracle lives with the tests
     from reference_numpy import ReferenceModel

@@ -41,12 +41,12 @@ from family import FAULT_LOCATION, effect_kind, machines
 def _loss_profile(record, spec, location: str, kind: str, peaks: np.ndarray) -> dict:
     import jax.numpy as jnp
 
-    from dtwin.faults import severity_for_peak_loss
     from dtwin.identify.fit import make_problem
     from dtwin.identify.low_band import LOW_BAND_LOCATIONS, with_low_band_problem
     from dtwin.identify.residuals import point_groups
     from dtwin.identify.severity import _fault_index, _name, _peak
     from dtwin.identify.solve import batched_residuals
+    from dtwin.model.faults import severity_for_peak_loss
 
     name = _name(location)
     problem, _ = make_problem(record, spec, [name], kind=kind, initial={name: 0.1})

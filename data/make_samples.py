@@ -37,15 +37,15 @@ import equinox as eqx
 import jax.numpy as jnp
 
 import dtwin
-from dtwin.build import build_twin, daq_from_spec
-from dtwin.faults import parse_fault
 from dtwin.io.readers import write_record
-from dtwin.parts.drive import DrivePart
-from dtwin.parts.imperfections import PlanetPositionErrors, TransmissionError
-from dtwin.parts.shaft import Shaft
-from dtwin.parts.speed_source import IdealSpeedSource, SpeedProfile
-from dtwin.simulate import simulate
+from dtwin.model.faults import parse_fault
+from dtwin.model.motor.drive import DrivePart
+from dtwin.model.motor.shaft import Shaft
+from dtwin.model.motor.speed_source import IdealSpeedSource, SpeedProfile
+from dtwin.model.parts.imperfections import PlanetPositionErrors, TransmissionError
+from dtwin.simulation.simulate import simulate
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin, daq_from_spec
 
 OUT = Path(__file__).resolve().parent / "samples"
 F_SUN = 29.7  # Hz: the bench's actual 1782 rpm

@@ -18,7 +18,7 @@ error's C++ exception segfaults in the unwinder (``_Unwind_Find_FDE``) on its wa
 clearing JAX's caches cured it; JAX bounds its caches by entries, not by size) and
 pasteurlabs/mosaic#15.
 
-:func:`relieve`, called at dtwin's safe points (the start of :func:`dtwin.simulate.simulate`,
+:func:`relieve`, called at dtwin's safe points (the start of :func:`dtwin.simulation.simulate.simulate`,
 of every fit, of each discovery candidate's refit, and before each test), drops JAX's in-memory
 caches (``jax.clear_caches``) once the process holds more than :data:`FRACTION` of the limit:
 the programs that no live object holds are freed with their mappings, and the next call compiles

@@ -75,7 +75,7 @@ class SettingsError(DtwinError, ValueError):
 
 
 class ParameterError(DtwinError, KeyError):
-    """An unknown parameter name (not in :mod:`dtwin.registry`)."""
+    """An unknown parameter name (not in :mod:`dtwin.model.registry`)."""
 
     def __str__(self) -> str:
         return str(self.args[0]) if self.args else ""

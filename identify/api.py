@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dtwin.kinematics import Kinematics
-from dtwin.spectrum import label_frequency
+from dtwin.model.kinematics import Kinematics
+from dtwin.signal.spectrum import label_frequency
 
 from .fit import fit as fit
 from .fit_batch import fit_batch as fit_batch
@@ -57,7 +57,7 @@ __all__ = [
 def plot_fit(result: FitResult, record_index: int = 0, *, label_peaks: bool = True,
              unit: str | None = "m/s^2"):
     """Figure of measured vs fitted levels of one record of `result`, peaks labelled with their
-    gear-frequency combinations (:func:`dtwin.spectrum.label_frequency`); levels in dB re the
+    gear-frequency combinations (:func:`dtwin.signal.spectrum.label_frequency`); levels in dB re the
     reference of the record's `unit` (None: a unit the record does not state)."""
     from .plotting.fit import plot_fit_spectrum  # at call time: matplotlib only for figures
 

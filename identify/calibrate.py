@@ -10,24 +10,24 @@ that every command accepts; the user's spec is never modified.
 **What is fitted** (names as in the report and the calibrated spec):
 
 - ``window_c1 … window_c{K-1}``: the planet-angle window's cosine coefficients
-  (``sensor.window_harmonics``, :class:`dtwin.parts.transfer_path.PlanetPassTransferPath`);
+  (``sensor.window_harmonics``, :class:`dtwin.model.parts.transfer_path.PlanetPassTransferPath`);
   ``c_0`` is held at its initial value (the overall level belongs to the response below).
 - ``excitation_ring_cos_h``, ``excitation_ring_sin_h`` (m): transmission-error harmonics of the
   ring-planet meshes for every mesh harmonic h below 0.45 × the sampling rate, at most
-  :data:`dtwin.registry.N_EXCITATION_HARMONICS` (12, the spec's default stiffness waveform's;
+  :data:`dtwin.model.registry.N_EXCITATION_HARMONICS` (12, the spec's default stiffness waveform's;
   above them the twin's own waveform and the sensor response carry the lines)
-  (:class:`dtwin.parts.mesh_excitation.MeshExcitation`). One housing sensor sees the sun
+  (:class:`dtwin.model.parts.mesh_excitation.MeshExcitation`). One housing sensor sees the sun
   meshes only through the same dynamics, so their excitation is not separately identifiable
   and is left at the spec's value.
 - ``zeta_mesh``: the mesh damping ratio (fitted in log; a 5 kHz record far below the mesh
   modes usually leaves it not determined, and the report says so).
 - ``frf_db_j`` (dB): the smooth sensor frequency response at log-spaced knots
-  (:mod:`dtwin.sensor_response`), solved in closed form inside the residual function
+  (:mod:`dtwin.simulation.sensor_response`), solved in closed form inside the residual function
   (variable projection): for given excitation and window the best knot gains are a linear
   least-squares problem in the log-amplitude, with a smoothness prior.
 - ``load_share_1 … load_share_{N-1}``: each planet's load share relative to planet 0
   (``imperfections.load_sharing``; the twin gets the mesh clearances that give them,
-  :func:`dtwin.parts.imperfections.load_share_offsets`). Fitted when the records show
+  :func:`dtwin.model.parts.imperfections.load_share_offsets`). Fitted when the records show
   carrier-order lines ``k f_c`` with ``k`` not a multiple of ``N`` (`CalibrationSettings.load_sharing`):
   equally loaded, equally spaced planets seen through one planet-pass window make only
   ``k N f_c`` below the mesh band, so lines at the other orders say that the planets do not
@@ -55,7 +55,7 @@ start the whole records chose, so that held-out gap leans optimistic; the confir
 one written into the spec). Where the twin still departs from the linearised response, it is
 cross-validated itself, each half's values simulated in full. The response over one period of
 the gear set is tiled only where the start-up transient has died out within the settling time
-(the periodicity defect of the linearised simulation, as :func:`dtwin.simulate.simulate` checks
+(the periodicity defect of the linearised simulation, as :func:`dtwin.simulation.simulate.simulate` checks
 it): otherwise a longer settling time, then the whole record.
 
 **Cross-validation.** The held-out gap fits the parameters on each half of each record and
@@ -95,16 +95,16 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from dtwin.build import build_twin, daq_from_spec
 from dtwin.errors import RecordError, SpecError
 from dtwin.io.readers import read_record
 from dtwin.io.record import Record
 from dtwin.io.validate import MIN_CARRIER_PERIODS
-from dtwin.sensor_response import knot_basis
-from dtwin.simulate import SolverOptions, simulate
+from dtwin.signal.spectrum import noise_floor
+from dtwin.signal.units import quantity as unit_quantity
+from dtwin.simulation.sensor_response import knot_basis
+from dtwin.simulation.simulate import SolverOptions, simulate
 from dtwin.spec import Spec, load_spec
-from dtwin.spectrum import noise_floor
-from dtwin.units import quantity as unit_quantity
+from dtwin.spec.build import build_twin, daq_from_spec
 
 from .calibration_model import (
     _SHARE_UNIT,
@@ -175,7 +175,7 @@ def _records_unit(records: Sequence[Record], channel: int) -> str | None:
 
 def _quantity(spec: Spec, unit: str | None = None) -> str:
     """What the records measure: their channel's unit where it says (``mm/s`` → velocity,
-    `dtwin.units.quantity`), else the spec's `sensor.quantity`."""
+    `dtwin.signal.units.quantity`), else the spec's `sensor.quantity`."""
     q = unit_quantity(unit) or spec["sensor"]["quantity"]
     return "acceleration" if q == "ring_velocity" else q
 

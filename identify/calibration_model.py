@@ -30,15 +30,15 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from dtwin.build import build_twin
 from dtwin.errors import FitError, SpecError
-from dtwin.lumped import replace as replace_lumped
-from dtwin.parts.imperfections import MeshOffsets, load_share_offsets
-from dtwin.parts.mesh_excitation import MeshExcitation
-from dtwin.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
-from dtwin.registry import N_EXCITATION_HARMONICS
-from dtwin.simulate import SolverOptions, settling_sequence, simulate
+from dtwin.model.lumped import replace as replace_lumped
+from dtwin.model.parts.imperfections import MeshOffsets, load_share_offsets
+from dtwin.model.parts.mesh_excitation import MeshExcitation
+from dtwin.model.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
+from dtwin.model.registry import N_EXCITATION_HARMONICS
+from dtwin.simulation.simulate import SolverOptions, settling_sequence, simulate
 from dtwin.spec import Spec
+from dtwin.spec.build import build_twin
 
 from .calibration_settings import CalibrationSettings
 from .gap import THRESHOLD_DB
@@ -89,7 +89,7 @@ class _Layout:
 def mesh_harmonics(settings: CalibrationSettings, fs: float, f_mesh: float) -> int:
     """Mesh harmonics whose transmission error calibration fits: `settings.mesh_harmonics`, or
     every one below 0.45 × the rate `fs` (Hz), at most
-    :data:`dtwin.registry.N_EXCITATION_HARMONICS` (those with a registry name); `f_mesh` (Hz)."""
+    :data:`dtwin.model.registry.N_EXCITATION_HARMONICS` (those with a registry name); `f_mesh` (Hz)."""
     return settings.mesh_harmonics or max(1, min(int(0.45 * fs / f_mesh),
                                                  N_EXCITATION_HARMONICS))
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from dtwin._version import __version__
 from dtwin.spec import Spec, load_spec, spec_to_dict
-from dtwin.spec_writer import spec_to_toml
+from dtwin.spec.writer import spec_to_toml
 
 from .calibration_model import _SHARE_UNIT, _Data, _Layout, _residuals_and_jacobian, _shares
 from .gap import GapResult

@@ -6,8 +6,8 @@ import dataclasses
 import math
 
 from dtwin.errors import SpecError
-from dtwin.registry import N_EXCITATION_HARMONICS, N_WINDOW_TERMS
-from dtwin.simulate import SolverOptions
+from dtwin.model.registry import N_EXCITATION_HARMONICS, N_WINDOW_TERMS
+from dtwin.simulation.simulate import SolverOptions
 
 __all__ = ["CalibrationSettings"]
 
@@ -20,7 +20,7 @@ class CalibrationSettings:
     - `n_knots`: knots of the sensor frequency response, log-spaced from 0.8 N f_c to the top
       of the pass band (the spec's ``[sensor] passband`` × the rate).
     - `mesh_harmonics`: mesh harmonics with a fitted excitation, at most
-      :data:`dtwin.registry.N_EXCITATION_HARMONICS` (None: all below 0.45 × rate, up to that).
+      :data:`dtwin.model.registry.N_EXCITATION_HARMONICS` (None: all below 0.45 × rate, up to that).
     - `discard` (s): start-up simulated before the record (the path's filter settles).
     - `te_prior` (m): prior standard deviation of each transmission-error coefficient.
     - `window_prior`: prior standard deviation of each window coefficient, relative to ``c_0``.
@@ -41,7 +41,7 @@ class CalibrationSettings:
       (default): when at least two orders ``k f_c`` below the first mesh band, ``k`` not a
       multiple of N, stand above the line threshold in the records (module docstring).
     - `share_prior`: prior standard deviation of each relative load share.
-    - `solver`: `dtwin.simulate.SolverOptions` of the simulations. None: the linearised
+    - `solver`: `dtwin.simulation.simulate.SolverOptions` of the simulations. None: the linearised
       response is one period of the gear set after a settling time, tiled
       (``SolverOptions(periodic="auto")``, which integrates the whole record when the twin is
       not periodic at constant speed), and the confirmation integrates the whole record.

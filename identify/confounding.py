@@ -5,11 +5,11 @@ fitted from healthy records with the mesh stiffnesses, damping and inertias held
 values, two of them in metres:
 
 - the mesh excitation, transmission-error harmonics
-  (:class:`dtwin.parts.mesh_excitation.MeshExcitation`). Below the mesh modes the dynamic mesh
+  (:class:`dtwin.model.parts.mesh_excitation.MeshExcitation`). Below the mesh modes the dynamic mesh
   force a transmission error ``e`` drives is close to ``k e`` (``k`` the mesh stiffness in
   series with the bodies' compliance);
 - the load shares (``imperfections.load_sharing``), which the twin gets as mesh clearances
-  solved at the spec's stiffness (:func:`dtwin.parts.imperfections.load_share_offsets`); a
+  solved at the spec's stiffness (:func:`dtwin.model.parts.imperfections.load_share_offsets`); a
   clearance unloads its planet by the stiffness times it.
 
 What a record of a few kHz measures is those products. A later fit that frees a stiffness
@@ -51,9 +51,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dtwin.build import is_calibrated
-from dtwin.parts.imperfections import MeshOffsets
-from dtwin.registry import N_EXCITATION_HARMONICS, lookup
+from dtwin.model.parts.imperfections import MeshOffsets
+from dtwin.model.registry import N_EXCITATION_HARMONICS, lookup
+from dtwin.spec.build import is_calibrated
 
 from .params import ParameterSet
 from .uncertainty import Uncertainty, analyse

@@ -25,7 +25,7 @@ time left (:mod:`dtwin.cli.progress`; the estimate from the last demo on this ma
 
 It lives in :mod:`dtwin.identify` (not in the core package ``dtwin``): it uses the whole
 library, the identification included, and only public functions (the analyses behind the
-commands come from :mod:`dtwin.reports`, not from the CLI).
+commands come from :mod:`dtwin.report.analyses`, not from the CLI).
 
 **Cheaper settings** in the default demo (``--full`` restores the library's defaults): the
 paper's cases simulated for 1 s (``--full``: 4 s); the severity fit from one start, without
@@ -72,8 +72,8 @@ def _md_table(rows: list[list], header: list[str]) -> str:
 
 
 def step_frequencies(folder: OutputFolder) -> str:
-    from dtwin.io.html_report import frequency_text
-    from dtwin.reports import freqs_report
+    from dtwin.report.analyses import freqs_report
+    from dtwin.report.html_report import frequency_text
     from dtwin.spec import preset
 
     paper = {"paper-sim": (500.1, 30.0, 6.2, 71.4, 16.7), "paper-bench": (498.9, 29.7, 5.9, 71.3, 16.2)}
@@ -91,10 +91,10 @@ def step_frequencies(folder: OutputFolder) -> str:
 
 
 def step_modes(folder: OutputFolder) -> str:
-    from dtwin.gears import characteristic_frequencies
-    from dtwin.io.html_report import frequency_text
+    from dtwin.model.gears import characteristic_frequencies
     from dtwin.plotting.modes import plot_modes
-    from dtwin.reports import modes_report
+    from dtwin.report.analyses import modes_report
+    from dtwin.report.html_report import frequency_text
     from dtwin.spec import lumped_from_spec, preset
 
     spec = preset("paper-sim")
@@ -113,9 +113,9 @@ def step_modes(folder: OutputFolder) -> str:
 
 
 def step_stiffness(folder: OutputFolder) -> str:
-    from dtwin.faults import parse_fault
+    from dtwin.model.faults import parse_fault
     from dtwin.plotting.stiffness import plot_mesh_stiffness
-    from dtwin.reports import stiffness_curves
+    from dtwin.report.analyses import stiffness_curves
     from dtwin.spec import lumped_from_spec, preset
 
     lp = lumped_from_spec(preset("paper-sim"))
@@ -133,7 +133,7 @@ def step_stiffness(folder: OutputFolder) -> str:
 
 def _spectrum_figures(folder, record, spec, f_sun, name, title):
     from dtwin.plotting.spectrum import plot_spectrum_peaks, plot_waveform
-    from dtwin.reports import gear_frequencies, spectrum_report
+    from dtwin.report.analyses import gear_frequencies, spectrum_report
 
     freqs = gear_frequencies(spec, f_sun)
     rep, data = spectrum_report(record, frequencies=freqs, n_planets=spec["gears"]["n_planets"])
@@ -150,7 +150,7 @@ def _spectrum_figures(folder, record, spec, f_sun, name, title):
 
 
 def step_paper_cases(folder: OutputFolder, duration: float, kind: str | None = None) -> str:
-    from dtwin.reports import run_simulation
+    from dtwin.report.analyses import run_simulation
     from dtwin.spec import preset
 
     spec = preset("paper-like")
@@ -202,7 +202,7 @@ def step_calibration(folder: OutputFolder, quick: bool = False, say=None):
     """Calibrate the bench preset on ``bench_healthy`` (the README's first step): returns the
     report section and the calibrated spec (None when the step could not run). `say` gets the
     calibration's stages (one line each)."""
-    from dtwin.spec_writer import spec_to_toml
+    from dtwin.spec.writer import spec_to_toml
 
     from .calibrate import calibrate
     from .plotting.calibrate import plot_calibration_gap, plot_calibration_spectra
@@ -266,7 +266,7 @@ def step_discovery(folder: OutputFolder, quick: bool = False, spec=None, full: b
                    say=None) -> str:
     """Discovery (``dtwin discover``) on ``bench_sun_fault`` with `spec` (the calibrated spec;
     None: the bench preset): which effect the twin misses, the held-out gap before and after."""
-    from dtwin.io.html_report import frequency_text
+    from dtwin.report.html_report import frequency_text
 
     from .discover import DiscoverySettings, discover
     from .plotting.discover import plot_gap_bars, plot_step_spectra
@@ -349,8 +349,8 @@ def step_fleet(folder: OutputFolder, quick: bool = False, spec=None, full: bool 
 
 def _num(v, unit: str = "") -> str:
     """`v` as table text: three significant digits, a frequency (`unit` Hz) in full
-    (:func:`dtwin.io.html_report.value_text`); "–" for no number."""
-    from dtwin.io.html_report import value_text
+    (:func:`dtwin.report.html_report.value_text`); "–" for no number."""
+    from dtwin.report.html_report import value_text
 
     try:
         return value_text(float(v), unit, 3)
@@ -361,7 +361,7 @@ def _num(v, unit: str = "") -> str:
 def write_html(folder: OutputFolder, sections: list[str], timings: dict[str, str]) -> Path:
     """``report.html``: the demo's sections in one self-contained page (the markdown tables
     as tables, the figures embedded, the text as notes) and each step's time."""
-    from dtwin.io.html_report import write_html_report
+    from dtwin.report.html_report import write_html_report
 
     figures: dict[str, str] = {}
     tables: dict[str, tuple[list[str], list[list[str]]]] = {}
@@ -467,7 +467,7 @@ def main(argv: list[str] | None = None) -> int:
 def demo_section(folder, data: Path, quick: bool = False, spec=None, full: bool = False) -> str:
     """Speeds of the bundled records and the sun-fault severity of ``bench_sun_fault``, with
     `spec` (the calibrated spec of :func:`step_calibration`; None: the bench preset)."""
-    from dtwin.build import build_twin
+    from dtwin.spec.build import build_twin
 
     from .api import estimate_severity, estimate_speed, estimate_speed_profile, plot_fit
 

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.errors import DtwinError, FitError, SettingsError
-from dtwin.registry import lookup
+from dtwin.model.registry import lookup
 from dtwin.spec import Spec, load_spec, spec_to_dict
 
 from .confounding import calibrated_excitation

@@ -55,7 +55,7 @@ import numpy as np
 
 from dtwin import _heap
 from dtwin.errors import FitError
-from dtwin.registry import REGISTRY
+from dtwin.model.registry import REGISTRY
 
 from .excitation_response import fit_both_ends, other_split
 from .fit_batch import fit_batch, stack_problems
@@ -97,7 +97,7 @@ def fit(records, spec_or_twin, free: Sequence[str] | str | ParameterSet,
 
     - `records`: a `dtwin.io.Record` or a list (fitted jointly).
     - `spec_or_twin`: a spec (path, mapping, `Spec`; built with ``kind``: default the kind a
-      calibrated spec was calibrated with, otherwise torsional, :func:`dtwin.build.twin_kind`)
+      calibrated spec was calibrated with, otherwise torsional, :func:`dtwin.spec.build.twin_kind`)
       or a `Twin`.
     - `free`: registry names (list or ``"a,b,c"``) or a `ParameterSet`.
     - `settings`: how the fit runs, a :class:`~dtwin.identify.fit_settings.FitSettings`

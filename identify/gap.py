@@ -28,7 +28,7 @@ this by fitting the noise of the scored half.
 **The band.** The gap is taken over ``0 … passband × the sampling rate``: the usable band
 of the DAQ, where its anti-aliasing filter's pass band ends (the spec's ``[sensor] passband``,
 :data:`PASSBAND` = 0.45 where none is given: a delta-sigma DAQ; 1/2.56 on a classic analyser).
-The twin's own anti-aliasing filter passes flat to the same edge (:func:`dtwin.simulate.daq_filter`). Above it a
+The twin's own anti-aliasing filter passes flat to the same edge (:func:`dtwin.simulation.simulate.daq_filter`). Above it a
 record holds aliases and filter-shaped lines (an independent simulator's 5 f_m = 2501.5 Hz,
 above the 2500 Hz Nyquist frequency of a 5 kHz record, appears at 2498.5 Hz) that no twin of the
 gearbox can be held to: calibration and discovery score the same band.
@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dtwin.spectrum import noise_floor
+from dtwin.signal.spectrum import noise_floor
 
 __all__ = ["ALPHA", "PASSBAND", "GapResult", "THRESHOLD_DB", "family_threshold_db", "fold_segments", "gap", "named_bands", "levels",
            "segment_spectra", "gap_terms"]
@@ -76,7 +76,7 @@ def segment_spectra(x: np.ndarray, sample_rate: float, n_folds: int = 2):
     x = np.asarray(x)
     segs = fold_segments(x.shape[-1], n_folds)
     m = segs[0].stop - segs[0].start
-    w = np.hanning(m + 1)[:-1]  # periodic Hann, as dtwin.spectrum.get_window("hann")
+    w = np.hanning(m + 1)[:-1]  # periodic Hann, as dtwin.signal.spectrum.get_window("hann")
     scale = np.full(m // 2 + 1, 2.0 / w.sum())
     scale[0] = 1.0 / w.sum()
     Z = np.stack([np.fft.rfft(x[..., s] * w, axis=-1) * scale for s in segs], axis=-2)

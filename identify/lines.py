@@ -1,13 +1,13 @@
 """Residual line analysis: which spectral lines the measurement has and the model lacks (and the
 reverse), each described by the kinematic combinations that explain it.
 
-**Kinematic basis** (:class:`dtwin.kinematics.Kinematics`, Hz, speed taken from the data first with
+**Kinematic basis** (:class:`dtwin.model.kinematics.Kinematics`, Hz, speed taken from the data first with
 :func:`dtwin.identify.operating_point.resolve_speed`): ``fm`` (mesh), ``fc`` (carrier), ``fsr`` (absolute sun rotation),
 ``fs/N`` (sun-fault repetition over the number of planets, = fsr − fc), ``fp`` (planet fault,
 fm/Zp), ``fr`` (ring fault, fm N/Zr = N fc), ``fe`` (the motor's electrical frequency, pole pairs
 × sun speed).
 
-**Search space and order bound** (:class:`dtwin.kinematics.OrderBounds`, here ``LineBounds``)::
+**Search space and order bound** (:class:`dtwin.model.kinematics.OrderBounds`, here ``LineBounds``)::
 
     f = m fm + n fc                        0 <= m <= 4, |n| <= 8          (carrier family)
     f = m fm + j g + n fc                  g in {fsr, fs/N, fp}, 1 <= |j| <= 3, |n| <= 2
@@ -41,8 +41,8 @@ import math
 
 import numpy as np
 
-from dtwin.kinematics import Kinematics, OrderBounds, combination_text
-from dtwin.spectrum import noise_floor
+from dtwin.model.kinematics import Kinematics, OrderBounds, combination_text
+from dtwin.signal.spectrum import noise_floor
 
 __all__ = [
     "Comb", "Description", "Kinematics", "LineBounds", "Modulation", "ResidualLine",
@@ -52,7 +52,7 @@ __all__ = [
 ]
 
 
-#: The order bounds of the descriptions (module docstring): :class:`dtwin.kinematics.OrderBounds`.
+#: The order bounds of the descriptions (module docstring): :class:`dtwin.model.kinematics.OrderBounds`.
 LineBounds = OrderBounds
 
 

@@ -19,8 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.errors import SettingsError
-from dtwin.kinematics import Kinematics
-from dtwin.spectrum import noise_floor
+from dtwin.model.kinematics import Kinematics
+from dtwin.signal.spectrum import noise_floor
 
 from .residuals import _STRONG_DB, _amplitude
 

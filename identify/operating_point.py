@@ -4,7 +4,7 @@ A twin simulated at the nominal 1800 rpm cannot match a bench that turned at 178
 mesh harmonic and sideband would sit in the wrong bins. So the speed is settled first, in one
 place (:func:`resolve_speed`), from the first source that has it: a given speed (``--f-sun``) →
 the tachometer → the record's metadata → the spectrum estimate → the spec's nominal
-``[operating] f_sun``; every speed is checked against :data:`dtwin.speed_range.F_SUN_MAX`, and a
+``[operating] f_sun``; every speed is checked against :data:`dtwin.simulation.speed_range.F_SUN_MAX`, and a
 given, tachometer or metadata speed that the record's lines contradict gets a warning naming
 the lines (expected and seen frequencies).
 
@@ -38,10 +38,10 @@ import warnings
 import numpy as np
 
 from dtwin.errors import RecordError
-from dtwin.kinematics import Kinematics, combination_text
-from dtwin.order import shaft_speed, tacho_angle
-from dtwin.spectrum import noise_floor
-from dtwin.speed_range import check_input_speed
+from dtwin.model.kinematics import Kinematics, combination_text
+from dtwin.signal.order import shaft_speed, tacho_angle
+from dtwin.signal.spectrum import noise_floor
+from dtwin.simulation.speed_range import check_input_speed
 
 __all__ = ["OperatingPoint", "SpeedCheck", "SpeedDisagreementError", "SpeedLine", "SpeedProfileEstimate",
            "SpeedWarning", "check_speed", "estimate_speed", "estimate_speed_profile",
@@ -208,7 +208,7 @@ def _loaded(spec_or_twin):
 
 def _teeth(spec_or_twin) -> tuple[int, int, int] | None:
     """``(z_sun, z_ring, n_planets)`` of a spec (or its path), twin, gear set or
-    :class:`~dtwin.kinematics.Kinematics`; None without tooth numbers."""
+    :class:`~dtwin.model.kinematics.Kinematics`; None without tooth numbers."""
     obj = _loaded(spec_or_twin)
     if obj is None:
         return None
@@ -224,12 +224,12 @@ def _teeth(spec_or_twin) -> tuple[int, int, int] | None:
 
 def nominal_speed(spec_or_twin) -> float | None:
     """The nominal input speed (Hz): a spec's ``operating.f_sun``, a twin's drive set point, a
-    :class:`~dtwin.kinematics.Kinematics`' ``f_sun``; None when it states none."""
+    :class:`~dtwin.model.kinematics.Kinematics`' ``f_sun``; None when it states none."""
     obj = _loaded(spec_or_twin)
     if obj is None:
         return None
     if hasattr(obj, "parts"):
-        from dtwin.parts.drive import DrivePart
+        from dtwin.model.motor.drive import DrivePart
 
         for p in obj.parts:
             if isinstance(p, DrivePart):
@@ -358,7 +358,7 @@ def spectrum_speed(x: np.ndarray, sample_rate: float, gears, f_centre: float, *,
     sidebands jointly (module docstring).
 
     **Arguments:** `x`: samples; `sample_rate` (Hz); `gears`: tooth numbers (a spec, twin, gear
-    set or :class:`~dtwin.kinematics.Kinematics`); `f_centre` (Hz): the centre of the search;
+    set or :class:`~dtwin.model.kinematics.Kinematics`); `f_centre` (Hz): the centre of the search;
     `search`: its relative half-width; `band_fraction`: the band searched ends at this fraction
     of the rate; `max_harmonics`: at most this many mesh harmonics (default: every one in the
     band); `min_level_db`: a line counts this far over the noise floor.
@@ -601,9 +601,9 @@ def resolve_speed(record, spec_or_twin=None, given: float | None = None, *,
                   required: bool = True) -> OperatingPoint | None:
     """The input (sun) speed of a steady record, from the first source that has one:
 
-    1. `given` (Hz, e.g. ``--f-sun``), checked by :func:`dtwin.speed_range.check_input_speed`;
+    1. `given` (Hz, e.g. ``--f-sun``), checked by :func:`dtwin.simulation.speed_range.check_input_speed`;
     2. the tachometer: `tacho` (a channel of `record`, or ``(channel, ppr, shaft)``) or the
-       record's own (:func:`dtwin.order.tacho_angle`, mean over the record);
+       record's own (:func:`dtwin.signal.order.tacho_angle`, mean over the record);
     3. the record's ``metadata["f_sun"]``;
     4. the spectrum estimate (:func:`spectrum_speed`, around the spec's nominal speed);
     5. the spec's nominal ``[operating] f_sun`` (or the twin's drive set point).

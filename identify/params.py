@@ -1,6 +1,6 @@
 """Which twin parameters a fit moves, and how: registry names ↔ an unconstrained vector θ.
 
-A :class:`ParameterSet` names the free parameters (registry names, :mod:`dtwin.registry`), their
+A :class:`ParameterSet` names the free parameters (registry names, :mod:`dtwin.model.registry`), their
 initial values (from the twin or given), bounds, optional Gaussian priors and the parameters held
 fixed at given values. A fit works on a nondimensional, unconstrained vector ``θ`` (one entry per
 free parameter, ``θ = 0`` at the initial value) mapped to physical values by the registry's
@@ -12,7 +12,7 @@ transform:
 
 so every θ is of order one and the bounds can never be crossed (optimistix has no bounds for
 least squares; docs/identification.md). :meth:`ParameterSet.apply` writes values into a
-`Twin` through each parameter's registry address (:mod:`dtwin.address`): lumped fields, ties
+`Twin` through each parameter's registry address (:mod:`dtwin.model.address`): lumped fields, ties
 (``zeta_mesh`` → ``zeta_sun_planet`` and ``zeta_ring_planet``), fields of parts (fault
 severities, ``te_amplitude``, ``sun_eccentricity``, ``load_torque``; :meth:`ParameterSet.prepare`
 adds a zero-valued part where the twin has none, before any compute: zero is bit-identical to
@@ -35,9 +35,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dtwin.address import SignalGain
 from dtwin.errors import ParameterError
-from dtwin.registry import ParameterInfo, ensure_parts, get_value, lookup, set_value
+from dtwin.model.address import SignalGain
+from dtwin.model.registry import ParameterInfo, ensure_parts, get_value, lookup, set_value
 
 __all__ = ["ParameterSet", "current_value", "ensure_fault_parts", "settable"]
 
@@ -47,12 +47,12 @@ _EDGE = 1e-3
 
 def settable(name: str) -> bool:
     """Whether :meth:`ParameterSet.apply` can write the registry parameter `name` into a twin
-    (its registry entry has an address, :mod:`dtwin.address`)."""
+    (its registry entry has an address, :mod:`dtwin.model.address`)."""
     return lookup(name).settable
 
 
 def ensure_fault_parts(twin, names: Sequence[str]):
-    """A twin holding every part the free `names` live in (:func:`dtwin.registry.ensure_parts`:
+    """A twin holding every part the free `names` live in (:func:`dtwin.model.registry.ensure_parts`:
     e.g. a zero-severity `MissingTooth` for a free ``<location>_fault``, a zero-amplitude
     `TransmissionError` for ``te_amplitude``). Zero leaves the dynamics bit-identical."""
     return ensure_parts(twin, names)
@@ -60,7 +60,7 @@ def ensure_fault_parts(twin, names: Sequence[str]):
 
 def current_value(twin, name: str) -> float:
     """The value of registry parameter `name` in `twin` (a tie: the mean of its members),
-    read through its address (:func:`dtwin.registry.get_value`)."""
+    read through its address (:func:`dtwin.model.registry.get_value`)."""
     return get_value(twin, name)
 
 

@@ -6,7 +6,7 @@ to stand in for it: the fit then finds a value with a narrow interval that only 
 the stand-in is pinned. The interval cannot say that the value is physically out of reach;
 the gear pair's geometry can. ISO 6336-1:2006, clause 9, method B, gives the mean mesh
 stiffness of a steel spur pair from its teeth, profile shifts, face width and load
-(:func:`dtwin.stiffness.mesh_stiffness_mean`); its corrections for rim, basic rack and load
+(:func:`dtwin.model.stiffness.mesh_stiffness_mean`); its corrections for rim, basic rack and load
 each move the single-pair stiffness ``c'`` by well under a factor of two. For another material
 pairing ``c'`` scales with the Young's modulus (ISO 6336-1, clause 9: ``c'`` of steel times
 ``E / E_steel``, ``E_steel`` = 206 GPa); the check takes the spec's ``[material]

@@ -16,12 +16,12 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from dtwin.build import build_twin, is_calibrated, twin_kind
 from dtwin.errors import FitError, ParameterError, RecordError, SettingsError
-from dtwin.registry import lookup
-from dtwin.simulate import SolverOptions
+from dtwin.model.registry import lookup
+from dtwin.model.twin import Twin
+from dtwin.simulation.simulate import SolverOptions
 from dtwin.spec import Spec, load_spec
-from dtwin.twin import Twin
+from dtwin.spec.build import build_twin, is_calibrated, twin_kind
 
 from .operating_point import estimate_speed_profile, nominal_speed, resolve_speed
 from .params import ParameterSet
@@ -50,7 +50,7 @@ def spec_of(spec_or_twin) -> Spec | None:
 
 def as_twin(spec_or_twin, kind: str | None = None) -> Twin:
     """The twin: `spec_or_twin` itself, or built from its spec with `kind`
-    (:func:`dtwin.build.twin_kind`)."""
+    (:func:`dtwin.spec.build.twin_kind`)."""
     spec = spec_of(spec_or_twin)
     return spec_or_twin if spec is None else build_twin(spec, kind=twin_kind(spec, kind))
 
@@ -113,7 +113,7 @@ class Problem(eqx.Module):
         """``(signals, values, defect)``: :meth:`signals` and the largest periodicity defect
         of the records simulated over one period of the gear set and tiled (relative rms
         difference of a signal as integrated and as tiled over a probe window,
-        `dtwin.simulate.SimResult.periodic_defect`; 0 where no record is tiled). A defect above `SolverOptions.periodic_tolerance` means the start-up
+        `dtwin.simulation.simulate.SimResult.periodic_defect`; 0 where no record is tiled). A defect above `SolverOptions.periodic_tolerance` means the start-up
         transient had not died out within the settling time (:func:`dtwin.identify.fit.fit` then fits again)."""
         values = self.pset.values(theta)
         tw = self.pset.apply(self.twin, values)
@@ -180,7 +180,7 @@ def make_problem(
 
     Arguments as :func:`fit`; `periodic`: ``"auto"`` (default: a constant-speed record whose
     settling time (0.1 s) and the gear set's period fit in 3/4 of it is simulated over those
-    only and tiled, ``dtwin.simulate.SolverOptions.periodic``; run-ups and twins whose response is not
+    only and tiled, ``dtwin.simulation.simulate.SolverOptions.periodic``; run-ups and twins whose response is not
     periodic are simulated in full; :func:`fit` settles longer where the tiled response at its
     optimum was not periodic) or ``"off"`` (always in full).
     **Returns:** ``(problem, operating_points)``.

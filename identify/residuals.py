@@ -30,7 +30,7 @@ over parameter vectors, starts or records of one shape works).
 
 **Distance.** Per point ``r = w (log(sqrt((g A_model)² + F²) + F) - log(A_meas + F))`` with
 ``F`` the measured noise floor (running median of the measured amplitude,
-:func:`dtwin.spectrum.noise_floor`) added *before* the logarithm on both sides: lines far above
+:func:`dtwin.signal.spectrum.noise_floor`) added *before* the logarithm on both sides: lines far above
 the floor compare in relative (dB-like) terms, bins at the floor compare floor to floor (bounded,
 no ``log 0``), and the unknown phase of every line drops out because only amplitudes are
 compared. The model side is the *expected* measured level: a line ``S`` in noise has on average
@@ -58,9 +58,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.errors import RecordError, SettingsError
-from dtwin.parts.drive import DrivePart
-from dtwin.parts.speed_source import SpeedProfile
-from dtwin.simulate import (
+from dtwin.model.motor.drive import DrivePart
+from dtwin.model.motor.speed_source import SpeedProfile
+from dtwin.signal.spectrum import analytic_signal, get_window, noise_floor
+from dtwin.signal.units import quantity as unit_quantity
+from dtwin.simulation.simulate import (
     DAQ,
     SolverOptions,
     acquire,
@@ -69,8 +71,6 @@ from dtwin.simulate import (
     integrate_observables,
     step_limit,
 )
-from dtwin.spectrum import analytic_signal, get_window, noise_floor
-from dtwin.units import quantity as unit_quantity
 
 from .operating_point import gear_orders
 
@@ -90,7 +90,7 @@ _STRONG_DB = 20.0
 
 def quantity_of_unit(unit: str) -> str:
     """The twin's DAQ quantity for a record channel unit (``m/s^2``, ``g`` → acceleration,
-    ``mm/s`` → velocity, ``um`` → displacement: `dtwin.units.quantity`); units that
+    ``mm/s`` → velocity, ``um`` → displacement: `dtwin.signal.units.quantity`); units that
     do not say (``V``) are taken as acceleration (the gain absorbs the scale)."""
     return unit_quantity(unit) or "acceleration"
 
@@ -208,7 +208,7 @@ def _window(n: int) -> np.ndarray:
 
 
 def _amplitude(x, n: int):
-    """Hann amplitude spectrum (dtwin.spectrum scaling), numpy or JAX, last axis."""
+    """Hann amplitude spectrum (dtwin.signal.spectrum scaling), numpy or JAX, last axis."""
     xp = jnp if isinstance(x, jax.Array) else np
     w = _window(n)
     spec = xp.abs(xp.fft.rfft((x - xp.mean(x, axis=-1, keepdims=True)) * xp.asarray(w), axis=-1))
@@ -470,13 +470,13 @@ def _start_speed(obs: Observation) -> float:
 
 
 def _simulate_jittable(twin, *, duration, f_sun, daq, discard, solver, f_init=None):
-    """`dtwin.simulate.simulate` for use inside `jit`/`vmap`/`jacfwd`: the same pipeline
+    """`dtwin.simulation.simulate.simulate` for use inside `jit`/`vmap`/`jacfwd`: the same pipeline
     (steady start, Tsit5 with the sensor computed inside the model, DAQ FIR + decimation) with
     the time grid built in numpy — `simulate` itself converts a jnp grid with `float()`, which
     fails on tracers. `f_sun` (static, Hz) sets the step limit; the steady initial state is
     taken at `f_init` (Hz, may be traced) when given, else at `f_sun`. **Returns**
     ``(signal, defect)``, `defect` the periodicity defect of a tiled response (None when
-    integrated in full; `dtwin.simulate.SimResult.periodic_defect`)."""
+    integrated in full; `dtwin.simulation.simulate.SimResult.periodic_defect`)."""
     fs_out = float(daq.sample_rate)
     fs_hi, taps, ts_np = daq_grid(duration, discard, daq)
     t0 = float(ts_np[0])
@@ -497,7 +497,7 @@ def model_signal(twin, obs: Observation, solver=None):
 def model_signal_and_defect(twin, obs: Observation, solver=None):
     """``(signal, defect)``: :func:`model_signal` and the periodicity defect of a tiled response
     (relative rms difference of the signal as integrated and as tiled over a probe window,
-    `dtwin.simulate.SimResult.periodic_defect`), None where the record is integrated in full.
+    `dtwin.simulation.simulate.SimResult.periodic_defect`), None where the record is integrated in full.
     JAX."""
     solver = solver or SolverOptions()
     daq = DAQ(sample_rate=obs.sample_rate, oversample=obs.oversample, quantity=obs.quantity,

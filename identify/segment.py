@@ -13,7 +13,7 @@ is minutes of ODE solving per evaluation, while the spectra a fit compares need 
   the record is decimated by the largest integer ``q`` that keeps
   ``harmonics × f_mesh + sidebands × N f_c <= 0.45 × rate / q`` at 1.1 × the input speed.
   The low-pass before decimating is the twin's own anti-aliasing filter at ``q``-fold
-  oversampling (:func:`dtwin.simulate.daq_filter`: Kaiser FIR, cut-off 0.4 of the output rate,
+  oversampling (:func:`dtwin.simulation.simulate.daq_filter`: Kaiser FIR, cut-off 0.4 of the output rate,
   zero phase here), so measured and simulated spectra pass the same filter. A tachometer is
   kept as the maximum of each ``q`` samples (no pulse is lost; its times move by < q samples).
 - **Place.** Default: the steadiest window: the input speed per second of record (from the
@@ -36,9 +36,9 @@ from typing import Any
 import numpy as np
 
 from dtwin.errors import RecordError, SettingsError
-from dtwin.kinematics import Kinematics
-from dtwin.order import tacho_times
-from dtwin.simulate import daq_filter
+from dtwin.model.kinematics import Kinematics
+from dtwin.signal.order import tacho_times
+from dtwin.simulation.simulate import daq_filter
 
 from .operating_point import resolve_speed
 from .residuals import MIN_SIDEBAND_BINS

@@ -14,7 +14,7 @@ paper's degradation-model idea).
 
 **Peak stiffness loss.** Severity is what the fault type's own geometry measures (face width
 removed, pitted area, crack depth); every estimate is also reported as the fault's peak
-mesh-stiffness loss at the faulty tooth (:func:`dtwin.faults.peak_stiffness_loss`), the quantity
+mesh-stiffness loss at the faulty tooth (:func:`dtwin.model.faults.peak_stiffness_loss`), the quantity
 comparable across benches, fault models and twins. The fit sees the stiffness a fault removes
 (N/m); the fraction that is of "the mesh stiffness" depends on the healthy waveform at the
 faulty tooth's contact, which one housing sensor does not determine (the sun meshes'
@@ -39,7 +39,7 @@ unexplained beyond the noise, ``‖r‖² − E`` (:func:`expected_noise_rss`): 
 smaller than the model-form error the best fit still carries cannot tell two shapes apart.
 
 **The twin.** A severity is fitted with the translational twin unless a `kind` is given
-(:data:`dtwin.build.SEVERITY_KIND`), whatever kind the spec names or was calibrated with: a
+(:data:`dtwin.spec.build.SEVERITY_KIND`), whatever kind the spec names or was calibrated with: a
 local tooth fault loads one mesh at a time, a floating sun moves under that loss, and the
 torsional twin, whose sun and planets cannot move sideways, makes a sun or planet fault
 several times louder and so reads it several times small (docs/identification.md, "The twin of
@@ -111,10 +111,10 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from dtwin.build import SEVERITY_KIND, is_calibrated
 from dtwin.errors import ParameterError, SettingsError
-from dtwin.faults import MIN_SPREAD, peak_stiffness_loss
-from dtwin.registry import lookup
+from dtwin.model.faults import MIN_SPREAD, peak_stiffness_loss
+from dtwin.model.registry import lookup
+from dtwin.spec.build import SEVERITY_KIND, is_calibrated
 
 from .excitation_response import (
     SPLIT_CALIBRATED,
@@ -144,7 +144,7 @@ RAMP_GRID = (0.05, 0.15, 0.3)
 #: Shapes of the loss tried with ``ramps="shapes"``, as ``(ramp, spread)`` (mesh cycles): the
 #: sharp loss over the contact, a soft one, one that extends a mesh cycle beyond the contact
 #: either side and fades over it, and a sharp one confined to the middle of the contact (a pit
-#: or spall about the pitch point: :data:`dtwin.faults.MIN_SPREAD`).
+#: or spall about the pitch point: :data:`dtwin.model.faults.MIN_SPREAD`).
 SHAPE_GRID = ((0.05, 0.0), (0.3, 0.0), (0.3, 1.0), (0.05, MIN_SPREAD))
 _LOCATIONS = ("sun", "planet", "ring")
 
@@ -174,7 +174,7 @@ class SeverityEstimate:
     """Severity (1) at `location` with its 95 % `interval`, whether it is `determined`, the
     method of the interval (``gaussian`` in the logit coordinate or ``profile``), and the fit;
     `peak_loss` (fraction; × 100 for %): the peak mesh-stiffness loss at the faulty tooth
-    relative to the mean mesh stiffness (:func:`dtwin.faults.peak_stiffness_loss`), and
+    relative to the mean mesh stiffness (:func:`dtwin.model.faults.peak_stiffness_loss`), and
     `peak_interval`, its 95 % interval over any healthy waveform (module docstring); `ramp`,
     `spread`: the loss's edge width and its extent beyond the contact (mesh cycles) of the
     reported fit; `widened`: the factor the intervals were widened by for lack of fit (1:
@@ -289,7 +289,7 @@ def _fault_index(twin, location: str) -> int | None:
 def _peak(twin, i: int, severity: float, reference: str = "mean") -> float:
     """Peak stiffness loss of the twin's fault `i` at `severity` (its own type and shape),
     relative to the healthy mesh's `reference` stiffness
-    (:func:`dtwin.faults.peak_stiffness_loss`; module docstring, "Peak stiffness loss")."""
+    (:func:`dtwin.model.faults.peak_stiffness_loss`; module docstring, "Peak stiffness loss")."""
     f = eqx.tree_at(lambda f: f.severity, twin.parts[i].fault,
                     jnp.asarray(min(max(float(severity), 0.0), 1.0), jnp.float64))
     return float(peak_stiffness_loss(f, twin.lp, reference=reference))
@@ -336,7 +336,7 @@ def _twin_kind(spec_or_twin, kind: str | None) -> tuple[str | None, str]:
 
 #: The flanks of a planet tooth a planet fault's severity is fitted on (``flanks=None`` where the
 #: spec names none; module docstring, "A planet fault's flank"): both, the one meeting the sun,
-#: the one meeting the ring (:class:`dtwin.faults.AbstractFault`'s ``flank``).
+#: the one meeting the ring (:class:`dtwin.model.faults.AbstractFault`'s ``flank``).
 PLANET_FLANKS = ("both", "sun", "ring")
 
 
@@ -581,7 +581,7 @@ def estimate_severity(
     `flanks`: for a planet fault, the planet-tooth flanks to fit (True: :data:`PLANET_FLANKS`;
     a sequence of them; False: the fault's own; None: all three unless the spec names the
     planet fault's flank; module docstring, "A planet fault's flank"); keyword arguments of
-    :func:`dtwin.identify.fit.fit` (``kind``: default :data:`dtwin.build.SEVERITY_KIND` for a
+    :func:`dtwin.identify.fit.fit` (``kind``: default :data:`dtwin.spec.build.SEVERITY_KIND` for a
     spec, ``f_sun``, ``features``, ``starts``, ``progress`` …).
     """
     name = _name(location)

@@ -25,7 +25,7 @@ import numpy as np
 import optimistix as optx
 
 from dtwin.errors import SettingsError
-from dtwin.simulate import settling_sequence
+from dtwin.simulation.simulate import settling_sequence
 
 from .problem import Problem
 from .stopping import make_solver
@@ -48,7 +48,7 @@ def settled_fit(problem: Problem, refine, starts, defect_of, say
     start's, a batch's largest). Where it exceeds `SolverOptions.periodic_tolerance` (a lightly
     damped mode of the drive or the housing outlasted the settling time, and the tiles' joins
     put a broadband hump in the spectrum) the fit is run again with the next option of
-    `dtwin.simulate.settling_sequence`, from where the last run ended (its start where that is
+    `dtwin.simulation.simulate.settling_sequence`, from where the last run ended (its start where that is
     not finite): the hump moves the optimum little, so the next run needs few steps; `say`
     reports it as it happens. `starts`: one θ per row; ``outcome[0]`` holds the refined θ."""
     options = settling_sequence(problem.solver_options())

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from dtwin.registry import REGISTRY
+from dtwin.model.registry import REGISTRY
 
 __all__ = ["discovery_candidate_rows", "discovery_rows", "fit_dataframe", "fit_rows", "trend_rows", "trends_dataframe"]
 

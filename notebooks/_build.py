@@ -105,14 +105,14 @@ NB01 = [
     """),
     code(SETUP),
     code("""
-    from dtwin.reports import spectrum_report
+    from dtwin.report.analyses import spectrum_report
     from dtwin.plotting.modes import plot_modes
     from dtwin.plotting.spectrum import plot_spectrum_peaks, plot_waveform
     """),
     md("""
     ## The gearbox
 
-    `preset("paper-like")` reads `dtwin/presets/paper-like.toml`. Its characteristic frequencies at
+    `preset("paper-like")` reads `dtwin/spec/presets/paper-like.toml`. Its characteristic frequencies at
     1800 rpm are the paper's Table 2 (in brackets).
     """),
     code("""
@@ -323,7 +323,7 @@ NB02 = [
     """),
     code(SETUP),
     code("""
-    from dtwin.reports import spectrum_report
+    from dtwin.report.analyses import spectrum_report
     from dtwin.plotting.spectrum import plot_spectrum_peaks, plot_waveform
     """),
     md("""
@@ -462,11 +462,11 @@ NB02 = [
 
     ## Twin versus traditional model over fault severity (the paper's Figure 15)
 
-    `dtwin.coupling.compare_drives` builds two twins that differ only in the drive part (ideal
+    `dtwin.report.drive_comparison.compare_drives` builds two twins that differ only in the drive part (ideal
     speed source vs PMSM, the same shaft), sweeps the sun missing-tooth severity, and takes the
     RMS of the sensor signal over a steady window; `dRMS/dseverity` comes from forward-mode
     autodiff through the ODE solve (`jax.jvp`, vectorised over the severities). The figures are
-    the ones `dtwin.plotting.coupling` draws for `dtwin compare-drives`.
+    the ones `dtwin.report.drive_comparison_figures` draws for `dtwin compare-drives`.
 
     As in the paper's Section 6 the gearbox is the paper's simulation gearbox (`paper-sim`,
     without the position errors of `paper-like`, whose planet-pass modulation would dominate
@@ -474,8 +474,8 @@ NB02 = [
     planet passing does not bias it), after 0.1 s of transient from a steady start.
     """),
     code("""
-    from dtwin.coupling import compare_drives, sensitivity_sweep
-    from dtwin.plotting.coupling import (plot_drive_comparison, plot_sensitivity,
+    from dtwin.report.drive_comparison import compare_drives, sensitivity_sweep
+    from dtwin.report.drive_comparison_figures import (plot_drive_comparison, plot_sensitivity,
                                          plot_sensitivity_sweep)
 
     data_sim = dtwin.spec_to_dict(dtwin.preset("paper-sim"))
@@ -575,7 +575,7 @@ NB03 = [
 
     from dtwin.identify import (estimate_speed, fit, plot_fit, plot_severity_series,
                           severity_series)
-    from dtwin.reports import spectrum_report
+    from dtwin.report.analyses import spectrum_report
     from dtwin.identify.plotting.fit import plot_loss_history
     from dtwin.plotting.spectrum import plot_spectrum_peaks
 
@@ -648,7 +648,7 @@ NB03 = [
     md("""
     ## Fit
 
-    Free parameters are registry names (`dtwin.registry`): `sun_fault` is the severity of a
+    Free parameters are registry names (`dtwin.model.registry`): `sun_fault` is the severity of a
     sun missing tooth in [0, 1] (logit transform), the mesh stiffnesses are positive (log
     transform). Everything else stays at the spec's value. The residuals are log-amplitude
     differences in bands around every mesh harmonic below 0.45 × the sampling rate, with the

@@ -1,7 +1,7 @@
 """An independent NumPy implementation of the twin's equations of motion (benchmark and check).
 
-Written from docs/conventions.md and the docstrings of `dtwin/twin.py`, `dtwin/simulate.py`,
-`dtwin/faults.py`, `dtwin/stiffness.py` and `dtwin/parts/*.py`, *not* by calling dtwin's JAX
+Written from docs/conventions.md and the docstrings of `dtwin/model/twin.py`, `dtwin/simulation/simulate.py`,
+`dtwin/model/faults.py`, `dtwin/model/stiffness.py` and `dtwin/model/parts/*.py`, *not* by calling dtwin's JAX
 functions: only the numbers are taken from a built twin (`tw.lp` converted to floats, the parts'
 parameters), so that both sides solve the same problem. Supported parts — those of
 ``build_twin(preset("paper-sim"))`` plus sun faults:
@@ -29,7 +29,7 @@ Any other part raises `NotImplementedError` rather than being silently ignored.
 - Stiffness: Lanczos-smoothed Fourier series of the single/double contact wave (``c'``,
   ``1.75 c'``), minus the sun fault's ``severity c' box(u)`` with ``u`` the cycles since the
   faulty tooth entered contact (sigmoid edges 0.05 cycles), floored at 0 as
-  `dtwin.faults.mesh_stiffnesses` documents.
+  `dtwin.model.faults.mesh_stiffnesses` documents.
 - Rotating-frame forces on translations: ``m (W^2 r + 2 W (v_y, -v_x))`` for the central members
   (their own mass), ``m_p (W^2 (a + zeta) + 2 W eta')`` radial and ``m_p (W^2 eta - 2 W zeta')``
   tangential for the planets, ``W = theta_c'`` (twin.py `frame_forces`).
@@ -41,12 +41,12 @@ Any other part raises `NotImplementedError` rather than being silently ignored.
   sensor_angle)) / 2)^p``, with the path's own states ``z1' = z2``,
   ``z2' = wc^2 (s - z1) - sqrt(2) wc z2`` (second-order Butterworth low-pass at `highpass_hz`).
 
-**State.** `rhs(t, y)` works on the flat *scaled* state of `dtwin.simulate._solve`,
-``y = [z / sz, z' / sv, aux]`` (scales of `dtwin.simulate.state_scales`, recomputed here:
+**State.** `rhs(t, y)` works on the flat *scaled* state of `dtwin.simulation.simulate._solve`,
+``y = [z / sz, z' / sv, aux]`` (scales of `dtwin.simulation.simulate.state_scales`, recomputed here:
 translations 1e-6 m, a gear's rotation deviation 1e-6 m / its base radius, carrier angle 1 rad;
 rates ``2 pi RATE_SCALE_HZ`` times those, carrier rate 10 rad/s), for `scipy.integrate.solve_ivp`.
 `rhs_unscaled(t, z, zd, aux)` returns ``(z', z'', aux')`` in the unscaled ``(z, z', aux)`` of
-`dtwin.twin.Twin.vector_field`.
+`dtwin.model.twin.Twin.vector_field`.
 """
 
 from __future__ import annotations
@@ -56,8 +56,8 @@ import math
 import numpy as np
 from scipy.special import expit
 
-RATE_SCALE_HZ = 10_000.0  # dtwin.simulate.SolverOptions.rate_scale_hz default
-WINDOW_EDGE = 0.05  # mesh cycles, edge width of a fault's contact window (dtwin.faults)
+RATE_SCALE_HZ = 10_000.0  # dtwin.simulation.simulate.SolverOptions.rate_scale_hz default
+WINDOW_EDGE = 0.05  # mesh cycles, edge width of a fault's contact window (dtwin.model.faults)
 DOUBLE_CONTACT_FACTOR = 1.75  # ISO 6336-1: double contact stiffness over single-pair c'
 
 
@@ -70,7 +70,7 @@ def _softplus(x):
 
 
 class ReferenceModel:
-    """The twin's equations in NumPy, with the numbers of a built `dtwin.twin.Twin`.
+    """The twin's equations in NumPy, with the numbers of a built `dtwin.model.twin.Twin`.
 
     **Arguments:** `twin`: a `Twin` built from parts this module supports (module docstring).
 
@@ -80,13 +80,13 @@ class ReferenceModel:
     """
 
     def __init__(self, twin):
-        from dtwin.faults import MissingTooth
-        from dtwin.parts.drive import DrivePart, LoadPart
-        from dtwin.parts.loads import ConstantLoad
-        from dtwin.parts.local_fault import LocalFault
-        from dtwin.parts.speed_source import IdealSpeedSource
-        from dtwin.parts.supports import Supports
-        from dtwin.parts.transfer_path import PlanetPassTransferPath
+        from dtwin.model.faults import MissingTooth
+        from dtwin.model.motor.drive import DrivePart, LoadPart
+        from dtwin.model.motor.loads import ConstantLoad
+        from dtwin.model.motor.speed_source import IdealSpeedSource
+        from dtwin.model.parts.local_fault import LocalFault
+        from dtwin.model.parts.supports import Supports
+        from dtwin.model.parts.transfer_path import PlanetPassTransferPath
 
         lp = twin.lp
         self.kind = twin.kind

@@ -1,4 +1,4 @@
-"""dtwin.address / dtwin.registry: one address per parameter, read and written through the
+"""dtwin.model.address / dtwin.model.registry: one address per parameter, read and written through the
 registry by build, fit (ParameterSet), fleet and discovery.
 
 A new parameter touches its registry entry and the part that owns it, nothing else: the test
@@ -11,15 +11,15 @@ import numpy as np
 import optimistix as optx
 import pytest
 
-from dtwin.address import PartField
-from dtwin.build import build_twin
 from dtwin.errors import ParameterError
 from dtwin.identify.params import ParameterSet, current_value
-from dtwin.parts.base import AbstractPart
-from dtwin.parts.imperfections import SunEccentricity
-from dtwin.registry import REGISTRY, ParameterInfo, RegistryView, register
+from dtwin.model.address import PartField
+from dtwin.model.parts.base import AbstractPart
+from dtwin.model.parts.imperfections import SunEccentricity
+from dtwin.model.registry import REGISTRY, ParameterInfo, RegistryView, register
+from dtwin.model.twin import Coords
 from dtwin.spec import load_spec, preset, spec_to_dict
-from dtwin.twin import Coords
+from dtwin.spec.build import build_twin
 
 
 @pytest.fixture(scope="module")
@@ -122,10 +122,10 @@ def test_every_settable_entry_round_trips(twin):
 def test_effects_do_not_change_the_global_registry():
     """Discovery's effects declare their parameters; the extended model overlays them on the
     registry (RegistryView) and the global table stays as it was."""
-    from dtwin.build import daq_from_spec
     from dtwin.identify.discover import ExtendedModel
     from dtwin.identify.discover.effects import registered_effects
     from dtwin.identify.lines import Kinematics
+    from dtwin.spec.build import daq_from_spec
 
     spec = preset("paper-sim")
     before = dict(REGISTRY)

@@ -98,9 +98,9 @@ def test_calibration_fits_unequal_load_sharing_on_the_bench(bench_calibration):
 
     import numpy as np
 
-    from dtwin.build import build_twin
-    from dtwin.parts.imperfections import MeshOffsets
+    from dtwin.model.parts.imperfections import MeshOffsets
     from dtwin.spec import load_spec
+    from dtwin.spec.build import build_twin
 
     res = json.loads((bench_calibration / "calibration.json").read_text())
     names = [p["name"] for p in res["parameters"]]
@@ -122,9 +122,9 @@ def bench_severities(calibrated):
     """``estimate_severity`` of the sun fault with the calibrated spec and the band jackknife,
     on bench_sun_fault (truth 0.6) and bench_healthy (truth 0)."""
     from dtwin import read_record
-    from dtwin.build import twin_kind
     from dtwin.identify.severity import estimate_severity
     from dtwin.spec import load_spec
+    from dtwin.spec.build import twin_kind
 
     assert twin_kind(load_spec(calibrated)) == "translational"
     sev = estimate_severity(read_record(SAMPLES / "bench_sun_fault.dtwin.h5"), calibrated, "sun",

@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dtwin.parts.transfer_path import window_cosine_coefficients
-from dtwin.sensor_response import apply_frf, frf_gain, knot_basis
+from dtwin.model.parts.transfer_path import window_cosine_coefficients
+from dtwin.simulation.sensor_response import apply_frf, frf_gain, knot_basis
 from dtwin.spec import load_spec, preset, spec_to_dict
-from dtwin.spec_writer import spec_to_toml
+from dtwin.spec.writer import spec_to_toml
 
 IND = Path(__file__).resolve().parents[2] / "shared" / "independent"
 needs_independent = pytest.mark.skipif(not (IND / "baseline-1.csv").exists(),
@@ -119,8 +119,8 @@ def test_calibration_reports_what_the_data_do_not_determine(calibrated):
 
 @needs_independent
 def test_calibrated_spec_is_a_spec_every_command_takes(calibrated):
-    from dtwin.build import build_twin, daq_from_spec
-    from dtwin.parts.mesh_excitation import MeshExcitation
+    from dtwin.model.parts.mesh_excitation import MeshExcitation
+    from dtwin.spec.build import build_twin, daq_from_spec
 
     _, path = calibrated
     spec = load_spec(path)
@@ -153,7 +153,7 @@ def _toy_fit_data(seed: int = 0):
     import jax.numpy as jnp
 
     from dtwin.identify.calibration_model import _Data
-    from dtwin.sensor_response import knot_basis
+    from dtwin.simulation.sensor_response import knot_basis
 
     rng = np.random.default_rng(seed)
     n, p = 400, 3
@@ -243,8 +243,8 @@ def slow_settling_record(tmp_path_factory):
     the translational twin (the calibration fits the torsional one)."""
     from _gearboxes import SLOW_SETTLING
 
-    from dtwin.build import build_twin, daq_from_spec
-    from dtwin.simulate import simulate
+    from dtwin.simulation.simulate import simulate
+    from dtwin.spec.build import build_twin, daq_from_spec
 
     spec = load_spec(SLOW_SETTLING)
     twin = build_twin(spec, kind="translational", f_sun=20.0)
@@ -299,7 +299,7 @@ def test_response_tangents_in_batches_are_the_jacobian(monkeypatch):
     mesh harmonic's transmission errors (through the solve; ±100 nm, far above the solver's
     noise and within the linear range of the engaged contact)."""
     import dtwin.identify.calibration_model as cal
-    from dtwin.build import daq_from_spec
+    from dtwin.spec.build import daq_from_spec
 
     spec = preset("paper-sim")
     settings = cal.CalibrationSettings()
@@ -361,9 +361,9 @@ def test_a_spec_that_already_describes_its_records_is_kept():
     damping) with only the response level fitted, and its confirmed gap is the spec's (the
     calibrated values had moved along directions the records do not determine: on a
     21/31/84 gearbox they tripled the error of a later severity)."""
-    from dtwin.build import build_twin, daq_from_spec
     from dtwin.identify.calibrate import calibrate
-    from dtwin.simulate import simulate
+    from dtwin.simulation.simulate import simulate
+    from dtwin.spec.build import build_twin, daq_from_spec
 
     data = spec_to_dict(preset("paper-sim"))
     data.pop("source")
@@ -398,8 +398,8 @@ def test_a_calibration_the_full_twin_does_not_bear_out_is_not_adopted(monkeypatc
     at a departure of 0.83 dB and was adopted; linearised again, it confirms at 0.40 dB;
     docs/calibration.md.)"""
     import dtwin.identify.calibrate as cal
-    from dtwin.build import build_twin, daq_from_spec
-    from dtwin.simulate import simulate
+    from dtwin.simulation.simulate import simulate
+    from dtwin.spec.build import build_twin, daq_from_spec
 
     data = spec_to_dict(preset("paper-sim"))
     data.pop("source")
@@ -446,7 +446,7 @@ def test_calibration_fits_no_more_mesh_harmonics_than_have_a_registry_name():
     gearbox: 4; a 25.6 kHz one: 12, not 23), and a setting beyond it is refused."""
     from dtwin.errors import SpecError
     from dtwin.identify.calibrate import CalibrationSettings, mesh_harmonics
-    from dtwin.registry import N_EXCITATION_HARMONICS, REGISTRY
+    from dtwin.model.registry import N_EXCITATION_HARMONICS, REGISTRY
 
     f_mesh = 21 * 30.0 * 81 / 102  # the independent gearbox at 1800 rpm: 500.3 Hz
     auto = CalibrationSettings()

@@ -60,7 +60,7 @@ def no_work(monkeypatch):
                          ("dtwin.identify.severity", "estimate_severity"),
                          ("dtwin.identify.fleet", "run_fleet"),
                          ("dtwin.identify.discover", "discover"),
-                         ("dtwin.coupling", "compare_drives"),
+                         ("dtwin.report.drive_comparison", "compare_drives"),
                          ("dtwin.identify.calibrate", "calibrate")):
 
         monkeypatch.setattr(import_module(module), name, _boom)
@@ -488,12 +488,12 @@ def test_severity_report_opens_with_the_estimate():
 
 
 def test_calibrated_spec_sets_the_twin_kind(files, tmp_path, monkeypatch, capsys):
-    """`dtwin severity` leaves the kind to the library (None: dtwin.build.SEVERITY_KIND, the
+    """`dtwin severity` leaves the kind to the library (None: dtwin.spec.build.SEVERITY_KIND, the
     translational twin, for a calibrated spec and a preset alike) unless --model asks for one,
     and says so when that is not the kind a calibrated spec was calibrated with."""
     from dtwin.identify import severity
     from dtwin.spec import preset, spec_to_dict
-    from dtwin.spec_writer import spec_to_toml
+    from dtwin.spec.writer import spec_to_toml
 
     data = spec_to_dict(preset("paper-sim"))
     data.pop("source", None)
@@ -523,10 +523,10 @@ def test_calibrated_spec_sets_the_twin_kind(files, tmp_path, monkeypatch, capsys
 
 
 def test_twin_kind_resolution():
-    """dtwin.build.twin_kind: the asked kind; else a calibrated spec's own; else torsional."""
-    from dtwin.build import twin_kind
+    """dtwin.spec.build.twin_kind: the asked kind; else a calibrated spec's own; else torsional."""
     from dtwin.errors import SpecError
     from dtwin.spec import load_spec, preset, spec_to_dict
+    from dtwin.spec.build import twin_kind
 
     plain = preset("paper-bench")
     assert plain["model"]["kind"] == "translational"
@@ -567,7 +567,7 @@ def test_a_warning_text_is_shown_once_per_command(capsys):
 def test_identify_warns_when_a_tooth_fault_is_fitted_with_the_torsional_twin(files, monkeypatch,
                                                                              capsys):
     """`dtwin identify --free sun_fault --model torsional` warns that a torsional twin reads
-    tooth-fault severities small (dtwin.build.warn_torsional_tooth_fault); without --model a
+    tooth-fault severities small (dtwin.spec.build.warn_torsional_tooth_fault); without --model a
     tooth fault's depth on one record is fitted with severity's (translational) twin, and
     with --model translational or no fault free there is nothing to warn of."""
     from importlib import import_module

@@ -53,9 +53,9 @@ def test_cache_defaults_to_the_users_cache_folder_and_obeys_the_switch(tmp_path)
 _FIT_TWICE = """
 import sys, time
 import dtwin
-from dtwin.faults import MissingTooth
+from dtwin.model.faults import MissingTooth
 from dtwin.identify.fit import fit
-from dtwin.simulate import DAQ, simulate
+from dtwin.simulation.simulate import DAQ, simulate
 from dtwin.spec import preset
 
 spec = preset("paper-sim")

@@ -29,7 +29,13 @@ import numpy as np
 import pytest
 
 from dtwin import DAQ, build_twin, load_spec, preset, simulate, spec_to_dict
-from dtwin.coupling import (
+from dtwin.model.faults import MissingTooth
+from dtwin.model.gears import characteristic_frequencies
+from dtwin.model.motor.drive import DrivePart
+from dtwin.model.motor.pmsm import PMSM
+from dtwin.model.motor.speed_source import IdealSpeedSource
+from dtwin.model.parts.base import AbstractPart
+from dtwin.report.drive_comparison import (
     MODELS,
     comparison_twins,
     fault_rms,
@@ -37,13 +43,7 @@ from dtwin.coupling import (
     set_drive_parameters,
     with_severity,
 )
-from dtwin.faults import MissingTooth
-from dtwin.gears import characteristic_frequencies
-from dtwin.parts.base import AbstractPart
-from dtwin.parts.drive import DrivePart
-from dtwin.parts.pmsm import PMSM
-from dtwin.parts.speed_source import IdealSpeedSource
-from dtwin.spectrum import amplitude_spectrum, noise_floor
+from dtwin.signal.spectrum import amplitude_spectrum, noise_floor
 
 F_SUN = 30.0
 SPEC = preset("paper-sim")
@@ -320,7 +320,7 @@ def test_compare_drives_cli_with_sensitivity(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_autodiff_sensitivity_matches_finite_differences(pair):
-    from dtwin.simulate import SolverOptions
+    from dtwin.simulation.simulate import SolverOptions
 
     kw = dict(f_sun=F_SUN, duration=T_CARRIER, discard=0.05, daq=DAQ(quantity="acceleration"),
               solver=SolverOptions(rtol=1e-8, atol=1e-8))
@@ -334,7 +334,7 @@ def test_autodiff_sensitivity_matches_finite_differences(pair):
 
 @pytest.mark.slow
 def test_rms_rises_with_severity_translational_paper_window():
-    from dtwin.coupling import compare_drives
+    from dtwin.report.drive_comparison import compare_drives
 
     cmp = compare_drives(SPEC, (0.0, 0.25, 0.5, 0.75, 1.0), kind="translational",
                          duration=3 * T_CARRIER, discard=0.1, sensitivity=False,

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from dtwin.build import daq_from_spec
-from dtwin.simulate import DEFAULT_PASSBAND, STOPBAND_DB, daq_filter
+from dtwin.simulation.simulate import DEFAULT_PASSBAND, STOPBAND_DB, daq_filter
 from dtwin.spec import load_spec, preset, spec_to_dict
+from dtwin.spec.build import daq_from_spec
 
 
 @pytest.mark.parametrize("oversample", [2, 4, 5, 8])

@@ -53,8 +53,8 @@ def _lines_against_healthy(name):
 
     from dtwin.identify.lines import Kinematics, residual_lines
     from dtwin.io.readers import read_record
+    from dtwin.signal.spectrum import amplitude_spectrum
     from dtwin.spec import load_spec
-    from dtwin.spectrum import amplitude_spectrum
 
     kin = Kinematics.from_spec(load_spec(IND / "gearbox.toml"))
     spectra = []
@@ -301,14 +301,14 @@ def test_planet_fault_comb_lies_beside_k_fp_in_record_and_twin(independent_calib
     within 10 dB of the floor."""
     import numpy as np
 
-    from dtwin.build import build_twin, daq_from_spec
-    from dtwin.faults import Pitting
     from dtwin.identify.lines import Kinematics
     from dtwin.io.readers import read_record
-    from dtwin.parts.local_fault import LocalFault
-    from dtwin.simulate import simulate
+    from dtwin.model.faults import Pitting
+    from dtwin.model.parts.local_fault import LocalFault
+    from dtwin.signal.spectrum import amplitude_spectrum
+    from dtwin.simulation.simulate import simulate
     from dtwin.spec import load_spec
-    from dtwin.spectrum import amplitude_spectrum
+    from dtwin.spec.build import build_twin, daq_from_spec
 
     spec = load_spec(independent_calibrated_spec)
     kin = Kinematics.from_spec(spec)

@@ -13,8 +13,8 @@ from dtwin.identify.lines import (
     estimate_speed,
     residual_lines,
 )
+from dtwin.signal.spectrum import amplitude_spectrum, noise_floor
 from dtwin.spec import preset
-from dtwin.spectrum import amplitude_spectrum, noise_floor
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +132,7 @@ def test_named_bands_and_segments(kin):
     assert segs[0] == slice(0, 5000) and segs[1] == slice(5000, 10000)
     x = np.sin(2 * np.pi * 100 * np.arange(10000) / 5000.0)
     f, Z = segment_spectra(x, 5000.0)
-    # amplitude scaling as dtwin.spectrum.amplitude_spectrum (independent implementation)
+    # amplitude scaling as dtwin.signal.spectrum.amplitude_spectrum (independent implementation)
     f2, a2 = amplitude_spectrum(x[:5000], 5000.0, "hann")
     np.testing.assert_allclose(np.abs(Z[0]), a2, atol=1e-12)
 

@@ -50,7 +50,7 @@ def _result():
     identified. The last step set aside a housing resonance (a failed refit)."""
     from dtwin.identify.discover.results import CandidateResult, DiscoveryResult, Step
     from dtwin.identify.discover.settings import DiscoverySettings
-    from dtwin.kinematics import Kinematics
+    from dtwin.model.kinematics import Kinematics
 
     kin = Kinematics.from_gears(21, 31, 84, 3, 29.7, pole_pairs=2)
     sun = CandidateResult("sun_local_fault", "sun_rotation", 0.9, [], p_value=5e-4,
@@ -204,7 +204,7 @@ def test_discover_html_holds_the_candidate_table():
     """report.html of discover: one row per candidate of each step with its name, group,
     screening score and rank, coverage, fitted value, out-of-range note and why."""
     from dtwin.cli.cmd_discover import discover_files
-    from dtwin.io.html_report import html_report
+    from dtwin.report.html_report import html_report
 
     result = _result()
     rep = discover_files(result, {}, Path("rec.dtwin.h5"), "0", "m/s^2")["report.html"]
@@ -260,11 +260,11 @@ def _labels(result) -> list[str]:
 
 def test_every_label_symbol_in_the_reports_is_defined_there():
     """Each symbol of each line label that discover.md and report.html print is a row of the
-    page's legend, with its meaning from dtwin.kinematics.SYMBOLS and, where the gearbox gives
+    page's legend, with its meaning from dtwin.model.kinematics.SYMBOLS and, where the gearbox gives
     it, its value (fs/3 = fsr − fc; fe = 2 fsr for a two-pole-pair motor)."""
     from dtwin.cli.cmd_discover import discover_files, markdown_report
-    from dtwin.io.html_report import LABEL_SYMBOLS, html_report
-    from dtwin.kinematics import LABEL_NOTES, SYMBOLS
+    from dtwin.model.kinematics import LABEL_NOTES, SYMBOLS
+    from dtwin.report.html_report import LABEL_SYMBOLS, html_report
 
     result = _result()
     labels = _labels(result)
@@ -295,13 +295,13 @@ def test_every_label_symbol_in_the_reports_is_defined_there():
 
 
 def test_a_label_symbol_needs_its_definition_and_the_docs_list_them_all():
-    """combination_text refuses a symbol that dtwin.kinematics.SYMBOLS lacks; the effects'
+    """combination_text refuses a symbol that dtwin.model.kinematics.SYMBOLS lacks; the effects'
     hand-made labels (torque ripple, load fluctuation) are written by it; the table of
     docs/signal_processing.md is the code's table."""
     from dtwin.identify.discover.effects.load_fluctuation import LoadFluctuationEffect
     from dtwin.identify.discover.effects.torque_ripple import TorqueRippleEffect
-    from dtwin.io.html_report import symbol_glossary_markdown
-    from dtwin.kinematics import Kinematics, combination_text, symbol_of
+    from dtwin.model.kinematics import Kinematics, combination_text, symbol_of
+    from dtwin.report.html_report import symbol_glossary_markdown
 
     with pytest.raises(ValueError, match="SYMBOLS"):
         combination_text((("fm", 1), ("fq", 2)))
@@ -324,7 +324,7 @@ def test_html_frequencies_keep_a_hundredth_of_a_hertz():
     510.75 Hz reads 510.75; a fitted parameter in Hz (a row whose unit column says Hz) keeps
     its digits too, while other quantities keep 4 significant digits."""
     from dtwin.cli.cmd_discover import discover_files
-    from dtwin.io.html_report import html_report
+    from dtwin.report.html_report import html_report
 
     result = _result()
     rep = discover_files(result, {}, Path("rec.dtwin.h5"), "0", "m/s^2")["report.html"]

@@ -15,10 +15,10 @@ records) costs about 8 minutes of a 2-core CI run.
 import pytest
 from _gearboxes import SEQUENTIAL
 
-from dtwin.build import build_twin, daq_from_spec
-from dtwin.faults import parse_fault
-from dtwin.simulate import simulate
+from dtwin.model.faults import parse_fault
+from dtwin.simulation.simulate import simulate
 from dtwin.spec import load_spec
+from dtwin.spec.build import build_twin, daq_from_spec
 
 QUICK = dict(max_steps=2, max_refit=1, n_boot=200)
 

@@ -23,7 +23,7 @@ from dtwin.identify.discover.statistics import (
     screen_score,
 )
 from dtwin.identify.gap import FLOOR_BINS, levels, segment_spectra
-from dtwin.spectrum import noise_floor
+from dtwin.signal.spectrum import noise_floor
 
 FS, N = 5000.0, 10000
 T = np.arange(N) / FS

@@ -17,7 +17,7 @@ from dtwin.identify.discover import (
     p_value,
 )
 from dtwin.identify.gap import FLOOR_BINS, segment_spectra
-from dtwin.spectrum import noise_floor
+from dtwin.signal.spectrum import noise_floor
 
 FS, N = 5000.0, 10000
 T = np.arange(N) / FS

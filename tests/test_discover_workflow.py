@@ -21,7 +21,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin, daq_from_spec
 from dtwin.identify.discover import DiscoverySettings, discover, extended_model
 from dtwin.identify.discover import effects as E
 from dtwin.identify.discover.effects.base import (
@@ -31,8 +30,9 @@ from dtwin.identify.discover.effects.base import (
     SignatureLine,
 )
 from dtwin.identify.lines import Kinematics, describe
-from dtwin.parts.base import AbstractPart, Modulation
+from dtwin.model.parts.base import AbstractPart, Modulation
 from dtwin.spec import load_spec, preset, spec_to_dict
+from dtwin.spec.build import build_twin, daq_from_spec
 
 N_SAMPLES = 10000
 SNR_DB = 30.0
@@ -397,7 +397,7 @@ def paper_like_discovery(settings: DiscoverySettings, seed: int):
     Model: the same spec with the position errors removed (the window and the transmission
     error stay: they keep the sideband rule), torsional.
     """
-    from dtwin.simulate import simulate
+    from dtwin.simulation.simulate import simulate
 
     d = spec_to_dict(preset("paper-like"))
     d.pop("source", None)
@@ -452,8 +452,8 @@ def test_a_planet_fault_on_the_ring_flank_is_found_on_it():
     candidate fixed on the sun flank (as it was) closed 12.91 → 12.68 dB at severity 0.046."""
     from _gearboxes import FOUR_PLANET
 
-    from dtwin.faults import Pitting
-    from dtwin.simulate import DAQ, simulate
+    from dtwin.model.faults import Pitting
+    from dtwin.simulation.simulate import DAQ, simulate
 
     spec = load_spec(FOUR_PLANET)
     pit = Pitting(0.4, location="planet", planet=1, tooth=5, flank="ring")

@@ -33,7 +33,7 @@ def test_docs_build_strict_with_the_api_reference(tmp_path):
         assert html.is_file(), f"docs/{page.name} is not in the site (mkdocs.yml's nav)"
     # the API reference holds the public functions, with their docstrings
     api = (site / "api" / "index.html").read_text()
-    for name in ("dtwin.build_twin", "dtwin.simulate.simulate", "dtwin.read_record",
+    for name in ("dtwin.build_twin", "dtwin.simulation.simulate.simulate", "dtwin.read_record",
                  "identify.estimate_severity", "identify.discover.discover",
                  "identify.DiscoverySettings", "identify.calibrate.calibrate",
                  "identify.fleet.run_fleet", "dtwin.io.export.export_arrays"):

@@ -3,7 +3,7 @@
 Records are short steady runs (2 s of signal for 0.5 Hz resolution; carrier sidebands are
 ~6 Hz apart) started from the steady state. Each simulation is cached for the module.
 References: McFadden & Smith (1985) and docs/references.md §2 for the sideband rule; Lin & Parker
-(1999) for the natural frequencies (via `dtwin.modal`).
+(1999) for the natural frequencies (via `dtwin.model.modal`).
 """
 
 from __future__ import annotations
@@ -17,16 +17,16 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
 from dtwin.errors import SolverError
-from dtwin.faults import parse_fault
-from dtwin.gears import characteristic_frequencies
-from dtwin.lumped import replace
-from dtwin.parts.base import AbstractPart
-from dtwin.parts.local_fault import LocalFault
-from dtwin.simulate import DAQ, SolverOptions, simulate
+from dtwin.model.faults import parse_fault
+from dtwin.model.gears import characteristic_frequencies
+from dtwin.model.lumped import replace
+from dtwin.model.parts.base import AbstractPart
+from dtwin.model.parts.local_fault import LocalFault
+from dtwin.signal.spectrum import amplitude_spectrum, noise_floor
+from dtwin.simulation.simulate import DAQ, SolverOptions, simulate
 from dtwin.spec import preset
-from dtwin.spectrum import amplitude_spectrum, noise_floor
+from dtwin.spec.build import build_twin
 
 FS = 5000.0
 DURATION = 2.0
@@ -174,7 +174,7 @@ class CarrierTorqueRipple(AbstractPart):
     frequency: float
 
     def forces(self, twin, t, q, qdot, aux, mesh):
-        from dtwin.twin import Coords
+        from dtwin.model.twin import Coords
 
         tq = self.amplitude * jnp.sin(2 * jnp.pi * self.frequency * t)
         return Coords.zeros(twin.n_planets).set(theta_c=tq), jnp.zeros(0), {}
@@ -294,15 +294,15 @@ def test_resonance_moves_with_sun_planet_stiffness():
     """A speed sweep's response peaks where the modal analysis puts the mesh-stiffness mode.
 
     The torsional model's rotational mode near 12 kHz is the one the sun-planet stiffness
-    controls (relative sensitivity ~0.48, `dtwin.modal`); the 20th mesh harmonic (stiffness
+    controls (relative sensitivity ~0.48, `dtwin.model.modal`); the 20th mesh harmonic (stiffness
     series with 24 harmonics) sweeps across it, seen in the sun-mesh deflection. The peak
     of that harmonic's response by the ratio the modal analysis predicts. Raising it by 20 %
     moves the mode by ~9 %.
     """
-    from dtwin.modal import frequency_sensitivities, modal_analysis
-    from dtwin.parts.drive import DrivePart
-    from dtwin.parts.shaft import Shaft
-    from dtwin.parts.speed_source import IdealSpeedSource, SpeedProfile
+    from dtwin.model.modal import frequency_sensitivities, modal_analysis
+    from dtwin.model.motor.drive import DrivePart
+    from dtwin.model.motor.shaft import Shaft
+    from dtwin.model.motor.speed_source import IdealSpeedSource, SpeedProfile
 
     spec = preset("paper-sim")
     zr, zs = spec["gears"]["z_ring"], spec["gears"]["z_sun"]
@@ -365,10 +365,10 @@ def test_velocity_and_displacement_sensors_integrate_acceleration():
 
 
 def test_contact_force_and_its_derivative_rule():
-    """`dtwin.twin.contact_force` (one exponential, hand-written JVP) against the textbook
+    """`dtwin.model.twin.contact_force` (one exponential, hand-written JVP) against the textbook
     ``k s softplus(d/s) + c d' sigmoid(d/s)`` and JAX's own derivative of it, from deep
     separation to deep contact (|d/s| up to 800, where a naive exp overflows)."""
-    from dtwin.twin import contact_force
+    from dtwin.model.twin import contact_force
 
     s = 2e-8
     d = jnp.asarray(np.concatenate([np.linspace(-16e-6, 16e-6, 41), [0.0, 1e-9, -1e-9]]))

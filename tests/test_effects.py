@@ -8,15 +8,15 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
 from dtwin.identify.discover import effects as E
 from dtwin.identify.discover.effects.base import EffectContext
 from dtwin.identify.discover.effects.transfer_path import locate_resonance
 from dtwin.identify.lines import Kinematics
-from dtwin.parts.bearing_defect import PlanetBearingDefect, bearing_frequencies
-from dtwin.parts.housing_resonance import HousingResonance, resonance_gain
+from dtwin.model.parts.bearing_defect import PlanetBearingDefect, bearing_frequencies
+from dtwin.model.parts.housing_resonance import HousingResonance, resonance_gain
+from dtwin.model.twin import Coords
 from dtwin.spec import load_spec, preset, spec_to_dict
-from dtwin.twin import Coords
+from dtwin.spec.build import build_twin
 
 GEOMETRY = dict(n_rolling_elements=13, ball_diameter=0.005, pitch_diameter=0.025)
 
@@ -192,9 +192,9 @@ def test_mount_path_is_its_line_and_nothing_else():
     frequency). The located modulation's flat-path scale is the closed form
     ``c_0 Zr / ((Zs + Zr) r_b,ring m_ring)``."""
     from dtwin.identify.discover.effects.modulation import _flat_path
-    from dtwin.parts.mount_path import MountPath
-    from dtwin.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
-    from dtwin.periodic import hunting_cycles, periodic_reason
+    from dtwin.model.parts.mount_path import MountPath
+    from dtwin.model.parts.transfer_path import PlanetPassTransferPath, window_cosine_coefficients
+    from dtwin.simulation.periodic import hunting_cycles, periodic_reason
 
     tw = build_twin(preset("paper-sim"), kind="torsional")
     part = MountPath(jnp.asarray(0.3), jnp.asarray(-0.2), f=2.1)
@@ -225,10 +225,10 @@ def test_planet_position_effect_is_the_spec_planets():
     each planet's sensor window by its error, ~1e-3 of the window's width). With the pins'
     offsets loading the meshes (``pin_offset=True``, no floating member) the same errors move
     these lines by 7–20 dB (1 s records): not the same machine."""
-    from dtwin.build import daq_from_spec
-    from dtwin.parts.imperfections import PlanetPositionErrors
-    from dtwin.simulate import simulate
-    from dtwin.spectrum import amplitude_spectrum
+    from dtwin.model.parts.imperfections import PlanetPositionErrors
+    from dtwin.signal.spectrum import amplitude_spectrum
+    from dtwin.simulation.simulate import simulate
+    from dtwin.spec.build import daq_from_spec
 
     err = [0.0, 4e-4, -3e-4]  # rad: 0, +20, -15 µm at the pin
     d = spec_to_dict(preset("paper-sim"))
@@ -263,8 +263,8 @@ def test_planet_fault_candidate_has_a_severity_per_flank():
     the ring's, each its own severity): with the ring flank's alone the sun meshes lose nothing
     and the ring mesh of planet 0 what a ring-flank Pitting of that severity removes; both
     together are the sum; the main value is the worse flank's; a fixed flank keeps one."""
-    from dtwin.faults import Pitting
     from dtwin.identify.discover.effects.local_fault import LocalFaultEffect
+    from dtwin.model.faults import Pitting
 
     tw = build_twin(preset("paper-sim"), kind="torsional")
     kin = Kinematics.from_gear_set(tw.lp, 30.0)

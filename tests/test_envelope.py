@@ -1,12 +1,12 @@
-"""Tests of dtwin.envelope: the kurtogram finds a fault's resonance; envelope spectra."""
+"""Tests of dtwin.signal.envelope: the kurtogram finds a fault's resonance; envelope spectra."""
 
 import numpy as np
 import pytest
 
-from dtwin.envelope import bandpass, envelope, envelope_spectrum, fast_kurtogram
 from dtwin.errors import RecordError
 from dtwin.io import Record
-from dtwin.spectrum import amplitude_spectrum, find_peaks, level_at
+from dtwin.signal.envelope import bandpass, envelope, envelope_spectrum, fast_kurtogram
+from dtwin.signal.spectrum import amplitude_spectrum, find_peaks, level_at
 
 FS = 5000.0
 F_RES = 1700.0  # structural resonance rung by the fault
@@ -134,7 +134,7 @@ def test_kurtogram_filter_bank_agrees_with_ideal_bands():
     """Noise with impulses ringing a resonance centred in one level-3 band: the filter bank
     picks that band, as ideal bands do, and its kurtosis map agrees with the ideal bands'
     within 0.3 (1 + |K|): the FIR bands are 6 dB down at their edges and pass a share of the
-    neighbouring bands' power (module docstring of dtwin.envelope); with 2**15 samples the
+    neighbouring bands' power (module docstring of dtwin.signal.envelope); with 2**15 samples the
     estimator's own scatter is below 0.05 on these rows."""
     fs, n = 10000.0, 2**15
     rng = np.random.default_rng(5)

@@ -1,4 +1,4 @@
-"""Tests of dtwin.faults: exact healthy limit, monotonicity, gradients against finite
+"""Tests of dtwin.model.faults: exact healthy limit, monotonicity, gradients against finite
 differences, contact windows against the mesh-phase definition and rigid kinematics."""
 
 import math
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from dtwin.errors import SpecError
-from dtwin.faults import (
+from dtwin.model.faults import (
     MissingTooth,
     Pitting,
     RootCrack,
@@ -22,8 +22,8 @@ from dtwin.faults import (
     planet_tooth_phases,
     total_stiffness_loss,
 )
-from dtwin.lumped import make_lumped, replace
-from dtwin.stiffness import mesh_stiffness_waveform, single_pair_from_mean
+from dtwin.model.lumped import make_lumped, replace
+from dtwin.model.stiffness import mesh_stiffness_waveform, single_pair_from_mean
 
 F64 = jnp.float64
 ZS, ZP, ZR, N = 21, 30, 81, 3  # the paper's simulation gearbox (docs/references.md §1)
@@ -390,7 +390,7 @@ def test_parse_fault():
 
 
 def test_faults_from_spec_tables_match_direct_construction(lp):
-    from dtwin.faults import faults_from_table
+    from dtwin.model.faults import faults_from_table
 
     entries = [{"type": "missing_tooth", "location": "sun", "severity": 0.4, "tooth": 2},
                {"type": "crack", "location": "planet", "severity": 0.3, "tooth": 1, "planet": 2,
@@ -410,7 +410,7 @@ def test_peak_stiffness_loss_closed_forms(lp):
     """Sharp edges: a missing tooth of severity s removes s c' in single contact, where the
     healthy mesh has c' (peak s); a root crack g(s); pitting whose band covers the single-contact
     zone s. Against the stiffness the twin itself loses (mesh_stiffnesses), sampled densely."""
-    from dtwin.faults import peak_stiffness_loss
+    from dtwin.model.faults import peak_stiffness_loss
 
     for s in (0.1, 0.5, 0.9):
         assert float(peak_stiffness_loss(MissingTooth(s), lp)) == pytest.approx(s, rel=1e-4)
@@ -433,7 +433,11 @@ def test_ramp_spreads_the_loss_and_keeps_its_area(lp):
     """A wider ramp spreads the same loss over more of the passage: the area ∫ f w du is
     s·eps/(1 − exp(−eps/ramp)) (∫σ(x)σ(c − x)dx = c/(1 − e^(−c)), the sigmoid edges), ≈ s·eps;
     the peak drops below s, and severity 0 stays exactly 0."""
-    from dtwin.faults import peak_stiffness_loss, severity_for_peak_loss, stiffness_loss_profile
+    from dtwin.model.faults import (
+        peak_stiffness_loss,
+        severity_for_peak_loss,
+        stiffness_loss_profile,
+    )
 
     u = jnp.linspace(-5.0, 7.0, 24001)
     du = float(u[1] - u[0])
@@ -460,7 +464,7 @@ def test_ramp_spreads_the_loss_and_keeps_its_area(lp):
 
 
 def test_peak_stiffness_loss_gradient_matches_finite_differences(lp):
-    from dtwin.faults import peak_stiffness_loss
+    from dtwin.model.faults import peak_stiffness_loss
 
     def peak(r):
         return peak_stiffness_loss(RootCrack(0.4, ramp=r), lp)

@@ -10,8 +10,8 @@ from dtwin.errors import SettingsError
 from dtwin.identify.segment import FitWindow, segment_for_fit
 from dtwin.io import Record
 from dtwin.io.readers import read_record
-from dtwin.kinematics import Kinematics
-from dtwin.simulate import daq_filter
+from dtwin.model.kinematics import Kinematics
+from dtwin.simulation.simulate import daq_filter
 
 FS = 25600.0
 F_SUN = 29.7
@@ -75,7 +75,7 @@ def test_the_steadiest_stretch_is_chosen(spec, tacho):
     assert seg.sample_rate == 5120.0 and seg.record.sample_rate == 5120.0
     assert seg.record.n_samples == int(4.0 * 5120)
     if tacho:  # every pulse kept: one per revolution of the sun
-        from dtwin.order import tacho_times
+        from dtwin.signal.order import tacho_times
 
         pulses = tacho_times(seg.record.tacho, seg.record.sample_rate)
         assert pulses.size == pytest.approx(4.0 * F_SUN, abs=1.5)
@@ -87,7 +87,7 @@ def test_the_steadiest_stretch_is_chosen(spec, tacho):
 
 def test_decimated_lines_are_the_full_rate_lines_through_the_daq_filter(spec):
     """On a given window, each line's amplitude at 5120 Hz equals its amplitude at 25.6 kHz
-    (same 4 s, same Hann window) times the gain of dtwin.simulate.daq_filter(5) at that
+    (same 4 s, same Hann window) times the gain of dtwin.simulation.simulate.daq_filter(5) at that
     frequency (scipy.signal.freqz): the filter the twin's own DAQ applies."""
     rec = _run(12.0, 0.5, spec, tacho=False, bins=True)
     seg = segment_for_fit(rec, spec, window="6:4")

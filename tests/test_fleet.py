@@ -26,11 +26,11 @@ import os
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
-from dtwin.faults import MissingTooth
 from dtwin.io.readers import write_record
-from dtwin.simulate import DAQ, simulate
+from dtwin.model.faults import MissingTooth
+from dtwin.simulation.simulate import DAQ, simulate
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 SEVERITIES = (0.35, 0.5, 0.65)
 SPEEDS = (29.5, 30.0, 30.6)  # Hz: one batch in the order domain

@@ -1,4 +1,4 @@
-"""Tests of dtwin.gears: geometry, kinematics, mesh phasing and characteristic frequencies.
+"""Tests of dtwin.model.gears: geometry, kinematics, mesh phasing and characteristic frequencies.
 
 The mesh phases and contact ratios are checked against an independent contact calculation
 written here: actual involute tooth flanks (polar tooth-thickness equation), placed in mesh
@@ -21,7 +21,7 @@ import pytest
 from scipy.optimize import brentq, minimize_scalar
 
 from dtwin.errors import GeometryError
-from dtwin.gears import (
+from dtwin.model.gears import (
     GearSet,
     base_radii,
     characteristic_frequencies,

@@ -8,8 +8,8 @@ from html.parser import HTMLParser
 import numpy as np
 from matplotlib.figure import Figure
 
-from dtwin.io.html_report import write_html_report
 from dtwin.io.output import OutputFolder
+from dtwin.report.html_report import write_html_report
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"  # PNG signature, ISO/IEC 15948 §5.2
 

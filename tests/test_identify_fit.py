@@ -20,10 +20,10 @@ import json
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
-from dtwin.faults import MissingTooth
-from dtwin.simulate import DAQ, simulate
+from dtwin.model.faults import MissingTooth
+from dtwin.simulation.simulate import DAQ, simulate
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 TRUE_SEVERITY = 0.5
 F_SUN_TRUE = 29.7  # 1782 rpm, 1 % below the spec's 1800 rpm
@@ -36,7 +36,7 @@ def spec():
 
 @pytest.fixture(scope="module")
 def truth_record(spec):
-    from dtwin.parts.imperfections import TransmissionError
+    from dtwin.model.parts.imperfections import TransmissionError
 
     tw = build_twin(spec, kind="torsional", f_sun=F_SUN_TRUE, n_harmonics=30,
                     faults=(MissingTooth(TRUE_SEVERITY, location="sun"),),
@@ -384,9 +384,9 @@ def test_a_fit_settles_its_tiled_response_before_solving():
     import jax.numpy as jnp
     from _gearboxes import SLOW_SETTLING
 
-    from dtwin.build import daq_from_spec
     from dtwin.identify.fit import fit, make_problem
     from dtwin.spec import load_spec
+    from dtwin.spec.build import daq_from_spec
 
     slow = load_spec(SLOW_SETTLING)
     twin = build_twin(slow, kind="torsional", f_sun=20.0,
@@ -420,9 +420,9 @@ def test_a_batch_settles_its_tiled_response_before_solving():
     fits the batch again, settling longer, where the largest is too large."""
     from _gearboxes import SLOW_SETTLING
 
-    from dtwin.build import daq_from_spec
     from dtwin.identify.fit import fit_batch
     from dtwin.spec import load_spec
+    from dtwin.spec.build import daq_from_spec
 
     slow = load_spec(SLOW_SETTLING)
     recs = []

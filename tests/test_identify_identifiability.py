@@ -18,14 +18,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
-from dtwin.faults import MissingTooth
 from dtwin.identify.problem import make_problem
 from dtwin.identify.residuals import drive_at, point_groups
 from dtwin.identify.solve import jacobian_at
 from dtwin.identify.uncertainty import analyse
-from dtwin.simulate import DAQ, simulate
+from dtwin.model.faults import MissingTooth
+from dtwin.simulation.simulate import DAQ, simulate
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 FREE = ["sun_fault", "k_sun_planet", "k_ring_planet", "zeta_mesh"]
 SNR_DB = 10.0

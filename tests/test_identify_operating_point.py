@@ -7,10 +7,10 @@ sideband rule of docs/references.md §2 allows for Zr mod N = 0) plus noise, at 
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
 from dtwin.identify.operating_point import estimate_speed, estimate_speed_profile, gear_orders
 from dtwin.io.record import Record
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 
 @pytest.fixture(scope="module")

@@ -6,13 +6,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
 from dtwin.errors import ParameterError, RecordError
 from dtwin.identify.params import ParameterSet, current_value
 from dtwin.io.record import Record
-from dtwin.parts.drive import LoadPart
-from dtwin.parts.local_fault import LocalFault
+from dtwin.model.motor.drive import LoadPart
+from dtwin.model.parts.local_fault import LocalFault
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 FREE = ["k_sun_planet", "k_ring_planet", "zeta_mesh", "sun_fault"]
 

@@ -1,11 +1,11 @@
-"""Tests of dtwin.indicators on small signals whose values are computed by hand."""
+"""Tests of dtwin.signal.indicators on small signals whose values are computed by hand."""
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from dtwin.errors import RecordError
-from dtwin.indicators import (
+from dtwin.signal.indicators import (
     crest_factor,
     difference_signal,
     fm0,

@@ -1,4 +1,4 @@
-"""`dtwin.integrator.UnrolledTsit5` is diffrax's Tsit5 with the stages written out.
+"""`dtwin.simulation.integrator.UnrolledTsit5` is diffrax's Tsit5 with the stages written out.
 
 Checks: on the twin (translational, sun fault: the stiffest case) it takes the same steps and
 returns the same record as `diffrax.Tsit5` to rounding (integral-only step control), and to the
@@ -19,11 +19,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
-from dtwin.faults import MissingTooth
-from dtwin.integrator import UnrolledTsit5
-from dtwin.simulate import SolverOptions, simulate
+from dtwin.model.faults import MissingTooth
+from dtwin.simulation.integrator import UnrolledTsit5
+from dtwin.simulation.simulate import SolverOptions, simulate
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""dtwin.kinematics: one type of the characteristic frequencies (used by spectrum labels,
+"""dtwin.model.kinematics: one type of the characteristic frequencies (used by spectrum labels,
 residual lines, effects and the operating point), one bounds type, one label formatter; and
 the one level formula (dtwin.identify.gap.levels) of the gap and discovery's fits.
 
@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 import dtwin.identify.lines as lines
-import dtwin.spectrum as spectrum
-from dtwin.build import build_twin
-from dtwin.gears import characteristic_frequencies
+import dtwin.signal.spectrum as spectrum
 from dtwin.identify.gap import levels
 from dtwin.identify.operating_point import gear_orders
-from dtwin.kinematics import Kinematics, OrderBounds, combination_text
+from dtwin.model.gears import characteristic_frequencies
+from dtwin.model.kinematics import Kinematics, OrderBounds, combination_text
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 GEARS = [(21, 30, 81, 3, 30.0), (21, 31, 84, 3, 29.7), (13, 17, 47, 4, 12.5)]
 

@@ -1,5 +1,5 @@
 """A spec's `imperfections.load_sharing` (relative load share of each planet): the clearances
-that `dtwin.parts.imperfections.load_share_offsets` solves for give those shares in a running
+that `dtwin.model.parts.imperfections.load_share_offsets` solves for give those shares in a running
 twin (mean mesh forces of a simulation, with the time-varying stiffness and one-sided contact
 the static design leaves out), agree with the closed form of the torsional twin, and bad values
 are refused with the field named."""
@@ -12,12 +12,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin, daq_from_spec
 from dtwin.errors import SpecError
-from dtwin.parts.base import AbstractPart
-from dtwin.parts.imperfections import MeshOffsets
-from dtwin.simulate import simulate
+from dtwin.model.parts.base import AbstractPart
+from dtwin.model.parts.imperfections import MeshOffsets
+from dtwin.simulation.simulate import simulate
 from dtwin.spec import load_spec, preset
+from dtwin.spec.build import build_twin, daq_from_spec
 
 SHARES = [1.2, 0.9, 0.9]
 

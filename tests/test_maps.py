@@ -118,9 +118,9 @@ def test_relieve_does_nothing_inside_a_trace(monkeypatch):
 
 def test_simulate_and_fits_pass_the_safe_point(monkeypatch):
     from dtwin import _heap, _maps
-    from dtwin.build import build_twin
-    from dtwin.simulate import simulate
+    from dtwin.simulation.simulate import simulate
     from dtwin.spec import preset
+    from dtwin.spec.build import build_twin
 
     calls = []
     monkeypatch.setattr(_maps, "relieve", lambda: calls.append(1) or False)

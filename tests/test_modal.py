@@ -1,4 +1,4 @@
-"""Tests of dtwin.modal against Lin & Parker (1999), closed forms and independent computations."""
+"""Tests of dtwin.model.modal against Lin & Parker (1999), closed forms and independent computations."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 import scipy.linalg
 
 from dtwin.errors import OutputExistsError, ParameterError, SpecError
-from dtwin.lumped import make_lumped, replace
-from dtwin.modal import (
+from dtwin.model.lumped import make_lumped, replace
+from dtwin.model.modal import (
     coordinate_names,
     frequency_sensitivities,
     frequency_sensitivity,
@@ -283,8 +283,8 @@ def test_rigid_body_mode_follows_gear_ratio():
 
 
 def _twin_mesh_stiffness(lp, mesh):
-    """Mesh stiffness in the twin's coordinates from dtwin.twin.mesh_deflections (its Jacobian)."""
-    from dtwin.twin import Coords, mesh_deflections
+    """Mesh stiffness in the twin's coordinates from dtwin.model.twin.mesh_deflections (its Jacobian)."""
+    from dtwin.model.twin import Coords, mesh_deflections
 
     def deflections(v):
         q = Coords(sun_xy=v[0:2], theta_s=v[2], ring_xy=v[3:5], theta_r=v[5],
@@ -307,7 +307,7 @@ def _modal_mesh_stiffness_in_twin_coordinates(lp, mesh):
 
 
 def test_twin_sun_mesh_agrees_with_lin_parker():
-    # Cross-check with the dynamics (dtwin.twin): the sun-mesh stiffness it implies equals
+    # Cross-check with the dynamics (dtwin.model.twin): the sun-mesh stiffness it implies equals
     # Lin & Parker's, transformed to the twin's coordinates.
     lp = _paper_sim_like(3)
     k_twin = _twin_mesh_stiffness(lp, "sun")

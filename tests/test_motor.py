@@ -20,13 +20,13 @@ import pytest
 from scipy.optimize import brentq
 
 from dtwin.errors import SpecError
-from dtwin.motor_spec import drive_from_spec
-from dtwin.parts.induction_motor import InductionMotor
-from dtwin.parts.loads import ConstantLoad, FluctuatingLoad
-from dtwin.parts.pmsm import PMSM, inverse_park, soft_clip, soft_clip_inverse, soft_clip_slope
-from dtwin.parts.shaft import Shaft
-from dtwin.parts.speed_source import IdealSpeedSource, SpeedProfile, rpm_to_rad_s
-from dtwin.registry import lookup
+from dtwin.model.motor.induction_motor import InductionMotor
+from dtwin.model.motor.loads import ConstantLoad, FluctuatingLoad
+from dtwin.model.motor.pmsm import PMSM, inverse_park, soft_clip, soft_clip_inverse, soft_clip_slope
+from dtwin.model.motor.shaft import Shaft
+from dtwin.model.motor.speed_source import IdealSpeedSource, SpeedProfile, rpm_to_rad_s
+from dtwin.model.registry import lookup
+from dtwin.spec.motor import drive_from_spec
 
 RATIO = 5.0  # bench: 1 + Zr/Zs = 1 + 84/21 (docs/references.md §1)
 J_EQ = 1.5e-3  # kg·m², gearbox + brake referred to the sun

@@ -17,8 +17,8 @@ ROOT = Path(__file__).resolve().parent.parent
 @pytest.fixture
 def fake_moves(monkeypatch):
     """Two made-up moves onto existing modules: a module and a package."""
-    monkeypatch.setitem(_moved.MOVED, "dtwin.old_gears_for_test", "dtwin.gears")
-    monkeypatch.setitem(_moved.MOVED, "dtwin.old_parts_for_test", "dtwin.parts")
+    monkeypatch.setitem(_moved.MOVED, "dtwin.old_gears_for_test", "dtwin.model.gears")
+    monkeypatch.setitem(_moved.MOVED, "dtwin.old_parts_for_test", "dtwin.model.motor")
     yield
     for name in list(sys.modules):
         if "_for_test" in name:
@@ -26,20 +26,20 @@ def fake_moves(monkeypatch):
 
 
 def test_an_old_path_is_the_same_module(fake_moves):
-    import dtwin.gears
+    import dtwin.model.gears
 
     old = importlib.import_module("dtwin.old_gears_for_test")
-    assert old is dtwin.gears
-    assert old.__spec__.name == "dtwin.gears"  # its own spec, not the alias's
+    assert old is dtwin.model.gears
+    assert old.__spec__.name == "dtwin.model.gears"  # its own spec, not the alias's
     from dtwin.old_gears_for_test import GearSet
-    assert GearSet is dtwin.gears.GearSet
+    assert GearSet is dtwin.model.gears.GearSet
 
 
 def test_a_submodule_below_an_old_package_path_is_the_same_module(fake_moves):
-    import dtwin.parts.pmsm
+    import dtwin.model.motor.pmsm
 
     old = importlib.import_module("dtwin.old_parts_for_test.pmsm")
-    assert old is dtwin.parts.pmsm
+    assert old is dtwin.model.motor.pmsm
     from dtwin.old_parts_for_test.pmsm import PMSM
     assert PMSM is dtwin.PMSM
 

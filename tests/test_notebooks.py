@@ -15,7 +15,7 @@ notebook alone in ``pytest -n 0``, 2026-11-22:
 - 03_identification: 248 s at load average 2–4 (06:42, code at 95bfd05), 302 s at load 4–8 (0.5 s of the bundled record, 4 free
   parameters, 1 start, 5 LM steps; series of 3 × 0.4 s records, severity free). Earlier runs
   of the same form: 573 s and 739 s at load 9–15 (the latter compiling after a change in
-  dtwin/simulate.py). The fits through the ODE solve dominate (main fit about half).
+  dtwin/simulation/simulate.py). The fits through the ODE solve dominate (main fit about half).
 - 04_what_is_missing: 35 s at load average 2–4 (06:42, code at 95bfd05), 89 s at load 9–11 (2 s record, one step, 3 candidates refit, 200
   bootstrap draws); 164 s and 252 s in earlier runs at load 7 and 14, before the faster
   simulate.

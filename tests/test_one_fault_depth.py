@@ -38,7 +38,7 @@ def _discovery_naming_the_sun_fault():
     from dtwin.identify.discover.results import DiscoveryResult, Step
     from dtwin.identify.discover.settings import DiscoverySettings
     from dtwin.identify.gap import GapResult
-    from dtwin.kinematics import Kinematics
+    from dtwin.model.kinematics import Kinematics
 
     gap = GapResult(10.0, {"all": 10.0}, {"all": 10})
     kin = Kinematics.from_gears(21, 31, 84, 3, 29.7)

@@ -26,9 +26,9 @@ from dtwin.identify.operating_point import (
 )
 from dtwin.io.readers import read_record
 from dtwin.io.record import Record
-from dtwin.kinematics import Kinematics
+from dtwin.model.kinematics import Kinematics
+from dtwin.signal.spectrum import amplitude_spectrum
 from dtwin.spec import load_spec, preset
-from dtwin.spectrum import amplitude_spectrum
 
 F_TRUE = 29.70  # Hz: the record's speed; paper-sim's operating.f_sun is 30 Hz
 FS, T = 5000.0, 4.0
@@ -134,7 +134,7 @@ def test_one_range_check(spec):
     with pytest.raises(SpecError, match="1800 rpm = 30 Hz"):
         resolve_speed(_record(x), spec, 1800.0)
     from dtwin.cli.options import OptionError, input_speed_option
-    from dtwin.reports import freqs_report
+    from dtwin.report.analyses import freqs_report
 
     for check in (lambda: input_speed_option("--f-sun", 501.0),
                   lambda: freqs_report(spec, 501.0, "paper", "paper-sim")):

@@ -1,10 +1,10 @@
-"""Tests of dtwin.order on a synthetic run-up whose shaft angle is known in closed form."""
+"""Tests of dtwin.signal.order on a synthetic run-up whose shaft angle is known in closed form."""
 
 import numpy as np
 import pytest
 
 from dtwin.errors import RecordError
-from dtwin.order import (
+from dtwin.signal.order import (
     campbell,
     mesh_angle,
     order_spectrum,
@@ -14,7 +14,7 @@ from dtwin.order import (
     tacho_times,
     waterfall,
 )
-from dtwin.spectrum import amplitude_spectrum, find_peaks
+from dtwin.signal.spectrum import amplitude_spectrum, find_peaks
 
 FS = 5000.0
 T = 3.0

@@ -4,7 +4,7 @@ known, with the angle from a tachometer."""
 import numpy as np
 import pytest
 
-from dtwin.order import order_cuts, order_map, tacho_angle
+from dtwin.signal.order import order_cuts, order_map, tacho_angle
 
 
 @pytest.fixture(scope="module")

@@ -45,7 +45,7 @@ def test_spectrum_of_a_bundled_record_is_quiet_and_exports_what_its_report_shows
 
 
 def test_profile_shift_warns_only_when_dtwin_chose_the_centre_distance():
-    from dtwin.gears import GearSet
+    from dtwin.model.gears import GearSet
 
     base = dict(z_sun=21, z_planet=31, z_ring=84, n_planets=3, module=0.002, face_width=0.02)
     with warnings.catch_warnings(record=True) as w:

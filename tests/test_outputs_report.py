@@ -13,7 +13,7 @@ from dtwin.io.export import (
     export_arrays,
     read_columns_csv,
 )
-from dtwin.io.html_report import frequency_text, html_report, symbol_legend
+from dtwin.report.html_report import frequency_text, html_report, symbol_legend
 
 
 @pytest.mark.parametrize("f, text", [(2494.8, "2494.8"), (510.75, "510.75"),
@@ -57,7 +57,7 @@ def _discovery_result():
     from dtwin.identify.discover.results import CandidateResult, DiscoveryResult, Step
     from dtwin.identify.discover.settings import DiscoverySettings
     from dtwin.identify.gap import GapResult
-    from dtwin.kinematics import Kinematics
+    from dtwin.model.kinematics import Kinematics
 
     def gap(v):
         return GapResult(v, {"all": v}, {"all": 10})
@@ -103,7 +103,7 @@ def test_discovery_candidate_rows_say_why_each_was_kept_or_set_aside():
 
 def test_discover_html_shows_the_candidate_table(tmp_path):
     from dtwin.cli.cmd_discover import discover_files, markdown_report
-    from dtwin.io.html_report import HTMLReport
+    from dtwin.report.html_report import HTMLReport
 
     result, _ = _discovery_result()
     files = discover_files(result, {}, tmp_path / "rec.dtwin.h5", "0", "m/s^2")
@@ -149,7 +149,7 @@ def test_discover_markdown_prints_fitted_frequencies_in_full():
 
 
 def test_value_text_keeps_frequencies_and_rounds_the_rest():
-    from dtwin.io.html_report import value_text
+    from dtwin.report.html_report import value_text
 
     assert value_text(2494.8, "Hz", 3) == "2494.8"
     assert value_text(0.612345, "1") == "0.6123"
@@ -198,7 +198,7 @@ def test_check_export_path_refuses_inputs_unknown_suffixes_and_existing_files(tm
 
 def test_kurtogram_table_holds_every_band_and_the_picked_one():
     from dtwin.cli.cmd_view import kurtogram_columns
-    from dtwin.envelope import fast_kurtogram
+    from dtwin.signal.envelope import fast_kurtogram
 
     rng = np.random.default_rng(0)
     fs = 5000.0

@@ -58,7 +58,7 @@ def wheel(tmp_path_factory) -> Path:
 
 def test_wheel_contents(wheel):
     names = zipfile.ZipFile(wheel).namelist()
-    assert "dtwin/presets/paper-sim.toml" in names
+    assert "dtwin/spec/presets/paper-sim.toml" in names
     assert "dtwin/identify/fit.py" in names
     assert "dtwin/identify/discover/effects/base.py" in names
     assert not [n for n in names if n.startswith("identify/")], "identify must not be top-level"

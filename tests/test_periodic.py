@@ -1,4 +1,4 @@
-"""Periodic steady state (issue #21, lever 2): `dtwin.periodic` and `SolverOptions(periodic="auto")`.
+"""Periodic steady state (issue #21, lever 2): `dtwin.simulation.periodic` and `SolverOptions(periodic="auto")`.
 
 Checked against things outside the tiling: the hunting period and each part's gear-set period
 against a brute-force search over the gear positions, the rigid advance against the simulated
@@ -18,9 +18,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
-from dtwin.faults import MissingTooth
-from dtwin.periodic import (
+from dtwin.model.faults import MissingTooth
+from dtwin.simulation.periodic import (
     hunting_cycles,
     hunting_period,
     mechanical_cycles,
@@ -29,8 +28,9 @@ from dtwin.periodic import (
     rigid_advance,
     shaft_turns,
 )
-from dtwin.simulate import DAQ, SolverOptions, periodic_plan, simulate
+from dtwin.simulation.simulate import DAQ, SolverOptions, periodic_plan, simulate
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 F_SUN = 60.0
 DURATION = 1.0
@@ -67,8 +67,8 @@ def spec():
 
 @pytest.fixture(scope="module")
 def twins(spec):
-    from dtwin.parts.housing_resonance import HousingResonance
-    from dtwin.parts.mount_path import MountPath
+    from dtwin.model.parts.housing_resonance import HousingResonance
+    from dtwin.model.parts.mount_path import MountPath
 
     def faulty(where):
         return build_twin(spec, kind="torsional", f_sun=F_SUN,
@@ -233,9 +233,9 @@ def test_inert_parts_keep_the_hunting_period(spec):
     0 adds no planet dependence (discovery's extended model at θ = 0), a fluctuating load of
     amplitude 0 is constant, a motor's torque ripple follows the sun's angle (the sun turns a
     whole number of times over the period). Checked against the cycle count found by stepping."""
-    from dtwin.parts.drive import LoadPart
-    from dtwin.parts.loads import FluctuatingLoad
-    from dtwin.parts.torque_ripple import TorqueRipple
+    from dtwin.model.motor.drive import LoadPart
+    from dtwin.model.motor.loads import FluctuatingLoad
+    from dtwin.model.motor.torque_ripple import TorqueRipple
 
     def planet_fault(sev):
         return _with_teeth(build_twin(spec, kind="torsional",
@@ -274,8 +274,8 @@ def test_a_slowly_settling_twin_is_tiled_after_a_longer_settle():
     up the tiling, and the tiled record then matches the whole record's integration."""
     from _gearboxes import SLOW_SETTLING
 
-    from dtwin.build import daq_from_spec
     from dtwin.spec import load_spec
+    from dtwin.spec.build import daq_from_spec
 
     spec = load_spec(SLOW_SETTLING)
     twin = build_twin(spec, kind="torsional", f_sun=20.0)
@@ -308,9 +308,9 @@ def test_gear_set_period_of_each_part(spec):
     act back on the gear set has no known period."""
     from fractions import Fraction
 
-    from dtwin.parts.imperfections import SunEccentricity
-    from dtwin.parts.torque_ripple import TorqueRipple
-    from dtwin.parts.transfer_path import AbstractTransferPath
+    from dtwin.model.motor.torque_ripple import TorqueRipple
+    from dtwin.model.parts.imperfections import SunEccentricity
+    from dtwin.model.parts.transfer_path import AbstractTransferPath
 
     tw = build_twin(spec, kind="torsional")
     assert mechanical_cycles(tw) == 1
@@ -339,7 +339,7 @@ def test_gear_set_period_of_each_part(spec):
 
     odd = tw.with_parts(Feedback())
     assert mechanical_cycles(odd) is None
-    from dtwin.periodic import mechanical_reason
+    from dtwin.simulation.periodic import mechanical_reason
 
     assert "not a filter of the gear set's motion" in mechanical_reason(odd)
     T, why = periodic_plan(odd, 30.0, 0.0, 4.0, PERIODIC, 20_000.0)

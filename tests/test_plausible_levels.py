@@ -9,7 +9,7 @@ References outside the code:
 - ISO 20816-3:2022, Annex A (the former ISO 10816-3 Tables A.1/A.2): for machines of group 2
   (15–300 kW) on a rigid foundation the zone boundaries of the broadband velocity RMS
   (10–1000 Hz) are A/B 1.4, B/C 2.8 and C/D 4.5 mm/s; a healthy machine reads below 2.8 mm/s.
-  The numbers are written here from the standard, not read from :mod:`dtwin.units`;
+  The numbers are written here from the standard, not read from :mod:`dtwin.signal.units`;
 - gravity: a healthy bench housing shaking at more than 1 g RMS would rattle on its bolts.
 
 Without a housing the path reads a mesh force over the ring's 0.7 kg behind a 50 Hz mount:
@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dtwin import units
+from dtwin.signal import units
 
 ISO_B_C_GROUP2_RIGID = 2.8  # mm/s, ISO 20816-3:2022 Table A.1 (group 2, rigid)
 G = 9.80665  # m/s²
@@ -50,9 +50,9 @@ def _bench(housing: dict | None):
 
 
 def test_housing_sets_the_paths_weights_and_mount():
-    from dtwin.build import build_twin
-    from dtwin.parts.transfer_path import PlanetPassTransferPath
+    from dtwin.model.parts.transfer_path import PlanetPassTransferPath
     from dtwin.spec import lumped_from_spec
+    from dtwin.spec.build import build_twin
 
     bare = _bench(None)
     (p0,) = [p for p in build_twin(bare, kind="torsional").parts
@@ -80,8 +80,8 @@ def test_bad_housing_is_a_clear_error():
 def test_a_housing_on_its_mounts_reads_a_bench_level():
     """`dtwin.simulate` of the paper's bench (healthy, torsional, 0.5 s): without a housing tens
     of m/s² and zone D; with a 20 kg housing on mounts at 200 Hz below 1 g and 2.8 mm/s."""
-    from dtwin.build import build_twin, daq_from_spec
-    from dtwin.simulate import simulate
+    from dtwin.simulation.simulate import simulate
+    from dtwin.spec.build import build_twin, daq_from_spec
 
     out = {}
     for name, housing in (("bare", None), ("housed", {"housing_mass": 20.0, "mount_hz": 200.0})):

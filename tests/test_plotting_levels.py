@@ -109,7 +109,7 @@ def test_view_figures_state_units():
 
 def test_label_text_is_the_shortest_form():
     # issue #22: "fm − 3fs/3 + fp + fc" is fm − fs + fp + fc (3 · fs/3 = fs)
-    from dtwin.kinematics import combination_text
+    from dtwin.model.kinematics import combination_text
 
     assert combination_text([("fm", 1), ("fs/3", -3), ("fp", 1), ("fc", 1)]) == "fm − fs + fp + fc"
     assert combination_text([("fm", 3), ("fs/3", 2), ("fc", 1)]) == "3fm + 2fs/3 + fc"

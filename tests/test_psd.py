@@ -1,10 +1,10 @@
-"""Tests of dtwin.psd: Parseval for tones and white noise, for every window offered."""
+"""Tests of dtwin.signal.psd: Parseval for tones and white noise, for every window offered."""
 
 import numpy as np
 import pytest
 
 from dtwin.errors import RecordError
-from dtwin.psd import (
+from dtwin.signal.psd import (
     WINDOWS,
     averaged_amplitude_spectrum,
     band_power,

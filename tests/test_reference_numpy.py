@@ -21,10 +21,10 @@ import numpy as np
 import pytest
 from reference_numpy import ReferenceModel  # the test oracle, a helper beside this file
 
-from dtwin.build import build_twin
-from dtwin.faults import MissingTooth
-from dtwin.simulate import _observe, initial_state, state_scales
+from dtwin.model.faults import MissingTooth
+from dtwin.simulation.simulate import _observe, initial_state, state_scales
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 KINDS = ("translational", "torsional")
 FAULT_TOOTH = 3
@@ -177,7 +177,7 @@ def test_vector_field_matches_numpy(case):
 
 def test_sensor_matches_numpy(case):
     """The sensor acceleration (ring motion in the fixed frame + high-passed windowed ring-mesh
-    forces) of `dtwin.simulate._observe` equals the NumPy model's."""
+    forces) of `dtwin.simulation.simulate._observe` equals the NumPy model's."""
     kind, severity, _, ref, states, (*_, sensor), _ = case
     for j, (t, z, zd, aux) in enumerate(states):
         want = ref.sensor_acceleration(t, ref.scale(z, zd, aux))

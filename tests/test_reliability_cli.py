@@ -77,9 +77,9 @@ def test_simulate_refuses_absurd_options_before_any_work(monkeypatch, capsys):
 
 
 def test_memory_estimate_and_refusal():
-    """dtwin.memory: the simulation's estimate in closed form (points × values × 8 bytes ×
+    """dtwin.simulation.memory: the simulation's estimate in closed form (points × values × 8 bytes ×
     copies) and the refusal against a given available memory."""
-    from dtwin.memory import MemoryLimitError, format_bytes, require, simulation_bytes
+    from dtwin.simulation.memory import MemoryLimitError, format_bytes, require, simulation_bytes
 
     need = simulation_bytes(2.0, 1000.0, 10, oversample=4, n_observables=8)
     assert need == 2.0 * 1000.0 * 4 * (20 + 8) * 8 * 3
@@ -160,7 +160,7 @@ def _no_work(monkeypatch):
     monkeypatch.setattr(cmd, "run_simulation", never)
     for module, name in (("dtwin.identify.fit", "fit"), ("dtwin.identify.fleet", "run_fleet"),
                          ("dtwin.identify.discover", "discover"),
-                         ("dtwin.coupling", "compare_drives")):
+                         ("dtwin.report.drive_comparison", "compare_drives")):
         monkeypatch.setattr(import_module(module), name, never)
 
 

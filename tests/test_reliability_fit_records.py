@@ -17,7 +17,7 @@ from dtwin.cli import main
 from dtwin.io.readers import write_record
 from dtwin.io.record import Record
 from dtwin.io.validate import MIN_CARRIER_PERIODS
-from dtwin.kinematics import Kinematics
+from dtwin.model.kinematics import Kinematics
 from dtwin.spec import preset
 
 F_SUN = 29.7  # paper-bench's speed: fm = 498.96 Hz, fc = 5.94 Hz

@@ -88,7 +88,7 @@ def test_a_fleet_none_of_whose_records_can_be_fitted_is_refused_at_once(tmp_path
     from dtwin.cli import main
     from dtwin.io.readers import write_record
     from dtwin.io.record import Record
-    from dtwin.kinematics import Kinematics
+    from dtwin.model.kinematics import Kinematics
     from dtwin.spec import preset
 
     class Started(Exception):

@@ -13,8 +13,8 @@ from _cli_errors import FITS, Started, one_error_line, stand_in_fits
 from dtwin.cli import main
 from dtwin.io.readers import write_record
 from dtwin.io.record import Record
-from dtwin.kinematics import Kinematics
-from dtwin.memory import calibration_bytes, discovery_bytes, format_bytes
+from dtwin.model.kinematics import Kinematics
+from dtwin.simulation.memory import calibration_bytes, discovery_bytes, format_bytes
 from dtwin.spec import preset
 
 F_SUN = 29.7
@@ -39,9 +39,9 @@ def fits(monkeypatch):
 
 
 def _available(monkeypatch, n_bytes: int) -> None:
-    import dtwin.memory
+    import dtwin.simulation.memory
 
-    monkeypatch.setattr(dtwin.memory, "available_bytes", lambda: n_bytes)
+    monkeypatch.setattr(dtwin.simulation.memory, "available_bytes", lambda: n_bytes)
 
 
 def test_estimates_grow_with_the_record():
@@ -81,7 +81,7 @@ def test_discover_refuses_a_record_that_would_not_fit(tmp_path, fits, monkeypatc
 def test_compare_drives_refuses_a_span_that_would_not_fit(monkeypatch, capsys):
     """`compare-drives --duration 3000`: XLA asked for 984 GB and the command ended in an
     internal error (exit 70); now one line with the estimate, before any simulation."""
-    stand_in_fits(monkeypatch, (("dtwin.coupling", "compare_drives"),))
+    stand_in_fits(monkeypatch, (("dtwin.report.drive_comparison", "compare_drives"),))
     line = one_error_line(["compare-drives", "--preset", "paper-bench", "--duration", "3000"],
                           capsys)
     assert line.startswith("error: --duration: 5 severities × 3000.1 s at 5000 Hz"), line

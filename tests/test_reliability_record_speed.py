@@ -10,7 +10,7 @@ import numpy as np
 from dtwin.cli import main
 from dtwin.io.readers import write_record
 from dtwin.io.record import Record
-from dtwin.kinematics import Kinematics
+from dtwin.model.kinematics import Kinematics
 from dtwin.spec import preset
 
 F_SUN = 29.7  # paper-bench's speed

@@ -71,7 +71,7 @@ def calibrated_spec(independent_calibrated_spec):
 def _estimate(name: str, spec, ramps, jackknife=False):
     """The severity's defaults, as `dtwin severity REC --spec cal/calibrated.toml` runs it
     after `dtwin calibrate` on the user's spec (torsional, gearbox.toml): the translational
-    twin (dtwin.build.SEVERITY_KIND: a sun tooth fault loads one mesh at a time, and the sun
+    twin (dtwin.spec.build.SEVERITY_KIND: a sun tooth fault loads one mesh at a time, and the sun
     floats on its bearing under it; the torsional twin, whose sun cannot, makes the same loss
     4–10× louder — measured: sun-fault-0.60, 3.9 % [2.7, 6.9] with the torsional twin the spec
     was calibrated with, truth 36 %) and the low band (the fault's strongest lines, the comb
@@ -195,7 +195,7 @@ def _bench_identify(bench_spec):
 @pytest.mark.slow
 def test_bench_identify_severity_and_fleet_agree(bench_spec, tmp_path):
     """identify (k_sun_planet, zeta_mesh, sun_fault), severity and fleet on bench_sun_fault,
-    each with the twin the spec was calibrated with (translational, dtwin.build.twin_kind),
+    each with the twin the spec was calibrated with (translational, dtwin.spec.build.twin_kind),
     agree within their intervals; bench_healthy's severity interval holds 0; mesh damping,
     which this 5 kHz record cannot determine, is flagged (README).
     Measured: identify fits both ends of the calibration's excitation/response split
@@ -278,21 +278,21 @@ def test_bench_identify_from_the_default_start_flags_mesh_stiffness(bench_spec):
 def test_shape_profile_keeps_the_shapes_a_model_form_error_cannot_reject(monkeypatch):
     """The union rule of dtwin.identify.severity on stand-in fits: a shape whose ‖r‖² exceeds
     the best by less than max(χ²₁ s² κ, ‖r‖² − E) joins the interval; severity and peak loss map
-    through each shape's own ramp (dtwin.faults.peak_stiffness_loss), the peak relative to the
+    through each shape's own ramp (dtwin.model.faults.peak_stiffness_loss), the peak relative to the
     mean mesh stiffness and its interval from the waveform's largest to its smallest value
     (ISO 6336: c_γ = (0.75 ε + 0.25) c')."""
     import equinox as eqx
     import jax.numpy as jnp
 
-    from dtwin.build import build_twin
-    from dtwin.faults import peak_stiffness_loss
     from dtwin.identify import severity
     from dtwin.identify.severity import _estimate, _fault_index
+    from dtwin.model.faults import peak_stiffness_loss
+    from dtwin.spec.build import build_twin
 
     # the stand-ins carry no problem to simulate: the healthy-tooth test (checked on the bench
     # records in test_calibrate.py) rejects a healthy tooth here
     monkeypatch.setattr(severity, "_healthy_accepted", lambda *a: False)
-    from dtwin.registry import lookup
+    from dtwin.model.registry import lookup
     from dtwin.spec import preset
 
     tw = lookup("sun_fault").address.ensure(build_twin(preset("paper-sim")))

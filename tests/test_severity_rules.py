@@ -64,7 +64,7 @@ def test_spread_widens_the_loss_by_its_closed_form_area():
     missing tooth is its severity times the window at its centre, in single contact."""
     import jax.numpy as jnp
 
-    from dtwin.faults import MissingTooth, peak_stiffness_loss
+    from dtwin.model.faults import MissingTooth, peak_stiffness_loss
 
     eps = 1.6
     u = jnp.linspace(-8.0, 10.0, 180_001)
@@ -81,7 +81,7 @@ def test_spread_widens_the_loss_by_its_closed_form_area():
 def test_spread_zero_is_the_former_loss_bit_for_bit():
     import jax.numpy as jnp
 
-    from dtwin.faults import MissingTooth, _smooth_box
+    from dtwin.model.faults import MissingTooth, _smooth_box
 
     u = jnp.linspace(-1.0, 3.0, 4001)
     f = MissingTooth(0.4, ramp=0.2)
@@ -90,7 +90,7 @@ def test_spread_zero_is_the_former_loss_bit_for_bit():
 
 def test_spread_is_checked():
     from dtwin.errors import SpecError
-    from dtwin.faults import MAX_SPREAD, MIN_SPREAD, MissingTooth
+    from dtwin.model.faults import MAX_SPREAD, MIN_SPREAD, MissingTooth
 
     for bad in (MIN_SPREAD - 0.01, MAX_SPREAD + 0.01):
         with pytest.raises(SpecError, match="spread"):
@@ -124,19 +124,19 @@ def test_profile_interval_edges_against_the_closed_form(v_hat, sigma):
 
 
 def test_a_pit_is_read_by_the_shape_confined_to_the_contacts_middle():
-    """A pitting band (dtwin.faults.Pitting, 0.3–0.7 of the contact path: another fault model
+    """A pitting band (dtwin.model.faults.Pitting, 0.3–0.7 of the contact path: another fault model
     than the missing tooth the severity fit uses) on a record whose twin keeps 30 stiffness
     harmonics and a 0.5 µm transmission error (the fitted twin: 12, none) and runs 1 % slow:
     of the two shapes, the loss over the whole contact and the one confined to its middle
     (spread MIN_SPREAD), the record rejects the first and accepts the second, whose peak
     stiffness loss lies within 20 % of the pit's and whose interval holds it.
     Measured: 30.4 % [20.1, 53.9] for 34.2 %; the whole-contact shape's loss 3.5× larger."""
-    from dtwin.build import build_twin
-    from dtwin.faults import MIN_SPREAD, Pitting, peak_stiffness_loss
     from dtwin.identify.severity import estimate_severity
-    from dtwin.parts.imperfections import TransmissionError
-    from dtwin.simulate import DAQ, simulate
+    from dtwin.model.faults import MIN_SPREAD, Pitting, peak_stiffness_loss
+    from dtwin.model.parts.imperfections import TransmissionError
+    from dtwin.simulation.simulate import DAQ, simulate
     from dtwin.spec import preset
+    from dtwin.spec.build import build_twin
 
     spec = preset("paper-sim")
     pit = Pitting(0.5, location="sun")
@@ -159,12 +159,12 @@ def test_a_pit_is_read_by_the_shape_confined_to_the_contacts_middle():
 
 
 def test_a_severity_is_fitted_with_the_translational_twin_unless_asked():
-    """dtwin.build.SEVERITY_KIND: a spec's severity fit builds the translational twin whatever
+    """dtwin.spec.build.SEVERITY_KIND: a spec's severity fit builds the translational twin whatever
     kind the spec names; where the spec was calibrated with the torsional twin the estimate's
     note says so; a kind asked for, or a twin given, is kept."""
-    from dtwin.build import SEVERITY_KIND, build_twin
     from dtwin.identify.severity import _twin_kind
     from dtwin.spec import load_spec, preset, spec_to_dict
+    from dtwin.spec.build import SEVERITY_KIND, build_twin
 
     assert SEVERITY_KIND == "translational"
     data = spec_to_dict(preset("paper-sim"))
@@ -185,11 +185,11 @@ def test_the_low_band_by_default_for_sun_and_ring_faults_on_steady_records(monke
     a planet fault gets it too."""
     from importlib import import_module
 
-    from dtwin.build import build_twin
     from dtwin.identify.severity import LOW_BAND_START, estimate_severity
-    from dtwin.kinematics import Kinematics
-    from dtwin.simulate import DAQ, simulate
+    from dtwin.model.kinematics import Kinematics
+    from dtwin.simulation.simulate import DAQ, simulate
     from dtwin.spec import preset
+    from dtwin.spec.build import build_twin
 
     severity = import_module("dtwin.identify.severity")
     spec = preset("paper-sim")
@@ -222,9 +222,9 @@ def test_stiffness_split_of_a_calibrated_spec():
     calibrated; none for an uncalibrated spec or a twin; the spec handed in is not modified."""
     from pathlib import Path
 
-    from dtwin.build import build_twin
     from dtwin.identify.split import stiffness_split
     from dtwin.spec import load_spec
+    from dtwin.spec.build import build_twin
 
     spec = load_spec(Path(__file__).parent / "data" / "four_planet_calibrated.toml")
     frf = list(spec["sensor"]["frf_db"])
@@ -254,12 +254,12 @@ def test_a_calibrations_split_the_faulty_record_rejects_is_not_reported():
     against 14.8 % with the calibrated split alone, truth 36.0 %."""
     from pathlib import Path
 
-    from dtwin.build import build_twin
-    from dtwin.faults import RootCrack, peak_stiffness_loss
     from dtwin.identify.severity import estimate_severity
     from dtwin.identify.split import SPLIT_CALIBRATED, SPLIT_STIFFNESS
-    from dtwin.simulate import DAQ, simulate
+    from dtwin.model.faults import RootCrack, peak_stiffness_loss
+    from dtwin.simulation.simulate import DAQ, simulate
     from dtwin.spec import load_spec
+    from dtwin.spec.build import build_twin
 
     crack = RootCrack(0.4, location="sun", tooth=2)
     tw = build_twin(load_spec(FOUR_PLANET), kind="translational", n_harmonics=16,
@@ -290,11 +290,11 @@ def test_a_planet_fault_is_fitted_on_the_flank_the_record_prefers():
     flank is reported with the truth inside its interval. Measured (2 s record): ring 17.4 %
     [15.4, 32.2], loss 111.4; both flanks 9.2 % (loss 241.5); sun flank 4.2 % (674.6); truth
     23.5 %. Before the flanks were fitted, the both-flank fit was the answer."""
-    from dtwin.build import build_twin
-    from dtwin.faults import Pitting, peak_stiffness_loss
     from dtwin.identify.severity import PLANET_FLANKS, estimate_severity
-    from dtwin.simulate import DAQ, simulate
+    from dtwin.model.faults import Pitting, peak_stiffness_loss
+    from dtwin.simulation.simulate import DAQ, simulate
     from dtwin.spec import load_spec
+    from dtwin.spec.build import build_twin
 
     pit = Pitting(0.4, location="planet", planet=1, tooth=5, flank="ring")
     tw = build_twin(load_spec(FOUR_PLANET), kind="translational", n_harmonics=16,
@@ -322,10 +322,10 @@ def test_flanks_are_a_planet_faults_and_a_named_flank_is_taken_at_its_word():
     """flanks=None fits every flank for a planet fault whose spec names none, the spec's flank
     where it names one, and none for a sun or ring fault or a twin; flanks for a sun fault, or
     an unknown flank, is a clear error before anything is fitted."""
-    from dtwin.build import build_twin
     from dtwin.errors import SettingsError
     from dtwin.identify.severity import PLANET_FLANKS, _flanks
     from dtwin.spec import load_spec
+    from dtwin.spec.build import build_twin
 
     plain = load_spec(FOUR_PLANET)
     named = load_spec({**FOUR_PLANET, "faults": [{"location": "planet", "type": "pitting",

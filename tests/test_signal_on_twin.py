@@ -15,16 +15,16 @@ import functools
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
-from dtwin.faults import parse_fault
-from dtwin.simulate import simulate
-from dtwin.spec import preset
-from dtwin.tsa import (
+from dtwin.model.faults import parse_fault
+from dtwin.signal.tsa import (
     planet_separation,
     sun_relative_angle,
     sun_separation,
     time_synchronous_average,
 )
+from dtwin.simulation.simulate import simulate
+from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 FS = 5000.0
 

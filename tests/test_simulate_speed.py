@@ -2,7 +2,7 @@
 2): a twin built from a spec runs at the spec's ``operating.f_sun`` without being told again,
 bit for bit as when told; a run-up starts from its ramp's first speed; a twin with no drive to
 read gets a clear error. The grid and step limit are the ones the fitting residuals use
-(`dtwin.simulate.daq_grid`, `step_limit`), checked against their closed forms."""
+(`dtwin.simulation.simulate.daq_grid`, `step_limit`), checked against their closed forms."""
 
 import math
 
@@ -10,13 +10,20 @@ import equinox as eqx
 import numpy as np
 import pytest
 
-from dtwin.build import build_twin
 from dtwin.errors import SolverError
-from dtwin.parts.drive import DrivePart
-from dtwin.parts.shaft import Shaft
-from dtwin.parts.speed_source import IdealSpeedSource, SpeedProfile
-from dtwin.simulate import DAQ, SolverOptions, daq_grid, drive_speed, simulate, step_limit
+from dtwin.model.motor.drive import DrivePart
+from dtwin.model.motor.shaft import Shaft
+from dtwin.model.motor.speed_source import IdealSpeedSource, SpeedProfile
+from dtwin.simulation.simulate import (
+    DAQ,
+    SolverOptions,
+    daq_grid,
+    drive_speed,
+    simulate,
+    step_limit,
+)
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 
 @pytest.fixture(scope="module")

@@ -68,7 +68,7 @@ def test_paper_presets_state_the_paper_operating_points():
     bench = preset("paper-bench").gear_set()
     assert float(bench.centre_distance) == pytest.approx(0.0525)
     # the preset's comment states the derived operating pressure angles: 21.45° and 18.44°
-    from dtwin.gears import operating_pressure_angles
+    from dtwin.model.gears import operating_pressure_angles
 
     a_sp, a_rp = operating_pressure_angles(bench)
     assert math.degrees(float(a_sp)) == pytest.approx(21.45, abs=0.01)
@@ -103,7 +103,7 @@ def test_lin_parker_preset_gives_their_lumped_values():
 
 def test_lin_parker_preset_reproduces_their_natural_frequencies():
     """Lin & Parker (1999) Table 2 (docs/references.md §3), N = 3, within 0.5 %."""
-    from dtwin.modal import natural_frequencies
+    from dtwin.model.modal import natural_frequencies
 
     f = np.sort(np.asarray(natural_frequencies(lumped_from_spec(preset("lin-parker")))))
     rot = [1475.7, 1930.3, 2658.3, 7462.8, 11775.3]

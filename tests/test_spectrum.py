@@ -1,4 +1,4 @@
-"""Tests of dtwin.spectrum: amplitudes against closed forms, scipy, JAX vs numpy, labels."""
+"""Tests of dtwin.signal.spectrum: amplitudes against closed forms, scipy, JAX vs numpy, labels."""
 
 import jax
 import jax.numpy as jnp
@@ -7,7 +7,7 @@ import pytest
 import scipy.signal
 
 from dtwin.errors import RecordError
-from dtwin.spectrum import (
+from dtwin.signal.spectrum import (
     WINDOWS,
     FrequencyBasis,
     amplitude_spectrum,
@@ -204,7 +204,7 @@ def test_find_peaks_min_spacing_keeps_the_higher():
 
 
 def test_cepstrum_shows_a_sideband_family_as_rahmonics():
-    from dtwin.cepstrum import rahmonics, real_cepstrum
+    from dtwin.signal.cepstrum import rahmonics, real_cepstrum
 
     fs, dur, spacing = 5000.0, 4.0, 3 * FC  # fm ± k N fc: the planet-pass family (reference §2)
     t = np.arange(int(fs * dur)) / fs
@@ -230,7 +230,7 @@ def _write_native(tmp_path, x, fs, **kw):
 
 
 def test_cli_spectrum_labels_the_paper_family(tmp_path, capsys):
-    pytest.importorskip("dtwin.gears", reason="dtwin.gears not available yet")
+    pytest.importorskip("dtwin.model.gears", reason="dtwin.model.gears not available yet")
     pytest.importorskip("dtwin.spec", reason="dtwin.spec not available yet")
     import json
 
@@ -273,7 +273,7 @@ def test_bench_degeneracy_is_reported_as_an_alternative():
     fc = 29.7 * 21 / 105
     bench = FrequencyBasis(f_mesh=84 * fc, f_carrier=fc, f_sun_fault=84 * fc * 3 / 21,
                            f_planet_fault=84 * fc / 31)
-    from dtwin.spectrum import Peak
+    from dtwin.signal.spectrum import Peak
 
     peak = Peak(0, 89 * fc, 1.0, 0.01, 40.0)
     (lp,) = label_peaks([peak], bench, resolution=0.25)

@@ -1,4 +1,4 @@
-"""A speed fluctuation of the drive (dtwin.parts.speed_fluctuation) against closed forms: far
+"""A speed fluctuation of the drive (dtwin.model.motor.speed_fluctuation) against closed forms: far
 below the torsional modes the sun follows the rotor's speed and the carrier the kinematic
 ratio, and the mesh line is frequency-modulated with the Bessel sidebands of its phase
 deviation (J1(β)/J0(β) at m f_m ± f, β = m z_ring Δθ_c)."""
@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 import scipy.special
 
-from dtwin.build import build_twin
-from dtwin.parts.speed_fluctuation import SpeedFluctuation
-from dtwin.simulate import DAQ, simulate
+from dtwin.model.motor.speed_fluctuation import SpeedFluctuation
+from dtwin.simulation.simulate import DAQ, simulate
 from dtwin.spec import preset
+from dtwin.spec.build import build_twin
 
 F_SUN = 30.0
 F_X = 2.0      # Hz

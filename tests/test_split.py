@@ -40,11 +40,11 @@ def crack(tmp_path_factory):
     made by the translational twin with 16 stiffness harmonics where the fitted one has 12, a
     root crack where the fit has a missing tooth's loss, no transmission error, a flat response
     and 30 dB noise; and the crack's peak stiffness loss."""
-    from dtwin.build import build_twin
-    from dtwin.faults import RootCrack, peak_stiffness_loss
     from dtwin.io.readers import write_record
-    from dtwin.simulate import DAQ, simulate
+    from dtwin.model.faults import RootCrack, peak_stiffness_loss
+    from dtwin.simulation.simulate import DAQ, simulate
     from dtwin.spec import load_spec
+    from dtwin.spec.build import build_twin
 
     fault = RootCrack(0.4, location="sun", tooth=2)
     tw = build_twin(load_spec(FOUR_PLANET), kind="translational", n_harmonics=16,

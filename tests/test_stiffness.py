@@ -1,4 +1,4 @@
-"""Tests of dtwin.stiffness against ISO 6336-1 hand calculations, Fourier closed forms, numpy
+"""Tests of dtwin.model.stiffness against ISO 6336-1 hand calculations, Fourier closed forms, numpy
 FFTs and finite differences."""
 
 import math
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from dtwin.errors import SpecError
-from dtwin.stiffness import (
+from dtwin.model.stiffness import (
     cosine_series,
     mesh_stiffness_mean,
     mesh_stiffness_waveform,
@@ -324,7 +324,7 @@ def test_cli_stiffness_json_against_iso_hand_calculation(capsys):
     out = _run_cli(["stiffness", "--preset", "paper-sim", "--fault", "sun:missing_tooth:0.5",
                     "--json"], capsys)
     rep = json.loads(out)
-    # Hand calculation for the paper-sim preset (dtwin/presets/paper-sim.toml: 21/30/81, 20 mm face,
+    # Hand calculation for the paper-sim preset (dtwin/spec/presets/paper-sim.toml: 21/30/81, 20 mm face,
     # 50 N*m at the carrier): T_sun = 50 * 21/102 = 10.294 N*m, F_t = T_sun/(3 * 0.021 m)
     # = 163.40 N, line load 8.170 N/mm -> load factor 0.0817**0.25 = 0.53463;
     # q' = 0.04723 + 0.15551/21 + 0.25791/30 = 0.063235 -> c'_th = 15.8140 N/(mm um);

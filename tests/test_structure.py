@@ -112,7 +112,7 @@ def _package(name: str, mods) -> str:
 
 
 def test_no_private_name_is_imported_from_another_package():
-    """``from dtwin.simulate import _daq`` in ``dtwin.identify``: a name its module keeps to
+    """``from dtwin.simulation.simulate import _daq`` in ``dtwin.identify``: a name its module keeps to
     itself, used where that module cannot see it. Within a package such names are shared by
     design; across packages a name is public or not imported. A private *module*
     (``dtwin._heap``, ``dtwin._maps``) is the project's own machinery and may be imported
@@ -134,9 +134,9 @@ def test_no_private_name_is_imported_from_another_package():
 
 
 @pytest.mark.parametrize("module,forbidden", [
-    # parts share Coords/MeshState with the twin through dtwin.coords, never the twin itself
-    *[(f"dtwin.parts.{f.stem}", "dtwin.twin") for f in (ROOT / "dtwin" / "parts").glob("*.py")
-      if f.stem != "__init__"],
+    # parts share Coords/MeshState with the twin through dtwin.model.coords, never the twin itself
+    *[(f"dtwin.model.{d}.{f.stem}", "dtwin.model.twin") for d in ("parts", "motor")
+      for f in sorted((ROOT / "dtwin" / "model" / d).glob("*.py")) if f.stem != "__init__"],
     # format modules use dtwin.io.values/files, never the dispatcher or the result folders
     *[(f"dtwin.io.{f.stem}", "dtwin.io.readers") for f in (ROOT / "dtwin" / "io").glob("fmt_*.py")],
     *[(f"dtwin.io.{f.stem}", "dtwin.io.output") for f in (ROOT / "dtwin" / "io").glob("fmt_*.py")],
@@ -153,7 +153,7 @@ def test_top_level_exposes_the_twin_not_the_section6_study():
     for name in ("compare_drives", "sensitivity_sweep", "fault_rms", "comparison_twins",
                  "DriveComparison", "SensitivitySweep", "fault_rms_and_slope"):
         assert not hasattr(dtwin, name), name
-    from dtwin.coupling import compare_drives
+    from dtwin.report.drive_comparison import compare_drives
 
     assert callable(compare_drives)
     for name in ("Twin", "build_twin", "simulate", "preset", "characteristic_frequencies"):

@@ -1,12 +1,12 @@
-"""Tests of dtwin.tsa: comb-filter closed form, sqrt(n) noise suppression, planet separation."""
+"""Tests of dtwin.signal.tsa: comb-filter closed form, sqrt(n) noise suppression, planet separation."""
 
 import numpy as np
 import pytest
 
 from dtwin.errors import RecordError
-from dtwin.indicators import fm4
 from dtwin.io import Record
-from dtwin.tsa import planet_separation, sun_relative_angle, time_synchronous_average
+from dtwin.signal.indicators import fm4
+from dtwin.signal.tsa import planet_separation, sun_relative_angle, time_synchronous_average
 
 ZS, ZP, ZR, N = 21, 30, 81, 3  # the paper's simulation gearbox (docs/references.md §1)
 

@@ -4,8 +4,8 @@ references (ISO 1683), ISO 20816-3 zones."""
 import numpy as np
 import pytest
 
-from dtwin import units
 from dtwin.errors import RecordError
+from dtwin.signal import units
 
 
 def test_standard_gravity():

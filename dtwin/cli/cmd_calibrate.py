@@ -15,7 +15,7 @@ from pathlib import Path
 
 import typer
 
-from ..units import unit_name
+from ..signal.units import unit_name
 from . import options as opts
 from .app import app
 
@@ -61,7 +61,7 @@ def calibrate(
     """Calibrate the twin on healthy records and write a calibrated spec (see docs/calibration.md)."""
     from dtwin.identify.calibrate import CalibrationSettings
     from dtwin.identify.calibrate import calibrate as run
-    from dtwin.registry import N_EXCITATION_HARMONICS, N_WINDOW_TERMS
+    from dtwin.model.registry import N_EXCITATION_HARMONICS, N_WINDOW_TERMS
 
     if model is not None:
         opts.choice("--model", model, ("torsional", "translational"))
@@ -128,10 +128,10 @@ def _files(result, report, unit: str):
             plot_calibration_gap,
             plot_calibration_spectra,
         )
-        from dtwin.spec_writer import spec_to_toml
+        from dtwin.spec.writer import spec_to_toml
 
         from ..io.export import Columns
-        from ..io.html_report import HTMLReport, frequency_text
+        from ..report.html_report import HTMLReport, frequency_text
 
         # a frequency (Hz) to 0.01 Hz, other values to 5 significant digits
         rows = [{"parameter": p.name, "value": (frequency_text(p.value) if p.unit == "Hz"

@@ -8,7 +8,7 @@
 
 For each sun missing-tooth severity: RMS of the sensor signal over a steady window for the
 traditional model (ideal speed source) and the twin with the PMSM drive, and ``dRMS/dseverity``
-by forward-mode autodiff (:mod:`dtwin.coupling`). ``--sweep`` adds the sensitivity at severity
+by forward-mode autodiff (:mod:`dtwin.report.drive_comparison`). ``--sweep`` adds the sensitivity at severity
 0.5 versus shaft stiffness and speed-loop bandwidth. Writes into ``--out DIR``:
 ``comparison.png`` (Figure 15 side by side), ``sensitivity.png``, ``sweep.png`` (with
 ``--sweep``), ``compare_drives.json`` and ``manifest.json``.
@@ -38,18 +38,18 @@ def _parse_list(text: str, name: str) -> list[float]:
     return vals
 
 
-#: The comparison's peak over :func:`dtwin.memory.simulation_bytes` per simulation: XLA asked
+#: The comparison's peak over :func:`dtwin.simulation.memory.simulation_bytes` per simulation: XLA asked
 #: for 984 GB in one allocation for 5 severities × 3000.1 s with sensitivities, where the
 #: estimate gives 749 GB (1.31×: the coupled drive's states and the solver's stages); rounded up.
 COMPARE_OVERHEAD = 2.0
 
 
 def _check_memory(spec, daq, n_severities: int, span: float, sensitivity: bool) -> None:
-    """Refuse a comparison that would not fit in the memory available (:mod:`dtwin.memory`):
+    """Refuse a comparison that would not fit in the memory available (:mod:`dtwin.simulation.memory`):
     each model simulates every severity at once (one compiled call), the translational twin's
     state plus the drive's saved at the DAQ's oversampled rate, twice with the sensitivity's
     tangents (issue 53: ``--duration 3000`` asked XLA for 984 GB, an internal error)."""
-    from ..memory import require, simulation_bytes
+    from ..simulation.memory import require, simulation_bytes
 
     n_dof = 3 * (int(spec["gears"]["n_planets"]) + 3) + 4
     copies = n_severities * (2 if sensitivity else 1)
@@ -84,8 +84,8 @@ def compare_drives_cmd(
     force: bool = typer.Option(False, "--force", help="overwrite results in --out"),
 ) -> None:
     """RMS vs sun-fault severity: traditional model (ideal speed source) vs PMSM-coupled twin."""
-    from ..build import daq_from_spec
-    from ..coupling import MODELS, compare_drives, sensitivity_sweep
+    from ..report.drive_comparison import MODELS, compare_drives, sensitivity_sweep
+    from ..spec.build import daq_from_spec
     sev = _parse_list(severities, "--severities")
     for s in sev:
         opts.in_range("--severities", s, 0.0, 1.0, "(a severity)")
@@ -122,7 +122,7 @@ def compare_drives_cmd(
         summary["sweep"] = swp.to_dict()
     if out is not None:
         from ..io.output import OutputFolder
-        from ..plotting.coupling import (
+        from ..report.drive_comparison_figures import (
             plot_drive_comparison,
             plot_sensitivity,
             plot_sensitivity_sweep,

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import typer
 
-from ..units import unit_name
+from ..signal.units import unit_name
 from . import options as opts
 from .app import app
 
@@ -49,7 +49,7 @@ def _main_text(row: dict) -> str:
     refit)."""
     if row["main"] != row["main"]:
         return ""
-    from ..io.html_report import value_text
+    from ..report.html_report import value_text
 
     u = row["main unit"]
     unit = "" if u in ("", "-") else f" {_unit_text(u)}"
@@ -78,7 +78,7 @@ def screen_summary(result) -> list[str]:
     :meth:`~dtwin.identify.discover.DiscoveryResult.candidate_table`, which the JSON and both
     reports print too), the candidates screened out, why the search stopped and the
     unexplained lines."""
-    from ..io.html_report import value_text
+    from ..report.html_report import value_text
 
     out = [f"base model: held-out gap {result.initial_gap.total:.2f} dB"]
     for s in result.steps:
@@ -118,7 +118,7 @@ def screen_summary(result) -> list[str]:
 
 def _label_frequencies(kin) -> dict:
     """The gearbox's frequencies by name (Hz) that the legend of the line-label symbols shows
-    beside each symbol: :meth:`dtwin.kinematics.Kinematics.as_dict` and the motor's electrical
+    beside each symbol: :meth:`dtwin.model.kinematics.Kinematics.as_dict` and the motor's electrical
     frequency ``f_electrical`` (None without a motor line)."""
     return {**kin.as_dict(), "f_electrical": kin.f_electrical}
 
@@ -138,9 +138,9 @@ def _gap_rule(settings) -> str:
 
 def markdown_report(result, record_name: str) -> str:
     """The readable report (Markdown) of a :class:`dtwin.identify.discover.DiscoveryResult`;
-    frequencies (values in Hz) in full (:func:`dtwin.io.html_report.value_text`), other values
+    frequencies (values in Hz) in full (:func:`dtwin.report.html_report.value_text`), other values
     with four significant digits."""
-    from ..io.html_report import symbol_legend_markdown, value_text
+    from ..report.html_report import symbol_legend_markdown, value_text
 
     out = [f"# Discrepancy discovery: {record_name}", "",
            f"Input speed {result.f_sun:.4f} Hz (from the data); fm {result.kinematics.f_mesh:.2f} "
@@ -321,7 +321,7 @@ def discover_files(result, report: dict, record_file: Path, channel, unit: str |
     from dtwin.identify.tables import discovery_candidate_rows, discovery_rows
 
     from ..io.export import Columns
-    from ..io.html_report import HTMLReport
+    from ..report.html_report import HTMLReport
 
     cols = {"frequency": result.freqs, "measured": result.measured}
     cols.update({f"model_step{k}": m for k, m in enumerate(result.models)})
@@ -363,7 +363,7 @@ def discover_files(result, report: dict, record_file: Path, channel, unit: str |
 def _interval_text(main: dict, label: str = "") -> str:
     """The step's interval of its main value, or, where the linearised fit left the parameter's
     range and was refitted inside it in full (no interval), why there is none."""
-    from ..io.html_report import value_text
+    from ..report.html_report import value_text
 
     lo, hi = main["interval"]
     if lo == lo and hi == hi:  # not NaN

@@ -141,7 +141,7 @@ def fleet_identify(
     from dtwin.identify.fleet import FleetSettings, run_fleet
     from dtwin.identify.severity import fault_location
 
-    from ..build import twin_kind, warn_torsional_tooth_fault
+    from ..spec.build import twin_kind, warn_torsional_tooth_fault
 
     names = opts.free_names("--free", free)
     opts.choice("--model", model, ("torsional", "translational"))
@@ -328,7 +328,7 @@ def _trend_extras(folder, results: Path, trends, thresholds, horizon: float) -> 
     from dtwin.identify.tables import trend_rows
 
     from ..io.export import write_columns
-    from ..io.html_report import write_html_report
+    from ..report.html_report import write_html_report
 
     rows = trend_rows(trends)
     if rows:

@@ -8,7 +8,7 @@ the terminal lists the frequencies under their registry names (``f_sun``, ``f_ca
 ``f_mesh``, ``f_sun_fault``, ``f_planet_fault``, ``f_ring_fault``, ``f_planet_pass``,
 ``f_planet``), in Hz and as orders of the input speed, with the geometry they follow from;
 ``--json`` prints the same as JSON on stdout (nothing else); ``--out DIR`` writes
-``freqs.json`` and ``manifest.json``. See :func:`dtwin.gears.characteristic_frequencies`.
+``freqs.json`` and ``manifest.json``. See :func:`dtwin.model.gears.characteristic_frequencies`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from typing import Any
 
 import typer
 
-from ..reports import freqs_report
+from ..report.analyses import freqs_report
 from . import options as opts
 from .app import app
 

@@ -15,7 +15,7 @@
                    [--splits/--no-splits] [--flanks/--no-flanks]
                    [--json] [--out DIR] [--force]
 
-Free names come from the parameter registry (``dtwin.registry``); an unknown name, an
+Free names come from the parameter registry (``dtwin.model.registry``); an unknown name, an
 unreadable record, NaN samples, a rate under 2.5 × f_mesh or a record too short for the carrier
 sidebands fail with a clear message (exit code 2) before anything is simulated. The input speed
 is ``--f-sun``, else each record's tachometer (``--tacho``), metadata or mesh lines
@@ -48,7 +48,7 @@ from pathlib import Path
 
 import typer
 
-from ..units import unit_name
+from ..signal.units import unit_name
 from . import options as opts
 from .app import app
 
@@ -160,7 +160,7 @@ def _files(result, name: str, report: dict, unit: str | None, headline: dict | N
         from dtwin.identify.tables import fit_rows
 
         from ..io.export import Columns
-        from ..io.html_report import HTMLReport
+        from ..report.html_report import HTMLReport
 
         n = len(result.problem.observations)
         out = {name: report}
@@ -237,7 +237,7 @@ def identify(
     from dtwin.identify.fit import SOLVERS, fit
     from dtwin.identify.severity import estimate_severity, fault_location
 
-    from ..build import twin_kind, warn_torsional_tooth_fault
+    from ..spec.build import twin_kind, warn_torsional_tooth_fault
 
     names = opts.free_names("--free", free)  # before anything is read or simulated
     _check_common(model, f_sun, out, force)
@@ -356,7 +356,7 @@ def severity(
     from dtwin.identify.fit import check_free
     from dtwin.identify.severity import estimate_severity
 
-    from ..build import twin_kind
+    from ..spec.build import twin_kind
 
     opts.choice("--location", location, ("sun", "planet", "ring"))
     extra = opts.free_names("--free", free) if free.strip() else []

@@ -8,7 +8,7 @@ relative sensitivities ``(k/f) df/dk`` to the sun–planet and ring–planet mes
 frequency in mesh orders when the gearbox's operating speed is known); ``--json`` prints the
 same as JSON on stdout; ``--out DIR`` writes ``modes.json``, ``modes.png``, the distinct
 modes as ``modes.csv`` and ``modes.npz`` (named columns with units) and ``manifest.json``. ``lin-parker`` is Lin & Parker's (1999) example
-(``dtwin/presets/lin-parker.toml``); ``--planets N`` replaces the preset's or spec's number of
+(``dtwin/spec/presets/lin-parker.toml``); ``--planets N`` replaces the preset's or spec's number of
 planets (equally spaced), e.g. Lin & Parker's N = 4 and 5 cases.
 """
 
@@ -19,7 +19,7 @@ from typing import Any
 
 import typer
 
-from ..reports import modes_report, operating_mesh_frequency
+from ..report.analyses import modes_report, operating_mesh_frequency
 from . import options as opts
 from .app import app
 
@@ -38,7 +38,7 @@ def modes(
     force: bool = opts.force_option(),
 ) -> None:
     """Natural frequencies and Lin & Parker mode types at mean mesh stiffness."""
-    from ..modal import MODELS
+    from ..model.modal import MODELS
 
     opts.choice("--model", model, tuple(MODELS))
     opts.at_least("--planets", planets, 1)

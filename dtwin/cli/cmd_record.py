@@ -29,7 +29,7 @@ import numpy as np
 import typer
 
 from ..errors import RecordError, SpecError
-from ..reports import record_report
+from ..report.analyses import record_report
 from . import options as opts
 from .app import app
 from .logs import note
@@ -94,7 +94,7 @@ def _frequencies(gb: opts.Gearbox | None, f_sun: float | None,
                  f_mesh: float | None, f_carrier: float | None) -> dict[str, float]:
     freqs: dict[str, float] = {}
     if gb is not None:
-        from ..gears import characteristic_frequencies
+        from ..model.gears import characteristic_frequencies
 
         spec_obj = gb.spec
         fs_in = f_sun if f_sun is not None else spec_obj["operating"].get("f_sun")
@@ -248,7 +248,7 @@ def _speed_problems(rec: Any, spec: Any, f_sun: float | None) -> list[Any]:
 
 
 #: Units a record channel may be given in (``--units``): the vibration units of
-#: :mod:`dtwin.units`, volts, pressure, force and current.
+#: :mod:`dtwin.signal.units`, volts, pressure, force and current.
 KNOWN_UNITS = ("m/s^2", "mm/s^2", "g", "m/s", "mm/s", "in/s", "m", "mm", "um", "µm", "V", "mV",
                "Pa", "N", "A", "rad/s", "rpm", "-")
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import typer
 
-from ..reports import gear_frequencies, run_simulation, spectrum_report
+from ..report.analyses import gear_frequencies, run_simulation, spectrum_report
 from . import options as opts
 from .app import app
 
@@ -28,10 +28,10 @@ MAX_DISCARD_S = opts.MAX_DISCARD_S
 
 
 def _check_memory(spec, duration: float, rate: float) -> None:
-    """Refuse a record that would not fit in the memory available (:mod:`dtwin.memory`): the
+    """Refuse a record that would not fit in the memory available (:mod:`dtwin.simulation.memory`): the
     state of the translational twin (``3 (N + 3)`` degrees of freedom, the larger model) plus
     a drive's few, saved at 4 × the DAQ rate."""
-    from ..memory import require, simulation_bytes
+    from ..simulation.memory import require, simulation_bytes
 
     n_dof = 3 * (int(spec["gears"]["n_planets"]) + 3) + 4
     need = simulation_bytes(duration, rate, n_dof)
@@ -46,7 +46,7 @@ def _check_tacho(spec, ppr: int, f_sun: float | None, ramp_to: float | None,
     per revolution of a shaft turning at ``f`` Hz (the highest speed of the run, on the shaft
     the spec's DAQ puts the tachometer on) make a pulse train of ``ppr f`` Hz, which must stay
     at or below Nyquist, ``rate / 2`` (Hz)."""
-    from ..build import daq_from_spec
+    from ..spec.build import daq_from_spec
 
     f_nom = f_sun or spec["operating"].get("f_sun")
     if not f_nom:
@@ -89,9 +89,9 @@ def simulate(
     force: bool = opts.force_option(),
 ) -> None:
     """Simulate the twin and write a record (dtwin's own format) with waveform and spectrum PNGs."""
-    from ..build import daq_from_spec
-    from ..faults import parse_fault
-    from ..simulate import QUANTITIES
+    from ..model.faults import parse_fault
+    from ..simulation.simulate import QUANTITIES
+    from ..spec.build import daq_from_spec
 
     opts.input_speed_option("--f-sun", f_sun)
     opts.simulated_span(duration, discard)
@@ -141,9 +141,9 @@ def simulate(
 
     def files() -> dict:
         from ..io.export import Columns
-        from ..io.html_report import HTMLReport
         from ..io.readers import write_record
         from ..plotting.spectrum import plot_spectrum_peaks, plot_waveform
+        from ..report.html_report import HTMLReport
 
         unit = record.units[0]
         return {

@@ -12,7 +12,7 @@
 The record is read with :func:`dtwin.io.readers.read_record` (any supported format; dtwin's own
 ``*.dtwin.h5``). Peaks in the band standing ``--threshold-db`` above the running-median noise
 floor are numbered 1, 2, … by frequency and, with a gearbox (``--preset``/``--spec``), labelled
-as ``m fm + a fc + b fs/N + c fp`` within one frequency bin (:mod:`dtwin.spectrum`). The input
+as ``m fm + a fc + b fs/N + c fp`` within one frequency bin (:mod:`dtwin.signal.spectrum`). The input
 speed follows :func:`dtwin.identify.operating_point.resolve_speed`: ``--f-sun``, else the
 tachometer (``--tacho`` or the record's own; mean speed), else the record's
 ``metadata["f_sun"]``, else (with a gearbox) the speed the record's mesh lines give, else the
@@ -21,7 +21,7 @@ contradict is warned about, naming the lines (expected and seen frequencies).
 
 The band defaults to the gearbox's mesh harmonics (``fm − 12 fc … 3 fm + 12 fc``, capped at
 Nyquist), or the whole spectrum without a gearbox. ``--units`` converts (g: 9.80665 m/s²;
-velocity and displacement by integration behind the ``--highpass``, :mod:`dtwin.units`); every
+velocity and displacement by integration behind the ``--highpass``, :mod:`dtwin.signal.units`); every
 vibration channel also gets its broadband velocity RMS (``--highpass`` … 1000 Hz) and its ISO
 20816-3 zone (``--iso-group``, ``--iso-support``). Several channels (``all``, a group such as a
 triaxial sensor, or a comma list) give one figure and one table each.
@@ -40,7 +40,7 @@ from pathlib import Path
 
 import typer
 
-from ..reports import gear_frequencies, operating_point, spectrum_report
+from ..report.analyses import gear_frequencies, operating_point, spectrum_report
 from . import options as opts
 from .app import app
 
@@ -126,9 +126,9 @@ def spectrum(
         "or .h5/.hdf5 (HDF5: one group per channel)."),
 ) -> None:
     """Amplitude spectrum of a record with numbered peaks labelled by gear frequencies."""
-    from .. import units as units_mod
     from ..io.export import check_export_path
-    from ..spectrum import WINDOWS
+    from ..signal import units as units_mod
+    from ..signal.spectrum import WINDOWS
 
     if export is not None:
         check_export_path(export, force=force, inputs=[record_file])
@@ -189,7 +189,7 @@ def spectrum(
                 welch=(segment, overlap) if welch else None)
         if units is not None and units_mod.quantity(units) != units_mod.quantity(record.units[i]):
             rep["integration"] = {"highpass_hz": highpass, "highpass_order": 4,
-                                  "method": "frequency domain, zero phase (dtwin.units)"}
+                                  "method": "frequency domain, zero phase (dtwin.signal.units)"}
         if units_mod.quantity(one.units[0]) is not None:
             v = units_mod.broadband_velocity_rms(one.channel(0), one.sample_rate, one.units[0],
                                                  band=iso_band)
@@ -211,9 +211,9 @@ def spectrum(
 
     def files() -> dict:
         from ..io.export import Columns
-        from ..io.html_report import HTMLReport
         from ..plotting.spectrum import plot_spectrum_peaks, plot_waveform
         from ..plotting.views import plot_iso20816
+        from ..report.html_report import HTMLReport
 
         out_files: dict = {"spectrum.json": report}
         figures: dict = {}

@@ -22,7 +22,7 @@ from typing import Any
 
 import typer
 
-from ..reports import stiffness_curves, stiffness_report
+from ..report.analyses import stiffness_curves, stiffness_report
 from . import options as opts
 from .app import app
 
@@ -46,7 +46,7 @@ def stiffness(
     force: bool = opts.force_option(),
 ) -> None:
     """Mesh-stiffness waveform of planet 0's sun and ring meshes, healthy and faulty."""
-    from ..faults import faults_from_table, parse_fault
+    from ..model.faults import faults_from_table, parse_fault
 
     opts.positive("--cycles", cycles)
     if cycles is not None and cycles > 10_000:

@@ -8,12 +8,12 @@
 
 - ``order``: order spectrum of the input (sun) shaft after angular resampling; the angle comes
   from the record's tachometer, else (with a gearbox) from the mesh phase
-  (:func:`dtwin.order.mesh_angle`, speed searched in ``--speed-range``, default ±20 % of the
+  (:func:`dtwin.signal.order.mesh_angle`, speed searched in ``--speed-range``, default ±20 % of the
   input speed). Peaks are labelled in orders like ``dtwin spectrum`` labels frequencies.
 - ``ordermap`` (run-ups): order spectra of successive stretches of ``--revs`` revolutions
   against the input speed (rpm), as a colour map (order vs rpm, ``ordermap.png``), and the
   order cuts (``ordercuts.png``: fm, fm ± N fc, 2 fm against rpm, read by Parseval over each
-  order's main lobe, :func:`dtwin.order.order_cuts`); the angle from the tachometer or, without
+  order's main lobe, :func:`dtwin.signal.order.order_cuts`); the angle from the tachometer or, without
   one, from the mesh phase (the estimated speed).
 - ``tsa`` (gearbox needed): TSA on the carrier (indicators RMS, kurtosis, crest factor, FM0, FM4
   with mesh order Zr), TSA of the sun relative to the carrier (mesh order Zs) and McFadden's
@@ -49,7 +49,7 @@ import typer
 
 from ..errors import RecordError
 from ..io.export import Columns, Grid
-from ..reports import channel_unit, gear_frequencies, input_speed
+from ..report.analyses import channel_unit, gear_frequencies, input_speed
 from . import options as opts
 from .app import app
 from .options import channel_token
@@ -68,7 +68,7 @@ def shaft_angles(record, x: np.ndarray, gearbox, f_sun: float | None,
     Returns a dict with ``sun`` and ``carrier`` (arrays or None), ``source`` and
     ``absolute_carrier`` (True when a carrier tachometer fixes the carrier's angle origin).
     """
-    from ..order import mesh_angle, tacho_angle
+    from ..signal.order import mesh_angle, tacho_angle
 
     gs = gearbox.gear_set() if gearbox is not None else None
     ratio = (gs.z_sun + gs.z_ring) / gs.z_sun if gs is not None else None  # sun / carrier
@@ -93,9 +93,9 @@ def shaft_angles(record, x: np.ndarray, gearbox, f_sun: float | None,
 
 
 def _order_view(record, x, unit, gearbox, freqs, f_sun, speed_range, scale="db"):
-    from ..order import order_spectrum, resample_to_angle, shaft_speed
     from ..plotting.views import plot_order_spectrum
-    from ..spectrum import FrequencyBasis, find_peaks, label_peaks
+    from ..signal.order import order_spectrum, resample_to_angle, shaft_speed
+    from ..signal.spectrum import FrequencyBasis, find_peaks, label_peaks
 
     ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
     if ang["sun"] is None:
@@ -144,8 +144,8 @@ def _order_view(record, x, unit, gearbox, freqs, f_sun, speed_range, scale="db")
 def _ordermap_view(record, x, unit, gearbox, freqs, f_sun, speed_range, revs, scale="db"):
     """Order map (order vs rpm) and order cuts of a run-up, from the tachometer or the
     estimated speed (mesh phase)."""
-    from ..order import order_cuts, order_map
     from ..plotting.views import plot_order_cuts, plot_order_map
+    from ..signal.order import order_cuts, order_map
 
     ang = shaft_angles(record, x, gearbox, f_sun, speed_range)
     if ang["sun"] is None:
@@ -187,9 +187,9 @@ def _ordermap_view(record, x, unit, gearbox, freqs, f_sun, speed_range, revs, sc
 
 
 def _tsa_view(record, x, unit, gearbox, freqs, f_sun, speed_range):
-    from ..indicators import crest_factor, fm0, fm4, kurtosis, rms
     from ..plotting.views import plot_planet_averages, plot_tsa
-    from ..tsa import planet_separation, sun_relative_angle, time_synchronous_average
+    from ..signal.indicators import crest_factor, fm0, fm4, kurtosis, rms
+    from ..signal.tsa import planet_separation, sun_relative_angle, time_synchronous_average
 
     if gearbox is None:
         raise opts.OptionError("--preset/--spec", "the TSA views need the gearbox's tooth counts")
@@ -246,9 +246,9 @@ def _fault_marks(freqs):
 
 
 def _envelope_view(record, x, unit, freqs, band, scale="linear"):
-    from ..envelope import envelope_spectrum, fast_kurtogram
     from ..plotting.views import plot_envelope_spectrum
-    from ..spectrum import level_at
+    from ..signal.envelope import envelope_spectrum, fast_kurtogram
+    from ..signal.spectrum import level_at
 
     fs = record.sample_rate
     source = "--band"
@@ -268,8 +268,8 @@ def _envelope_view(record, x, unit, freqs, band, scale="linear"):
 
 
 def _kurtogram_view(record, x):
-    from ..envelope import fast_kurtogram
     from ..plotting.views import plot_kurtogram
+    from ..signal.envelope import fast_kurtogram
 
     kg = fast_kurtogram(x, sample_rate=record.sample_rate)
     report = {"best_band_hz": list(kg.best_band), "best_level": kg.best_level,
@@ -301,8 +301,8 @@ def kurtogram_columns(kg) -> Columns:
 
 
 def _cepstrum_view(record, x, freqs, gearbox):
-    from ..cepstrum import rahmonics, real_cepstrum
     from ..plotting.views import plot_cepstrum
+    from ..signal.cepstrum import rahmonics, real_cepstrum
 
     q, c = real_cepstrum(x, sample_rate=record.sample_rate)
     spacings = None
@@ -319,8 +319,8 @@ def _cepstrum_view(record, x, freqs, gearbox):
 
 
 def _waterfall_view(record, x, unit, gearbox, freqs, f_sun, speed_range, segment, nat):
-    from ..order import campbell, waterfall
     from ..plotting.views import plot_campbell, plot_waterfall
+    from ..signal.order import campbell, waterfall
 
     angle, source = None, None
     if (record.tacho is not None and record.tacho_ppr) or (gearbox is not None and f_sun):
@@ -348,7 +348,7 @@ def _waterfall_view(record, x, unit, gearbox, freqs, f_sun, speed_range, segment
 
 def _psd_view(record, x, unit, freqs, band, segment, scale="db"):
     from ..plotting.views import plot_psd
-    from ..psd import band_power, welch_psd
+    from ..signal.psd import band_power, welch_psd
 
     f, p = welch_psd(x, record.sample_rate, segment_length=min(segment, x.size))
     report = {"resolution_hz": float(f[1] - f[0]),
@@ -410,7 +410,7 @@ def view(
         check_export_path(export, force=force, inputs=[record_file])
     opts.choice("--scale", scale, ("db", "linear"))
     if units is not None:
-        from .. import units as units_mod
+        from ..signal import units as units_mod
 
         if units_mod.normalise_unit(units) is None:
             raise opts.OptionError("--units", f"unknown unit {units!r}; use one of "
@@ -447,7 +447,7 @@ def view(
         name, unit = channel_unit(record, i)
         x = np.asarray(record.channel(i), dtype=np.float64)
         if units is not None:
-            from .. import units as units_mod
+            from ..signal import units as units_mod
 
             if units_mod.quantity(unit) is None:
                 raise opts.OptionError("--units", f"channel {name!r} is in {unit}, not a "
@@ -480,7 +480,7 @@ def view(
                                            "command": f"dtwin view --kind {kind}",
                                            "f_sun_hz": fsun or float("nan")})
         note(f"wrote {export}")
-    from ..io.html_report import HTMLReport
+    from ..report.html_report import HTMLReport
 
     html = HTMLReport(
         title=f"dtwin view --kind {kind}: {Path(record_file).name}",

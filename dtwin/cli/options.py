@@ -22,10 +22,10 @@ from typing import Any
 import typer
 
 from ..errors import RecordError, SpecError
-from ..speed_range import check_input_speed
+from ..simulation.speed_range import check_input_speed
 
 PRESETS = ("paper-sim", "paper-bench", "paper-like", "lin-parker")
-"""The bundled presets (``dtwin/presets``); kept equal to :data:`dtwin.spec.PRESETS` by a test."""
+"""The bundled presets (``dtwin/spec/presets``); kept equal to :data:`dtwin.spec.PRESETS` by a test."""
 
 _PRESET_HELP = "Bundled gearbox: " + ", ".join(PRESETS) + "."
 
@@ -296,8 +296,8 @@ def band(option: str, value: tuple[float, float] | None,
 
 
 def input_speed_option(option: str, value: float | None) -> float | None:
-    """An input (sun) speed in Hz within :data:`dtwin.speed_range.F_SUN_MAX`
-    (:func:`dtwin.speed_range.check_input_speed`); a value that looks like rpm gets a hint."""
+    """An input (sun) speed in Hz within :data:`dtwin.simulation.speed_range.F_SUN_MAX`
+    (:func:`dtwin.simulation.speed_range.check_input_speed`); a value that looks like rpm gets a hint."""
     if value is None:
         return None
     try:
@@ -481,14 +481,20 @@ def check_channel(record: Any, channel: str | int) -> None:
 def check_fit_memory(record: Any, spec: Any, path: Any, *, command: str,
                      records: Sequence[Any] = ()) -> None:
     """Refuse, before any work, a record whose calibration or discovery would not fit in the
-    memory available (:mod:`dtwin.memory`; issue 53: calibrate on 60 s at 25.6 kHz took more
+    memory available (:mod:`dtwin.simulation.memory`; issue 53: calibrate on 60 s at 25.6 kHz took more
     than 12 GB and was killed). `command`: ``calibrate`` (the linearised solve and its
-    tangents, :func:`dtwin.memory.calibration_bytes`, plus the Jacobians of the `records`
-    read before) or ``discover`` (:func:`dtwin.memory.discovery_bytes`).
+    tangents, :func:`dtwin.simulation.memory.calibration_bytes`, plus the Jacobians of the `records`
+    read before) or ``discover`` (:func:`dtwin.simulation.memory.discovery_bytes`).
 
-    **Raises:** :class:`dtwin.memory.MemoryLimitError` naming the record, both figures and
+    **Raises:** :class:`dtwin.simulation.memory.MemoryLimitError` naming the record, both figures and
     what to change."""
-    from ..memory import FLOAT64, JACOBIAN_COLUMNS, calibration_bytes, discovery_bytes, require
+    from ..simulation.memory import (
+        FLOAT64,
+        JACOBIAN_COLUMNS,
+        calibration_bytes,
+        discovery_bytes,
+        require,
+    )
 
     try:
         oversample = int(spec["sensor"]["oversample"])
@@ -527,7 +533,7 @@ def checked_record(record: Any, channel: str | int | Sequence[str | int] | None,
     if fit and spec is not None and f_sun is None:  # the rate and length a fit needs
         f_sun = speed_hint(record, spec)
     if spec is not None and f_sun is not None:
-        from ..gears import characteristic_frequencies
+        from ..model.gears import characteristic_frequencies
 
         fr = characteristic_frequencies(spec.gear_set(), float(f_sun))
         f_mesh, f_carrier = float(fr["f_mesh"]), float(fr["f_carrier"])
@@ -624,10 +630,10 @@ def check_speed_against_lines(record: Any, spec: Any, f_sun: float | None, chann
 
 def _tacho_varies(record: Any) -> bool:
     """Whether the record's tachometer speed changes by more than
-    :data:`dtwin.order.RUNUP_SPEED_CHANGE` of its median within the record (a run-up or
+    :data:`dtwin.signal.order.RUNUP_SPEED_CHANGE` of its median within the record (a run-up or
     coast-down): its mesh lines are then smeared over the speed range, and the mean speed has
     none to be checked against."""
-    from dtwin.order import RUNUP_SPEED_CHANGE, tacho_speed_range
+    from dtwin.signal.order import RUNUP_SPEED_CHANGE, tacho_speed_range
 
     lo, hi, med = tacho_speed_range(record.tacho, record.sample_rate, record.tacho_ppr)
     return med > 0 and (hi - lo) / med > RUNUP_SPEED_CHANGE
@@ -746,7 +752,7 @@ def emit(
     `files` maps a file name to what goes in it: a mapping (JSON), a matplotlib figure (PNG or
     the suffix's format), ``str``/``bytes``, a callable ``writer(tmp_path)``, or an object with
     ``write_into(folder, name)`` (arrays: :class:`dtwin.io.export.Columns`/``Grid`` write
-    ``NAME.csv`` and ``.npz``; :class:`dtwin.io.html_report.HTMLReport` writes ``report.html``
+    ``NAME.csv`` and ``.npz``; :class:`dtwin.report.html_report.HTMLReport` writes ``report.html``
     from the files before it); a callable
     giving that mapping defers building figures until they are needed. The files appear together with
     ``manifest.json``, or not at all (interrupt, failure: see :class:`dtwin.io.output.OutputFolder`).
@@ -797,7 +803,7 @@ def write_outputs(out: Path, *, force: bool = False,
 
 
 def _write_one(folder: Any, name: str, value: Any) -> None:
-    if hasattr(value, "write_into"):  # dtwin.io.export.Columns/Grid, dtwin.io.html_report.HTMLReport
+    if hasattr(value, "write_into"):  # dtwin.io.export.Columns/Grid, dtwin.report.html_report.HTMLReport
         value.write_into(folder, name)
     elif isinstance(value, (bytes, bytearray)):
         folder.write_bytes(name, bytes(value))

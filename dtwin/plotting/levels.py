@@ -2,7 +2,7 @@
 linear), unit text, axis limits that keep every peak and label inside, labels placed without
 overlap, and the default band around the gearbox's mesh harmonics.
 
-- dB levels are ``20 log10(a / a_ref)`` with the reference of :func:`dtwin.units.db_reference`
+- dB levels are ``20 log10(a / a_ref)`` with the reference of :func:`dtwin.signal.units.db_reference`
   (ISO 1683: 1 µm/s², 1 nm/s, 1 pm; 1 g for g; 1 unit otherwise), stated on the axis:
   ``"amplitude (dB re 1 µm/s²)"``. PSDs use ``10 log10(P / a_ref²)``.
 - Linear levels are in the unit itself.
@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..units import to_db, unit_name
+from ..signal.units import to_db, unit_name
 
 __all__ = ["SCALES", "level_axis", "levels", "mesh_band", "place_labels", "set_level_limits",
            "unit_text"]
@@ -25,7 +25,7 @@ SCALES = ("db", "linear")
 
 def unit_text(unit: str | None) -> str:
     """The unit as printed on an axis: ``m/s^2`` → ``m/s²``, ``um`` → ``µm``; a unit the record
-    does not state reads ``record unit`` (`dtwin.units.unit_name`)."""
+    does not state reads ``record unit`` (`dtwin.signal.units.unit_name`)."""
     u = unit_name(unit).replace("^2", "²").replace("**2", "²")
     return "µm" if u == "um" else u
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..modal import MODE_TYPES, ModalResult
+from ..model.modal import MODE_TYPES, ModalResult
 
 _COLOURS = {
     "rotational": "tab:blue",
@@ -32,7 +32,7 @@ def plot_modes(
 
     **Arguments:**
 
-    - `result`: a :class:`~dtwin.modal.ModalResult`.
+    - `result`: a :class:`~dtwin.model.modal.ModalResult`.
     - `f_mesh`: mesh frequency (Hz), optional.
     - `sample_rate`: sampling rate (Hz), optional.
     - `title`: figure title (default names the model and N).

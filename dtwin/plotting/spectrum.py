@@ -1,6 +1,6 @@
 """Figures of spectra with numbered, labelled peaks (like the paper's Figures 7–9) and waveforms.
 
-Functions take data (arrays and :class:`dtwin.spectrum.LabelledPeak` lists) and return a
+Functions take data (arrays and :class:`dtwin.signal.spectrum.LabelledPeak` lists) and return a
 matplotlib Figure; the CLI (``dtwin spectrum``) and the notebooks call the same functions.
 """
 
@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..spectrum import LabelledPeak
+from ..signal.spectrum import LabelledPeak
 from .levels import level_axis, levels, place_labels, set_level_limits, unit_text
 
 __all__ = ["drawn_points", "peak_table_rows", "plot_spectrum_peaks", "plot_waveform"]
@@ -69,7 +69,7 @@ def plot_spectrum_peaks(
     **Arguments:**
 
     - `freqs`, `spec`: one-sided amplitude spectrum (Hz, `unit`).
-    - `labelled`: peaks from :func:`dtwin.spectrum.label_peaks` (numbered, labelled).
+    - `labelled`: peaks from :func:`dtwin.signal.spectrum.label_peaks` (numbered, labelled).
     - `band`: frequency range shown (Hz), None for the whole spectrum (callers pass the
       gearbox's mesh band, :func:`dtwin.plotting.levels.mesh_band`).
     - `scale`: ``"db"`` (levels in dB re the unit's ISO 1683 reference, e.g. 1 µm/s², the
@@ -132,7 +132,7 @@ def plot_waveform(
 ) -> Figure:
     """Time waveform (s, `unit`), with RMS, kurtosis and crest factor in the legend."""
     unit = unit_text(unit)
-    from ..indicators import time_stats
+    from ..signal.indicators import time_stats
 
     fig = Figure(figsize=(9, 3.2))
     ax = fig.add_subplot(1, 1, 1)

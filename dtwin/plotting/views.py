@@ -1,8 +1,8 @@
 """Figures of the signal-processing views: order spectrum, TSA and planet averages, envelope
 spectrum, kurtogram, cepstrum, waterfall / Campbell diagram, PSD.
 
-Each function takes the data computed by :mod:`dtwin.order`, :mod:`dtwin.tsa`,
-:mod:`dtwin.envelope`, :mod:`dtwin.cepstrum` or :mod:`dtwin.psd` and returns a matplotlib
+Each function takes the data computed by :mod:`dtwin.signal.order`, :mod:`dtwin.signal.tsa`,
+:mod:`dtwin.signal.envelope`, :mod:`dtwin.signal.cepstrum` or :mod:`dtwin.signal.psd` and returns a matplotlib
 Figure with title, axis labels with units and a legend; ``dtwin view`` and the notebooks use them.
 """
 
@@ -15,9 +15,9 @@ import numpy as np
 from matplotlib import cm, colors, patches
 from matplotlib.figure import Figure
 
-from ..envelope import Kurtogram
-from ..order import CampbellData, OrderMap, Waterfall
-from ..tsa import TSA, PlanetAverages
+from ..signal.envelope import Kurtogram
+from ..signal.order import CampbellData, OrderMap, Waterfall
+from ..signal.tsa import TSA, PlanetAverages
 from .levels import level_axis, levels, set_level_limits, unit_text
 
 __all__ = [
@@ -332,7 +332,7 @@ def plot_order_cuts(
     om: OrderMap, cuts: Mapping[str, np.ndarray], *, unit: str = "m/s^2", scale: str = "db",
     title: str = "Order cuts", channel: str | None = None, speed_source: str | None = None,
 ) -> Figure:
-    """Amplitude of each order against speed (rpm), from :func:`dtwin.order.order_cuts`."""
+    """Amplitude of each order against speed (rpm), from :func:`dtwin.signal.order.order_cuts`."""
     fig = Figure(figsize=(9, 4.0))
     ax = fig.add_subplot(1, 1, 1)
     allv = []
@@ -355,7 +355,7 @@ def plot_iso20816(
     title: str = "Broadband velocity RMS against ISO 20816 zones",
 ) -> Figure:
     """One bar per channel: broadband velocity RMS (mm/s) over the zones A–D of `zones`
-    (:func:`dtwin.units.iso20816_zones`), shaded, with the boundaries stated."""
+    (:func:`dtwin.signal.units.iso20816_zones`), shaded, with the boundaries stated."""
     names = list(rms_mm_s)
     fig = Figure(figsize=(max(5.5, 1.2 * len(names) + 3.5), 3.8))
     ax = fig.add_subplot(1, 1, 1)

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dtwin.spectrum import amplitude_spectrum
+from dtwin.signal.spectrum import amplitude_spectrum
 
 from ..gap import GapResult, segment_spectra
 from ..lines import (

@@ -16,8 +16,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.errors import SettingsError
-from dtwin.registry import RegistryView
-from dtwin.simulate import SolverOptions, simulate
+from dtwin.model.registry import RegistryView
+from dtwin.simulation.simulate import SolverOptions, simulate
 
 from ..lines import Kinematics
 from .statistics import P_MAX
@@ -38,7 +38,7 @@ class ExtendedModel:
         self.duration = n_samples / daq.sample_rate
         self.f_sun = float(f_sun)
         self.solver = solver or SolverOptions(adjoint="forward")
-        #: how many simulations were integrated each way (`dtwin.simulate.SimResult.method`)
+        #: how many simulations were integrated each way (`dtwin.simulation.simulate.SimResult.method`)
         self.methods: collections.Counter[str] = collections.Counter()
         if response_mode not in ("fd", "jvp"):
             raise SettingsError(f"response_mode must be 'fd' or 'jvp', got {response_mode!r}")
@@ -93,7 +93,7 @@ class ExtendedModel:
 
     def signal(self, theta_units, full: bool = False) -> np.ndarray:
         """Simulated sensor signal (no noise) at `theta_units`; `full`: the whole record
-        integrated, not one tiled period (`dtwin.simulate.SolverOptions.periodic`)."""
+        integrated, not one tiled period (`dtwin.simulation.simulate.SolverOptions.periodic`)."""
         return np.asarray(_ext_signal(self, jnp.asarray(theta_units, dtype=jnp.float64), full))
 
     def base_signal(self) -> np.ndarray:

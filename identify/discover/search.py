@@ -13,11 +13,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from dtwin.build import daq_from_spec
 from dtwin.io.record import Record
+from dtwin.signal.spectrum import amplitude_spectrum, as_signal, noise_floor
+from dtwin.signal.units import quantity as unit_quantity
 from dtwin.spec import Spec, load_spec
-from dtwin.spectrum import amplitude_spectrum, as_signal, noise_floor
-from dtwin.units import quantity as unit_quantity
+from dtwin.spec.build import daq_from_spec
 
 from ..gap import FLOOR_BINS, gap, named_bands, segment_spectra
 from ..lines import Kinematics, band_bounds, chance_match_probability

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 from dtwin.errors import SettingsError
-from dtwin.simulate import SolverOptions
+from dtwin.simulation.simulate import SolverOptions
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,7 +47,7 @@ class DiscoverySettings:
     - `periodic`: ``"auto"`` (default) simulates a constant-speed, periodic model over a
       settling time and one period of the gear set and tiles it, checking the periodicity and
       settling longer, then integrating the whole record, where it fails
-      (`dtwin.simulate.settling_sequence`); ``"off"`` always integrates the whole record.
+      (`dtwin.simulation.simulate.settling_sequence`); ``"off"`` always integrates the whole record.
     - `respecialise`: after each added effect, specialise the candidates again from the current
       model's residual; where that offers a candidate the earlier residual withdrew and it
       covers `min_coverage` of the residual lines, rebuild the model about the current twin

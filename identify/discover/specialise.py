@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dtwin.build import build_twin, twin_kind
 from dtwin.errors import DtwinError
-from dtwin.spectrum import amplitude_spectrum, noise_floor
+from dtwin.signal.spectrum import amplitude_spectrum, noise_floor
+from dtwin.spec.build import build_twin, twin_kind
 
 from ..gap import FLOOR_BINS, segment_spectra
 from ..lines import residual_lines

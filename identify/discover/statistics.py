@@ -15,7 +15,7 @@ import numpy as np
 import optimistix as optx
 
 from dtwin.errors import SettingsError
-from dtwin.spectrum import noise_floor
+from dtwin.signal.spectrum import noise_floor
 
 from ..fit import batch_mode
 from ..gap import FLOOR_BINS, levels

@@ -22,7 +22,7 @@ optimistix call, one start θ = 0 per record) or, for a single record, :func:`dt
 
 **A tooth fault's depth** (``free`` holds ``sun_fault``, ``planet_fault`` or ``ring_fault``;
 :func:`dtwin.identify.severity.fault_location`): the twin is the one ``dtwin severity`` fits
-(:data:`dtwin.build.SEVERITY_KIND`, unless ``FleetSettings.kind`` names one), batched or not,
+(:data:`dtwin.spec.build.SEVERITY_KIND`, unless ``FleetSettings.kind`` names one), batched or not,
 and a record fitted alone is fitted by :func:`dtwin.identify.severity.estimate_severity` itself
 — the calibration's two excitation/response splits, the low band of a sun or ring fault, the
 healthy-tooth test — so its value and interval (kept under ``severity`` in its result, with the

@@ -28,7 +28,7 @@ class FleetSettings:
 
     - `free`: registry names fitted (e.g. ``("sun_fault",)``); `kind`: the twin
       (``torsional`` or ``translational``; None: the kind a calibrated spec was calibrated
-      with, otherwise torsional, :func:`dtwin.build.twin_kind`); `initial`:
+      with, otherwise torsional, :func:`dtwin.spec.build.twin_kind`); `initial`:
       ``((name, value), ...)`` starting values (SI); `f_sun`: input speed (Hz) for every
       record (None: each record's, :func:`dtwin.identify.operating_point.resolve_speed`);
       `tacho`: ``(channel, pulses per revolution, shaft)`` of a tachometer channel in every

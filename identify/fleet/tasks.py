@@ -15,12 +15,12 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from dtwin.build import SEVERITY_KIND, build_twin, twin_kind
 from dtwin.errors import DtwinError
 from dtwin.io.readers import read_record
-from dtwin.order import RUNUP_SPEED_CHANGE, tacho_speed_range
-from dtwin.registry import ensure_parts, set_value
+from dtwin.model.registry import ensure_parts, set_value
+from dtwin.signal.order import RUNUP_SPEED_CHANGE, tacho_speed_range
 from dtwin.spec import load_spec
+from dtwin.spec.build import SEVERITY_KIND, build_twin, twin_kind
 
 from ..discover import DiscoverySettings, discover
 from ..excitation_response import SPLIT_STIFFNESS, stiffness_split
@@ -305,7 +305,7 @@ def runup_range(rec, spec, channel: str | int = 0) -> tuple[float, float] | None
     The speed comes from the tachometer when the record has one (its 2nd and 98th
     percentiles), else from the strongest line near the mesh frequency in each quarter of the
     record (a run-up moves it monotonically). A record is a run-up when the speed changes by
-    more than :data:`dtwin.order.RUNUP_SPEED_CHANGE` of its median.
+    more than :data:`dtwin.signal.order.RUNUP_SPEED_CHANGE` of its median.
     """
     fs = float(rec.sample_rate)
     gs = spec.gear_set()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
-from dtwin.spectrum import noise_floor
+from dtwin.signal.spectrum import noise_floor
 
 __all__ = ["plot_calibration_spectra", "plot_calibration_gap"]
 

@@ -50,7 +50,7 @@ def plot_fit_spectrum(
     numbered and listed under the panels.
 
     **Arguments:** `freqs` (Hz) of the points; `measured`, `fitted` (linear, `unit`); `labels`:
-    ``(frequency, text)`` of peaks to number (e.g. from :func:`dtwin.spectrum.label_peaks`);
+    ``(frequency, text)`` of peaks to number (e.g. from :func:`dtwin.signal.spectrum.label_peaks`);
     labels on neighbouring bins of one line are merged; `scale` ``"db"`` (dB re the unit's
     ISO 1683 reference, e.g. 1 µm/s²) or ``"linear"``.
     """
@@ -158,7 +158,7 @@ def plot_trajectories(
 
 def _unit(name: str) -> str:
     """The registry's unit of parameter `name` ("1" for dimensionless; "?" if unknown)."""
-    from dtwin.registry import REGISTRY
+    from dtwin.model.registry import REGISTRY
 
     info = REGISTRY.get(name)
     return "?" if info is None else ("dimensionless" if info.unit == "1" else info.unit)

@@ -100,7 +100,7 @@ def plot_fleet_overview(trends: Mapping[str, Any], parameter: str | None = None)
 
 def _unit(name: str) -> str:
     """The registry's unit of parameter `name` ("dimensionless" for 1; "?" if unknown)."""
-    from dtwin.registry import REGISTRY
+    from dtwin.model.registry import REGISTRY
 
     info = REGISTRY.get(name)
     return "?" if info is None else ("dimensionless" if info.unit == "1" else info.unit)

@@ -2,10 +2,10 @@
 
 An effect is a final subclass of :class:`AbstractEffect`. It names
 
-- the **part(s)** it adds (physics lives in ``dtwin/parts``): :meth:`AbstractEffect.parts`
+- the **part(s)** it adds (physics lives in ``dtwin/model/parts``): :meth:`AbstractEffect.parts`
   builds them from the effect's parameter vector ``theta`` (physical units);
 - its **parameters** (:meth:`AbstractEffect.parameters`): names (declared by the effect and
-  overlaid on :mod:`dtwin.registry` by a :class:`dtwin.registry.RegistryView`; the global
+  overlaid on :mod:`dtwin.model.registry` by a :class:`dtwin.model.registry.RegistryView`; the global
   registry is never changed), units, the *scale* of one fitting unit and whether the
   value is non-negative. ``theta = 0`` must give exactly the base model (nested models);
 - its **signature** (:meth:`AbstractEffect.signature`): the spectral lines it adds to an ideal
@@ -43,8 +43,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from dtwin.kinematics import Kinematics, OrderBounds, combination_text
-from dtwin.registry import ParameterInfo
+from dtwin.model.kinematics import Kinematics, OrderBounds, combination_text
+from dtwin.model.registry import ParameterInfo
 
 __all__ = ["AbstractEffect", "EffectContext", "EffectParameter", "SignatureLine", "carrier_grid",
            "comb_grid", "register_effect", "registered_effects", "unregister_effect"]
@@ -68,7 +68,7 @@ class EffectParameter:
     nonnegative: bool = False
 
     def info(self) -> ParameterInfo:
-        """Its registry entry, for a :class:`dtwin.registry.RegistryView` overlay (the global
+        """Its registry entry, for a :class:`dtwin.model.registry.RegistryView` overlay (the global
         registry is not changed: an effect's parameters belong to the search). It has no
         twin address: the effect builds its parts from the values (:meth:`AbstractEffect.parts`)."""
         lo, hi = self.bounds

@@ -8,8 +8,12 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from dtwin.errors import SettingsError
-from dtwin.kinematics import combination_text
-from dtwin.parts.bearing_defect import BEARING_DEFECTS, PlanetBearingDefect, bearing_frequencies
+from dtwin.model.kinematics import combination_text
+from dtwin.model.parts.bearing_defect import (
+    BEARING_DEFECTS,
+    PlanetBearingDefect,
+    bearing_frequencies,
+)
 
 from .base import AbstractEffect, EffectParameter, SignatureLine
 
@@ -22,7 +26,7 @@ _PER_IMPACT = {"outer": 1, "inner": 1, "ball": 2}
 class PlanetBearingEffect(AbstractEffect):
     """A defect on one race of a planet bearing (`race`: ``"outer"``, ``"inner"``, ``"ball"``).
 
-    Part: :class:`dtwin.parts.bearing_defect.PlanetBearingDefect` on planet 0 (the planets are
+    Part: :class:`dtwin.model.parts.bearing_defect.PlanetBearingDefect` on planet 0 (the planets are
     alike up to the phase of the transfer-path window; the spectrum does not tell which one).
     Bearing geometry from the spec's ``[bearings.planet]`` (:meth:`adapt`; without it the
     candidate is withdrawn). Frequencies in the carrier frame, ``f_r = fm / Zp``: BPFO (outer

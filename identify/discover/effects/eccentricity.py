@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from dtwin.parts.imperfections import CarrierEccentricity, SunEccentricity
+from dtwin.model.parts.imperfections import CarrierEccentricity, SunEccentricity
 
 from .base import AbstractEffect, EffectParameter, carrier_grid, family_grid, rms
 
@@ -21,7 +21,7 @@ def _components(prefix: str, body: str):
 class SunEccentricityEffect(AbstractEffect):
     """Sun run-out turning with the sun: ``e (cos phi, sin phi) = (e_x, e_y)`` (m).
 
-    Part: two :class:`dtwin.parts.imperfections.SunEccentricity` (phase 0 and π/2), linear in
+    Part: two :class:`dtwin.model.parts.imperfections.SunEccentricity` (phase 0 and π/2), linear in
     ``(e_x, e_y)``. The mesh excitation turns at ``fsr − fc = fs/N`` in the carrier frame, so
     lines ``m fm ± fs/N + n fc`` — the sun-fault family (look-alike group ``sun_rotation``; a
     local fault adds the higher harmonics of fs/N, a pure run-out only the first).
@@ -56,7 +56,7 @@ class SunEccentricityEffect(AbstractEffect):
 class CarrierEccentricityEffect(AbstractEffect):
     """Carrier eccentricity: all pins offset by ``(e_x, e_y)`` (m) in the carrier frame.
 
-    Part: two :class:`dtwin.parts.imperfections.CarrierEccentricity`. Static in the carrier
+    Part: two :class:`dtwin.model.parts.imperfections.CarrierEccentricity`. Static in the carrier
     frame: each planet's meshes get a different clearance (unequal load sharing) — the same
     forbidden ``m fm + n fc`` lines (group ``carrier_sidebands``).
     """

@@ -7,9 +7,9 @@ from typing import ClassVar
 
 import equinox as eqx
 
-from dtwin.kinematics import combination_text
-from dtwin.parts.drive import LoadPart
-from dtwin.parts.loads import FluctuatingLoad
+from dtwin.model.kinematics import combination_text
+from dtwin.model.motor.drive import LoadPart
+from dtwin.model.motor.loads import FluctuatingLoad
 
 from .base import AbstractEffect, EffectParameter, SignatureLine, carrier_grid, rms
 
@@ -17,7 +17,7 @@ from .base import AbstractEffect, EffectParameter, SignatureLine, carrier_grid, 
 class LoadFluctuationEffect(AbstractEffect):
     """Load torque ``a_cos cos(2 pi h fc t) + a_sin sin(2 pi h fc t)`` (N·m) on the carrier.
 
-    Parts: two :class:`dtwin.parts.loads.FluctuatingLoad` (mean 0, active at any speed). A
+    Parts: two :class:`dtwin.model.motor.loads.FluctuatingLoad` (mean 0, active at any speed). A
     misaligned or unbalanced output coupling fluctuates at orders 1–2 of the output speed. All
     planets' forces are modulated together: lines ``allowed ± h fc`` — on the carrier grid,
     look-alike of the planet-to-planet imperfections (group ``carrier_sidebands``), plus the

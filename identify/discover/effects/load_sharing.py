@@ -6,7 +6,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from dtwin.parts.imperfections import MeshOffsets
+from dtwin.model.parts.imperfections import MeshOffsets
 
 from .base import AbstractEffect, EffectParameter, carrier_grid, rms
 
@@ -14,7 +14,7 @@ from .base import AbstractEffect, EffectParameter, carrier_grid, rms
 class LoadSharingEffect(AbstractEffect):
     """Extra clearance (m) of both meshes of planets 1 … N−1 relative to planet 0.
 
-    Part: :class:`dtwin.parts.imperfections.MeshOffsets` with the same offset on the sun and
+    Part: :class:`dtwin.model.parts.imperfections.MeshOffsets` with the same offset on the sun and
     ring mesh of a planet (a planet with a larger clearance carries less load). Lines: the
     forbidden ``m fm + n fc`` of the sideband rule, like every planet-to-planet difference.
     """

@@ -7,8 +7,8 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from dtwin.faults import Pitting
-from dtwin.parts.local_fault import LocalFault
+from dtwin.model.faults import Pitting
+from dtwin.model.parts.local_fault import LocalFault
 
 from .base import AbstractEffect, EffectParameter, comb_grid
 
@@ -20,7 +20,7 @@ _FLANK_TEXT = {"sun": "the flank meeting the sun", "ring": "the flank meeting th
 class LocalFaultEffect(AbstractEffect):
     """Pitting of one tooth (severity = fraction of the flank band lost, ≥ 0).
 
-    Part: :class:`dtwin.parts.local_fault.LocalFault` of a :class:`dtwin.faults.Pitting`
+    Part: :class:`dtwin.model.parts.local_fault.LocalFault` of a :class:`dtwin.model.faults.Pitting`
     (stiffness loss linear in the severity). Lines: the impulse comb of the tooth meeting its
     mates (:func:`~dtwin.identify.discover.effects.base.comb_grid`), at low frequency and as mesh
     sidebands: sun ``k fs/N + n fc`` (fm = Zs fs/N: this holds ``m fm + j fs/N + n fc``);

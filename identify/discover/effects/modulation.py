@@ -7,10 +7,10 @@ from typing import ClassVar
 
 import equinox as eqx
 
-from dtwin.parts.drive import LoadPart
-from dtwin.parts.loads import FluctuatingLoad
-from dtwin.parts.mount_path import MountPath
-from dtwin.parts.speed_fluctuation import SpeedFluctuation
+from dtwin.model.motor.drive import LoadPart
+from dtwin.model.motor.loads import FluctuatingLoad
+from dtwin.model.motor.speed_fluctuation import SpeedFluctuation
+from dtwin.model.parts.mount_path import MountPath
 
 from ...lines import find_modulation, modulation_lines
 from .base import AbstractEffect, EffectParameter, SignatureLine, rms
@@ -38,8 +38,8 @@ class LocatedModulationEffect(AbstractEffect):
     unevenness or a speed controller's oscillation — anything that modulates the transmitted
     torque at a rate that is not a gearbox frequency.
 
-    Parts: two :class:`dtwin.parts.loads.FluctuatingLoad` (mean 0, active at any speed) and a
-    :class:`dtwin.parts.speed_fluctuation.SpeedFluctuation` of the drive's rotor at the same
+    Parts: two :class:`dtwin.model.motor.loads.FluctuatingLoad` (mean 0, active at any speed) and a
+    :class:`dtwin.model.motor.speed_fluctuation.SpeedFluctuation` of the drive's rotor at the same
     frequency, ``b_cos cos(2 pi f_x t) + b_sin sin(2 pi f_x t)`` (rad/s). The load modulates the
     amplitude of every mesh force; the speed fluctuation, which a speed-controlled drive under a
     fluctuating load also makes (its controller's speed dip), modulates the mesh phase, whose
@@ -52,7 +52,7 @@ class LocatedModulationEffect(AbstractEffect):
     The line at ``f_x`` itself lies below the lowest line of a healthy record (the planet-pass
     frequency), where calibration has nothing to fit the path against: the housing rocking on
     its mounts carries it to the sensor with a gain and phase of its own
-    (:class:`dtwin.parts.mount_path.MountPath`). Its two amplitudes are parameters of their own,
+    (:class:`dtwin.model.parts.mount_path.MountPath`). Its two amplitudes are parameters of their own,
     stated as the torque fluctuation that would give the line through a flat path (the
     planet-pass window's mean, no high-pass: ring-mesh force per ring mass), so the torque's
     estimate rests on the mesh sidebands, which reach the sensor through the calibrated path.

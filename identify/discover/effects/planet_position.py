@@ -6,7 +6,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from dtwin.parts.imperfections import PlanetPositionErrors
+from dtwin.model.parts.imperfections import PlanetPositionErrors
 
 from .base import AbstractEffect, EffectParameter, carrier_grid, rms
 
@@ -14,7 +14,7 @@ from .base import AbstractEffect, EffectParameter, carrier_grid, rms
 class PlanetPositionEffect(AbstractEffect):
     """Angular position errors of planets 1 … N−1 relative to planet 0 (rad).
 
-    Part: :class:`dtwin.parts.imperfections.PlanetPositionErrors` with ``pin_offset=False``:
+    Part: :class:`dtwin.model.parts.imperfections.PlanetPositionErrors` with ``pin_offset=False``:
     the planets' mesh phases shift with their angles while the load stays shared equally, as
     in a gearbox whose floating sun or ring takes up the pins' offsets (for three planets all
     of them). These are the planets of a spec's ``imperfections.planet_position_errors``, so a

@@ -6,8 +6,8 @@ from typing import ClassVar
 
 import equinox as eqx
 
-from dtwin.kinematics import combination_text
-from dtwin.parts.torque_ripple import TorqueRipple
+from dtwin.model.kinematics import combination_text
+from dtwin.model.motor.torque_ripple import TorqueRipple
 
 from .base import AbstractEffect, EffectParameter, SignatureLine, rms
 
@@ -15,7 +15,7 @@ from .base import AbstractEffect, EffectParameter, SignatureLine, rms
 class TorqueRippleEffect(AbstractEffect):
     """Torque ripple ``a_cos cos(h p theta_s) + a_sin sin(h p theta_s)`` (N·m) on the sun.
 
-    Part: :class:`dtwin.parts.torque_ripple.TorqueRipple` (new part). Lines far from fm:
+    Part: :class:`dtwin.model.motor.torque_ripple.TorqueRipple` (new part). Lines far from fm:
     ``j h fe + m fm + n N fc`` (j = ±1, |n| ≤ 2), fe = p fsr the electrical frequency.
     """
 

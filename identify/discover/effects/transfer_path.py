@@ -10,9 +10,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from dtwin.errors import SettingsError
-from dtwin.kinematics import combination_text
-from dtwin.parts.housing_resonance import HousingResonance
-from dtwin.parts.transfer_path import PlanetPassTransferPath
+from dtwin.model.kinematics import combination_text
+from dtwin.model.parts.housing_resonance import HousingResonance
+from dtwin.model.parts.transfer_path import PlanetPassTransferPath
 
 from .base import AbstractEffect, EffectParameter, SignatureLine
 
@@ -89,7 +89,7 @@ def locate_resonance(freqs, excess_db, f_max):
 class HousingResonanceEffect(AbstractEffect):
     """A housing mode in the transfer path, at `f_res` (Hz) with damping ratio `zeta`.
 
-    Part: :class:`dtwin.parts.housing_resonance.HousingResonance` (gain linear, 0 = absent).
+    Part: :class:`dtwin.model.parts.housing_resonance.HousingResonance` (gain linear, 0 = absent).
     `f_res` and `zeta` come from the data (:meth:`adapt`: the resonance curve that best explains
     the level excess of the lines the base model already has); the fit finds the gain. No new
     lines: the signature is the model's grid ``m fm + n fc`` (|n| ≤ 8) within
@@ -172,7 +172,7 @@ class HousingResonanceEffect(AbstractEffect):
 class TimeVaryingPathEffect(AbstractEffect):
     """The planet-pass window of the transfer path, for a base twin whose path is fixed.
 
-    Parts: two :class:`dtwin.parts.transfer_path.PlanetPassTransferPath` force paths (no ring
+    Parts: two :class:`dtwin.model.parts.transfer_path.PlanetPassTransferPath` force paths (no ring
     term), ``+a / c_p`` with the window ``((1 + cos phi)/2)^p`` and ``−a`` without (exponent
     0), ``c_p`` the window's mean (:func:`window_mean`): the fixed force path ``sum F_i`` becomes
     ``sum (1 + a (w_i / c_p − 1)) F_i`` — a modulation of depth a with unit mean, so the lines
