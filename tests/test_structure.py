@@ -187,3 +187,92 @@ def test_identify_raises_dtwin_errors_for_bad_settings():
         with pytest.raises(SettingsError) as e:
             make()
         assert isinstance(e.value, DtwinError) and isinstance(e.value, ValueError)
+
+
+# ---- docs/structure.md's rooms, checked against the code (issue 52) --------------------------
+
+STRUCTURE = ROOT / "docs" / "structure.md"
+
+
+def _doc_rooms() -> dict[str, list[str]]:
+    """Room → its entries (module or package paths), from the room table of docs/structure.md:
+    the table under the ``<!-- rooms`` marker, modules in backquotes in its third column."""
+    text = STRUCTURE.read_text(encoding="utf-8")
+    table = text.split("<!-- rooms", 1)[1].split("\n\n", 1)[0]
+    rooms = {}
+    for line in table.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) != 3 or cells[0] in ("room", "") or set(cells[0]) <= {"-"}:
+            continue
+        assert cells[0] not in rooms, f"room {cells[0]} listed twice"
+        rooms[cells[0]] = re.findall(r"`([\w.]+)`", cells[2])
+    return rooms
+
+
+def _doc_arrows() -> dict[str, set[str]]:
+    """Room → the rooms it may import, from the list under the ``<!-- arrows`` marker."""
+    text = STRUCTURE.read_text(encoding="utf-8")
+    block = text.split("<!-- arrows", 1)[1].split("-->", 1)[1].strip().split("\n\n", 1)[0]
+    arrows = {}
+    for line in block.splitlines():
+        m = re.fullmatch(r"- (\w+) → (.*)", line.strip())
+        assert m, f"not an arrow: {line!r}"
+        assert m.group(1) not in arrows, f"arrows of {m.group(1)} listed twice"
+        arrows[m.group(1)] = {r.strip() for r in m.group(2).split(",")}
+    return arrows
+
+
+def _covers(entry: str, module: str) -> bool:
+    # `dtwin` stands for dtwin/__init__.py alone; any other package covers what is below it
+    return module == entry or (entry != "dtwin" and module.startswith(entry + "."))
+
+
+def _room_of(rooms: dict[str, list[str]]) -> dict[str, str]:
+    """Each module → its room (the longest entry covering it). Fails for a module in no room or
+    in two rooms at once (the same entry listed twice)."""
+    mods = _modules()
+    entries = [(e, r) for r, es in rooms.items() for e in es]
+    dup = sorted({e for e, _ in entries if sum(e == x for x, _ in entries) > 1})
+    assert dup == [], f"listed in more than one room: {dup}"
+    unknown = sorted(e for e, _ in entries if e not in mods)
+    assert unknown == [], f"docs/structure.md names modules that do not exist: {unknown}"
+    out, homeless = {}, []
+    for m in mods:
+        hits = [(len(e), r) for e, r in entries if _covers(e, m)]
+        if not hits:
+            homeless.append(m)
+            continue
+        out[m] = max(hits)[1]
+    assert homeless == [], f"modules in no room of docs/structure.md: {sorted(homeless)}"
+    return out
+
+
+def test_every_module_sits_in_one_room_of_the_docs():
+    rooms = _doc_rooms()
+    assert {"core", "model", "signal", "spec", "io", "report", "cli"} <= set(rooms)
+    room_of = _room_of(rooms)
+    assert room_of["dtwin.model.twin"] == "model"
+    assert room_of["dtwin"] == "top"
+
+
+def test_the_docs_arrows_name_rooms_and_have_no_cycle():
+    rooms, arrows = _doc_rooms(), _doc_arrows()
+    named = set(arrows) | {r for rs in arrows.values() for r in rs}
+    assert named <= set(rooms), f"arrows name rooms not in the table: {named - set(rooms)}"
+    assert _cycles({r: set(rs) for r, rs in arrows.items()}) == []
+    assert all(r not in rs for r, rs in arrows.items()), "a room's arrow to itself"
+
+
+def test_imports_between_rooms_follow_the_docs_arrows():
+    """Counting imports inside functions (the annotations-only TYPE_CHECKING block aside)."""
+    rooms, arrows = _doc_rooms(), _doc_arrows()
+    room_of = _room_of(rooms)
+    mods = _modules()
+    bad = []
+    for name, (f, is_pkg) in sorted(mods.items()):
+        a = room_of[name]
+        for dep in sorted(_imports(name, _tree(f), is_pkg, mods, module_level=False)):
+            b = room_of[dep]
+            if b != a and b not in arrows.get(a, set()):
+                bad.append(f"{name} ({a}) imports {dep} ({b})")
+    assert bad == [], "imports docs/structure.md does not allow:\n" + "\n".join(bad)
