@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 
 from dtwin.errors import RecordError, SpecError
-from dtwin.identify.lines import estimate_speed as lines_estimate_speed
 from dtwin.identify.operating_point import (
     SpeedDisagreementError,
     SpeedWarning,
     resolve_speed,
+    speed_from_spectrum,
 )
 from dtwin.io.readers import read_record
 from dtwin.io.record import Record
@@ -83,7 +83,8 @@ def test_offset_comb_loses_to_the_true_one(spec):
     # the spectrum-level entry point of discovery and calibration gives the same speed (it
     # returned 29.8856 Hz here, the comb whose 2fm − fc sits on 2fm)
     f, a = amplitude_spectrum(x, FS, "hann")
-    est = lines_estimate_speed(f, np.asarray(a), Kinematics.from_spec(spec, 29.7))
+    est = speed_from_spectrum(f, np.asarray(a), Kinematics.from_spec(spec, 29.7), 29.7,
+                              search=0.05).f_sun
     assert est == pytest.approx(F_TRUE, abs=5e-4)
 
 
