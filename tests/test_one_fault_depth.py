@@ -62,11 +62,14 @@ DECIDING = ("kind", "f_sun", "channel", "splits", "low_band", "ramps", "flanks",
 def _deciding(kwargs: dict, estimate_severity) -> dict:
     """The options of one `estimate_severity` call that decide its problem and solution, with
     its own and fit's defaults filled in."""
+    import dataclasses
     import inspect
 
     from dtwin.identify.fit import fit
+    from dtwin.identify.fit_settings import FitSettings
 
-    out = {}
+    # fit's settings (FitSettings' defaults), then fit's and estimate_severity's own keywords
+    out = {f.name: f.default for f in dataclasses.fields(FitSettings)}
     for f in (fit, estimate_severity):
         for n, p in inspect.signature(f).parameters.items():
             if p.default is not inspect.Parameter.empty:
