@@ -36,6 +36,7 @@ import os
 import jax
 
 from . import _maps
+from ._config import OFF_VALUES
 
 MIN_COMPILE_S = 0.5
 """Compilations shorter than this (s) are not followed by a trim."""
@@ -77,7 +78,6 @@ def _after_compile(event: str, duration: float, **_) -> None:
 
 def enabled() -> bool:
     """Whether the environment leaves the trim on (``DTWIN_MALLOC_TRIM``, default on)."""
-    from ._config import OFF_VALUES
 
     return os.environ.get("DTWIN_MALLOC_TRIM", "on").strip().lower() not in OFF_VALUES
 

@@ -44,6 +44,8 @@ import threading
 
 import jax
 
+from ._config import OFF_VALUES
+
 FRACTION = 0.5
 """Share of ``vm.max_map_count`` above which :func:`relieve` drops JAX's caches."""
 
@@ -92,7 +94,6 @@ def map_limit() -> int | None:
 
 def enabled() -> bool:
     """Whether the environment leaves the guard on (``DTWIN_MAP_GUARD``, default on)."""
-    from ._config import OFF_VALUES
 
     return os.environ.get("DTWIN_MAP_GUARD", "on").strip().lower() not in OFF_VALUES
 

@@ -39,9 +39,11 @@ import numpy as np
 
 from dtwin.errors import RecordError
 from dtwin.model.kinematics import Kinematics, combination_text
+from dtwin.model.motor.drive import DrivePart
 from dtwin.signal.order import shaft_speed, tacho_angle
 from dtwin.signal.spectrum import noise_floor
 from dtwin.simulation.speed_range import check_input_speed
+from dtwin.spec import load_spec
 
 __all__ = ["OperatingPoint", "SpeedCheck", "SpeedDisagreementError", "SpeedLine", "SpeedProfileEstimate",
            "SpeedWarning", "check_speed", "estimate_speed", "estimate_speed_profile",
@@ -200,7 +202,6 @@ def _hann_spectrum(x: np.ndarray, fs: float, n_seg: int, pad: int) -> _Spectrum:
 def _loaded(spec_or_twin):
     """A spec given by its path, loaded; anything else as it is."""
     if isinstance(spec_or_twin, (str, os.PathLike)):
-        from dtwin.spec import load_spec
 
         return load_spec(spec_or_twin)
     return spec_or_twin
@@ -229,7 +230,6 @@ def nominal_speed(spec_or_twin) -> float | None:
     if obj is None:
         return None
     if hasattr(obj, "parts"):
-        from dtwin.model.motor.drive import DrivePart
 
         for p in obj.parts:
             if isinstance(p, DrivePart):

@@ -39,6 +39,7 @@ from dtwin.errors import RecordError, SettingsError
 from dtwin.model.kinematics import Kinematics
 from dtwin.signal.order import tacho_times
 from dtwin.simulation.simulate import daq_filter
+from dtwin.spec import load_spec
 
 from .operating_point import resolve_speed
 from .residuals import MIN_SIDEBAND_BINS
@@ -162,7 +163,6 @@ def decimation_for_fit(sample_rate: float, kin: Kinematics,
 def _gear_set(spec_or_twin):
     """Tooth numbers and planets from a spec (or its path), a twin or a gear set."""
     if isinstance(spec_or_twin, (str, Path)):
-        from dtwin.spec import load_spec
 
         spec_or_twin = load_spec(spec_or_twin)
     if hasattr(spec_or_twin, "gear_set"):

@@ -276,3 +276,35 @@ def test_imports_between_rooms_follow_the_docs_arrows():
             if b != a and b not in arrows.get(a, set()):
                 bad.append(f"{name} ({a}) imports {dep} ({b})")
     assert bad == [], "imports docs/structure.md does not allow:\n" + "\n".join(bad)
+
+
+# The command line imports every command module to build `dtwin --help`, so its modules (and the
+# demo, a script of those commands) import the library inside the command functions: the
+# start-up time of one command does not pay for all (dtwin/cli/app.py). Anywhere else a
+# first-party import inside a function needs its reason, a comment on its line or the line
+# above (a heavy optional dependency loaded when its output is asked for).
+_DEFERRING = ("dtwin.cli", "dtwin.identify.demo")
+
+
+def test_first_party_imports_inside_functions_say_why():
+    found = []
+    for name, (f, is_pkg) in _modules().items():
+        if name.startswith(_DEFERRING):
+            continue
+        lines = f.read_text(encoding="utf-8").splitlines()
+        for fn in ast.walk(_tree(f)):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for n in ast.walk(fn):
+                if isinstance(n, ast.ImportFrom):
+                    target = _from_module(name, n, is_pkg)
+                elif isinstance(n, ast.Import):
+                    target = n.names[0].name
+                else:
+                    continue
+                if not target.startswith("dtwin"):
+                    continue
+                here = lines[n.lineno - 1] + lines[n.lineno - 2] if n.lineno > 1 else ""
+                if "#" not in here:
+                    found.append(f"{f.relative_to(ROOT)}:{n.lineno} {lines[n.lineno - 1].strip()}")
+    assert sorted(set(found)) == [], "imports inside functions without a reason"

@@ -33,6 +33,8 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import OutputExistsError, SettingsError
+
 __all__ = ["EXPORT_SUFFIXES", "Columns", "Grid", "check_export_path", "columns_csv",
            "columns_dataframe", "export_arrays", "read_columns_csv", "write_columns", "write_grid"]
 
@@ -192,7 +194,6 @@ def check_export_path(path: str | Path, *, force: bool = False,
     `option`; **returns** the path."""
     import os
 
-    from ..errors import OutputExistsError, SettingsError
 
     path = Path(path)
     if _suffix(path) not in EXPORT_SUFFIXES:

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..signal.indicators import time_stats
 from ..signal.spectrum import LabelledPeak
 from .levels import level_axis, levels, place_labels, set_level_limits, unit_text
 
@@ -132,7 +133,6 @@ def plot_waveform(
 ) -> Figure:
     """Time waveform (s, `unit`), with RMS, kurtosis and crest factor in the legend."""
     unit = unit_text(unit)
-    from ..signal.indicators import time_stats
 
     fig = Figure(figsize=(9, 3.2))
     ax = fig.add_subplot(1, 1, 1)

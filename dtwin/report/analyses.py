@@ -16,7 +16,25 @@ from typing import Any
 import numpy as np
 
 from ..errors import RecordError, SpecError
+from ..model.faults import mesh_stiffnesses, parse_fault
+from ..model.gears import characteristic_frequencies, geometry_summary
+from ..model.modal import frequency_sensitivities, modal_analysis
+from ..model.motor.drive import DrivePart
+from ..model.motor.shaft import Shaft
+from ..model.motor.speed_source import IdealSpeedSource, SpeedProfile
+from ..model.stiffness import DOUBLE_CONTACT_FACTOR, single_pair_from_mean
+from ..signal.spectrum import (
+    FrequencyBasis,
+    LabelledPeak,
+    amplitude_spectrum,
+    find_peaks,
+    label_peaks,
+    noise_floor,
+    time_stats,
+)
+from ..simulation.simulate import simulate
 from ..simulation.speed_range import check_input_speed
+from ..spec.build import build_twin, daq_from_spec, operating_speed
 
 
 def freqs_report(spec: Any, f_sun: float | None, planet_fault: str, source: str) -> dict:
@@ -27,7 +45,6 @@ def freqs_report(spec: Any, f_sun: float | None, planet_fault: str, source: str)
     ``source``, ``f_sun_hz``, ``planet_fault``, ``frequencies_hz`` (registry names),
     ``orders`` (frequency / f_sun), ``f_planet_fault_both_flanks_hz`` and ``geometry``.
     """
-    from ..model.gears import characteristic_frequencies, geometry_summary
 
     if planet_fault not in ("paper", "both_flanks"):
         raise SpecError([("--planet-fault", f"use paper or both_flanks, got {planet_fault!r}")])
@@ -66,7 +83,6 @@ def modes_report(lp, model: str, f_mesh: float | None) -> dict[str, Any]:
     """JSON-ready summary: distinct modes with type, multiplicity, sensitivities, mesh order."""
     import numpy as np
 
-    from ..model.modal import frequency_sensitivities, modal_analysis
 
     res = modal_analysis(lp, model)
     sens = frequency_sensitivities(lp, ("k_sun_planet", "k_ring_planet"), model)
@@ -123,7 +139,6 @@ def stiffness_curves(
     import jax.numpy as jnp
     import numpy as np
 
-    from ..model.faults import mesh_stiffnesses
 
     if n_cycles is None:
         z = {"sun": lp.z_sun, "planet": lp.z_planet, "ring": lp.z_ring}
@@ -152,7 +167,6 @@ def stiffness_report(lp: Any, faults: Any, curves: dict[str, Any]) -> dict[str, 
     """JSON-ready summary: per mesh k_mean, c', 1.75 c', eps and the faulty extremes (N/m)."""
     import numpy as np
 
-    from ..model.stiffness import DOUBLE_CONTACT_FACTOR, single_pair_from_mean
 
     meshes = {}
     for name, k, eps, key in (("sun_planet", lp.k_sun_planet, lp.eps_sp, "k_sun_planet"),
@@ -221,7 +235,6 @@ def gear_frequencies(spec, f_sun: float | None, planet_fault: str = "paper") -> 
     if f_sun is None:
         raise SpecError([("--f-sun", "the input speed is unknown: pass --f-sun HZ, give the "
                           "record a tachometer, or use a spec with operating.f_sun")])
-    from ..model.gears import characteristic_frequencies
 
     return characteristic_frequencies(spec.gear_set(), f_sun, planet_fault=planet_fault)
 
@@ -256,14 +269,6 @@ def spectrum_report(
     **Returns:** ``(report, data)``: the JSON-ready report and the arrays for the figures
     (``freqs``, ``spec``, ``floor``, ``labelled``, ``t``, ``x``, ``unit``).
     """
-    from ..signal.spectrum import (
-        FrequencyBasis,
-        amplitude_spectrum,
-        find_peaks,
-        label_peaks,
-        noise_floor,
-        time_stats,
-    )
 
     name, unit = channel_unit(record, channel)
     nyq = record.sample_rate / 2
@@ -276,6 +281,7 @@ def spectrum_report(
     if welch is None:
         freqs, spec = amplitude_spectrum(x, record.sample_rate, window)
     else:
+        # scipy.signal (Welch) only when an averaged spectrum is asked for: not at `dtwin --help`
         from ..signal.psd import averaged_amplitude_spectrum
 
         freqs, spec = averaged_amplitude_spectrum(x, record.sample_rate, window,
@@ -298,7 +304,6 @@ def spectrum_report(
                                n_planets)
         labelled = label_peaks(peaks, basis, df)
     else:
-        from ..signal.spectrum import LabelledPeak
 
         labelled = [LabelledPeak(k, p, ()) for k, p in enumerate(peaks, start=1)]
     stats = time_stats(x)
@@ -356,12 +361,6 @@ def run_simulation(
     """Simulate a spec; returns ``(record, result, settings)`` (the library behind the CLI)."""
     import equinox as eqx
 
-    from ..model.faults import parse_fault
-    from ..model.motor.drive import DrivePart
-    from ..model.motor.shaft import Shaft
-    from ..model.motor.speed_source import IdealSpeedSource, SpeedProfile
-    from ..simulation.simulate import simulate
-    from ..spec.build import build_twin, daq_from_spec, operating_speed
 
     f = check_input_speed(operating_speed(spec) if f_sun is None else f_sun)
     flts = None if not faults else tuple(parse_fault(s) for s in faults)

@@ -32,6 +32,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..io.output import to_jsonable
+from ..model.kinematics import LABEL_NOTES, SYMBOLS
+
 __all__ = ["LABEL_SYMBOLS", "HTMLReport", "figure_png", "frequency_text", "html_report",
            "symbol_glossary_markdown", "symbol_legend", "symbol_legend_markdown",
            "value_text", "write_html_report"]
@@ -131,7 +134,6 @@ def _fmt(v: Any, frequency: bool = False) -> tuple[str, bool]:
 def _label_symbols() -> dict[str, tuple[str, str]]:
     """:data:`LABEL_SYMBOLS` from the one table of the symbols (:data:`dtwin.model.kinematics.SYMBOLS`)
     and of the labels' annotations (:data:`dtwin.model.kinematics.LABEL_NOTES`)."""
-    from ..model.kinematics import LABEL_NOTES, SYMBOLS
 
     out = {}
     for sym, (meaning, _) in SYMBOLS.items():
@@ -151,7 +153,6 @@ LABEL_SYMBOLS: dict[str, tuple[str, str]] = _label_symbols()
 
 
 def _symbol_keys() -> dict[str, str]:
-    from ..model.kinematics import SYMBOLS
 
     return {sym: key for sym, (_, key) in SYMBOLS.items() if key is not None}
 
@@ -295,7 +296,6 @@ def html_report(
     frequencies: Mapping[str, Any] | None = None,
 ) -> str:
     """The HTML text of a report (arguments as :func:`write_html_report`)."""
-    from ..io.output import to_jsonable
 
     figures = dict(figures or {})
     tables = dict(tables or {})

@@ -1,6 +1,6 @@
 """Locate: the lines where the current model and the record disagree.
 
-The model's gain to the record (:func:`_log_gain`), the residual lines over 0 … Nyquist
+The residual lines over 0 … Nyquist
 (:func:`dtwin.identify.lines.residual_lines`) labelled with their fault combs and a modulation
 at a located frequency (:func:`_labelled`), and the current model's held-out gaps
 (:func:`locate`).
@@ -26,30 +26,6 @@ from ..lines import (
 
 if TYPE_CHECKING:
     from .search import Search
-
-
-def _log_gain(Y, Z0, floor, thr_db, n_lines: int = 20) -> float:
-    """Log of the gain that scales the model's amplitude `Z0` to the measured `Y`: the median
-    log ratio over the bins where both stand `thr_db` over the floor, started from the model's
-    `n_lines` strongest lines and iterated (three passes). Starting from every bin where the
-    measurement has a line would let lines the model lacks (a fault's comb, where the model
-    holds only numerical leakage) set the gain (benchmarks/README.md, "Moved from module
-    docstrings")."""
-    a0 = np.abs(Z0)
-    if not np.any(a0 > 0):
-        return 0.0
-    thr = floor * 10 ** (thr_db / 20.0)
-    pk = np.flatnonzero((a0[1:-1] >= a0[:-2]) & (a0[1:-1] >= a0[2:]) & (a0[1:-1] > 0)) + 1
-    if pk.size == 0:
-        return 0.0
-    pk = pk[np.argsort(a0[pk])[::-1][:n_lines]]
-    g = float(np.median(np.log(np.maximum(Y[pk], 1e-300) / a0[pk])))
-    for _ in range(3):
-        sel = (Y > thr) & (np.exp(g) * a0 > thr)
-        if not sel.any():
-            break
-        g = float(np.median(np.log(Y[sel] / a0[sel])))
-    return g
 
 
 def _on_added(r, families, tol):

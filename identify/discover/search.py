@@ -2,7 +2,8 @@
 
 :class:`Search` is the record's side of a run (:func:`open_search`): the record cut to whole
 folds, the speed and kinematics, the DAQ, the whole-record and fold spectra, and the held-out
-gaps of a model against them. :class:`State` is what the steps change: the candidates, the
+gaps of a model against them, with the model's gain to the record (:func:`_log_gain`).
+:class:`State` is what the steps change: the candidates, the
 extended model about them, the current model signal and parameters, and what was added.
 """
 
@@ -23,11 +24,34 @@ from ..gap import FLOOR_BINS, gap, named_bands, segment_spectra
 from ..lines import Kinematics, band_bounds, chance_match_probability
 from ..operating_point import resolve_speed
 from .effects.base import EffectContext
-from .locate import _log_gain
 from .model import ExtendedModel
 from .results import Step
 from .settings import DiscoverySettings
 from .statistics import chi2_quantile, normal_quantile
+
+
+def _log_gain(Y, Z0, floor, thr_db, n_lines: int = 20) -> float:
+    """Log of the gain that scales the model's amplitude `Z0` to the measured `Y`: the median
+    log ratio over the bins where both stand `thr_db` over the floor, started from the model's
+    `n_lines` strongest lines and iterated (three passes). Starting from every bin where the
+    measurement has a line would let lines the model lacks (a fault's comb, where the model
+    holds only numerical leakage) set the gain (benchmarks/README.md, "Moved from module
+    docstrings")."""
+    a0 = np.abs(Z0)
+    if not np.any(a0 > 0):
+        return 0.0
+    thr = floor * 10 ** (thr_db / 20.0)
+    pk = np.flatnonzero((a0[1:-1] >= a0[:-2]) & (a0[1:-1] >= a0[2:]) & (a0[1:-1] > 0)) + 1
+    if pk.size == 0:
+        return 0.0
+    pk = pk[np.argsort(a0[pk])[::-1][:n_lines]]
+    g = float(np.median(np.log(np.maximum(Y[pk], 1e-300) / a0[pk])))
+    for _ in range(3):
+        sel = (Y > thr) & (np.exp(g) * a0 > thr)
+        if not sel.any():
+            break
+        g = float(np.median(np.log(Y[sel] / a0[sel])))
+    return g
 
 
 @dataclasses.dataclass(eq=False)

@@ -23,9 +23,9 @@ from ..gap import FLOOR_BINS, segment_spectra
 from ..lines import residual_lines
 from .coverage import _adapted, coverage
 from .effects.base import EffectContext
-from .locate import Current, _labelled, _log_gain, locate
+from .locate import Current, _labelled, locate
 from .model import extended_model
-from .search import State
+from .search import State, _log_gain
 
 if TYPE_CHECKING:
     from .search import Search

@@ -13,6 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
+from dtwin.model.registry import REGISTRY
 from dtwin.plotting.levels import level_axis, levels, place_labels, set_level_limits
 
 __all__ = ["plot_fit_spectrum", "plot_loss_history", "plot_trajectories"]
@@ -158,7 +159,6 @@ def plot_trajectories(
 
 def _unit(name: str) -> str:
     """The registry's unit of parameter `name` ("1" for dimensionless; "?" if unknown)."""
-    from dtwin.model.registry import REGISTRY
 
     info = REGISTRY.get(name)
     return "?" if info is None else ("dimensionless" if info.unit == "1" else info.unit)

@@ -13,6 +13,8 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from dtwin.model.registry import REGISTRY
+
 __all__ = ["plot_fleet_overview", "plot_machine_trend"]
 
 _STATE_COLOURS = {"ok": "tab:green", "too_few": "tab:gray", "approaching": "tab:orange",
@@ -100,7 +102,6 @@ def plot_fleet_overview(trends: Mapping[str, Any], parameter: str | None = None)
 
 def _unit(name: str) -> str:
     """The registry's unit of parameter `name` ("dimensionless" for 1; "?" if unknown)."""
-    from dtwin.model.registry import REGISTRY
 
     info = REGISTRY.get(name)
     return "?" if info is None else ("dimensionless" if info.unit == "1" else info.unit)

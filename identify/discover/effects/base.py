@@ -46,6 +46,8 @@ from jaxtyping import Array, Float
 from dtwin.model.kinematics import Kinematics, OrderBounds, combination_text
 from dtwin.model.registry import ParameterInfo
 
+from ...lines import comb_lines
+
 __all__ = ["AbstractEffect", "EffectContext", "EffectParameter", "SignatureLine", "carrier_grid",
            "comb_grid", "register_effect", "registered_effects", "unregister_effect"]
 
@@ -223,7 +225,6 @@ def comb_grid(kin: Kinematics, f_max: float, symbol: str, g: float, carrier: int
     the teeth ``k g = m fm`` (j = 0: lines ``m fm + n fc`` that every planet-to-planet
     difference makes too) are left out, so the signature holds the lines that tell the fault
     apart from the ``carrier_sidebands`` group."""
-    from dtwin.identify.lines import comb_lines
 
     out = []
     for f, k, _, lab in comb_lines(kin, symbol, g, f_max, carrier):
