@@ -12,20 +12,20 @@ same factor. The faulty record can tell the splits apart, since the fault's own 
 response against the stiffness the fault removes.
 
 So a fault severity is fitted with both ends of the split: the calibrated spec as it is
-(:data:`SPLIT_CALIBRATED`), and the same spec with the stiffness waveform's excitation alone and
-a flat response (:data:`SPLIT_STIFFNESS`, :func:`stiffness_split`); window, damping and load
-shares stay as calibrated. The fits are scored by one rule (:func:`model_form_tolerance`): the
-split of least loss is reported (for a sun or ring fault fitted on the mesh bands, the loss
-with the low band added, which the fits did not use:
-:func:`low_band_losses`; there a small
+(:data:`SPLIT_CALIBRATED`), and the same spec with the stiffness waveform's excitation alone
+and a flat response (:data:`SPLIT_STIFFNESS`, :func:`stiffness_split`); window, damping and
+load shares stay as calibrated. The fits are scored by one rule (:func:`model_form_tolerance`):
+the split of least loss is reported (for a sun or ring fault fitted on the mesh bands, the loss
+with the low band added, which the fits did not use: :func:`low_band_losses`; there a small
 fault's comb stands tens of dB over the floor where its mesh sidebands stand a few, and the
-mesh lines, which the calibrated split was chosen to fit, would otherwise decide), and a split whose ``‖r‖²`` exceeds it by no more than the
-larger of ``χ²₁(95 %)`` in units of the residual variance and what the best fit leaves
-unexplained beyond the noise cannot be rejected. :func:`choose_split` applies it to two
-:class:`~dtwin.identify.fit_result.FitResult`; :func:`fit_both_ends` and
-:func:`fit_batch_both_ends` fit both ends and choose (called by :func:`dtwin.identify.fit.fit`
-and :func:`~dtwin.identify.fit_batch.fit_batch`, so by ``dtwin identify`` and ``dtwin fleet``);
-:mod:`dtwin.identify.severity` applies the rule over its loss shapes and flanks too.
+mesh lines, which the calibrated split was chosen to fit, would otherwise decide), and a split
+whose ``‖r‖²`` exceeds it by no more than the larger of ``χ²₁(95 %)`` in units of the residual
+variance and what the best fit leaves unexplained beyond the noise cannot be rejected.
+:func:`choose_split` applies it to two :class:`~dtwin.identify.fit_result.FitResult`;
+:func:`fit_both_ends` and :func:`fit_batch_both_ends` fit both ends and choose (called by
+:func:`dtwin.identify.fit.fit` and :func:`~dtwin.identify.fit_batch.fit_batch`, so by ``dtwin
+identify`` and ``dtwin fleet``); :mod:`dtwin.identify.severity` applies the rule over its loss
+shapes and flanks too.
 """
 
 from __future__ import annotations
