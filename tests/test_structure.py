@@ -304,7 +304,7 @@ def test_first_party_imports_inside_functions_say_why():
                     continue
                 if not target.startswith("dtwin"):
                     continue
-                here = lines[n.lineno - 1] + lines[n.lineno - 2] if n.lineno > 1 else ""
+                here = " ".join(lines[max(n.lineno - 2, 0):n.lineno])  # its line, the one above
                 if "#" not in here:
                     found.append(f"{f.relative_to(ROOT)}:{n.lineno} {lines[n.lineno - 1].strip()}")
     assert sorted(set(found)) == [], "imports inside functions without a reason"

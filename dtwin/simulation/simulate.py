@@ -802,13 +802,13 @@ def simulate(
     n_out = int(round(duration * fs_out))
     if n_out < 8:
         raise ValueError(f"duration {duration} s gives only {n_out} samples at {fs_out} Hz")
-    fs_hi, taps, _ = daq_grid(duration, 0.0, daq)
+    fs_hi, taps, ts_np = daq_grid(duration, discard, daq)
     half = (len(taps) - 1) // 2
     if start == "rest" and discard * fs_hi < half:
         # the filter needs samples before the first output sample; a run from rest starts at 0
         discard = half / fs_hi
+        _, _, ts_np = daq_grid(duration, discard, daq)
     t_start = float(discard)
-    _, _, ts_np = daq_grid(duration, t_start, daq)
     t0 = float(ts_np[0]) if start == "steady" else min(0.0, float(ts_np[0]))
     t1 = float(ts_np[-1])
     if f_sun is None:
