@@ -40,7 +40,7 @@ from dtwin.simulation.simulate import SolverOptions, settling_sequence, simulate
 from dtwin.spec import Spec
 from dtwin.spec.build import build_twin
 
-from .calibration_settings import CalibrationSettings
+from .calibration_settings import CalibrationSettings, window_terms_for
 from .gap import THRESHOLD_DB
 from .lines import Kinematics
 from .stopping import StallStopping
@@ -102,7 +102,7 @@ def _prepare_twin(spec: Spec, f_sun: float, kind: str | None, settings: Calibrat
     if i_path is None:
         raise SpecError([("sensor", "the twin has no planet-pass transfer path to calibrate")])
     path = twin.parts[i_path]
-    K = settings.window_terms
+    K = settings.window_terms or window_terms_for(twin.n_planets)
     if path.window_harmonics is not None:
         c = np.zeros(K)
         w = np.asarray(path.window_harmonics)[:K]

@@ -9,14 +9,32 @@ from dtwin.errors import SpecError
 from dtwin.model.registry import N_EXCITATION_HARMONICS, N_WINDOW_TERMS
 from dtwin.simulation.simulate import SolverOptions
 
-__all__ = ["CalibrationSettings"]
+__all__ = ["CalibrationSettings", "window_terms_for"]
+
+
+def window_terms_for(n_planets: int) -> int:
+    r"""Cosine terms of the planet-angle window a calibration fits by default: ``2 N + 1``
+    (``c_0 … c_{2N}``) for `n_planets` N, at most :data:`dtwin.model.registry.N_WINDOW_TERMS`.
+
+    Planets equally loaded and equally spaced add the window's harmonics ``k`` that are not
+    multiples of N to zero; what a fixed sensor sees of the window are its harmonics ``N`` and
+    ``2N`` (and higher): the planet-pass lines ``N f_c`` and ``2 N f_c`` of the static mesh
+    force and the sidebands ``m f_m ± N f_c``, ``m f_m ± 2 N f_c`` of the dynamic one
+    (McFadden & Smith 1985, "An explanation for the asymmetry of the modulation sidebands about
+    the tooth meshing frequency in epicyclic gear vibration", Proc. IMechE C 199(1)). The
+    terms below ``2 N`` that are not multiples of N carry unequal sharing and spacing. A fixed
+    count fits one gear set: seven terms reach ``2 N`` for three planets but stop short of
+    the second planet pass of four (``8 f_c``), whose line then goes unmodelled.
+    """
+    return min(2 * int(n_planets) + 1, N_WINDOW_TERMS)
 
 
 @dataclasses.dataclass(frozen=True)
 class CalibrationSettings:
     """Settings of :func:`calibrate` (all optional).
 
-    - `window_terms`: K, cosine terms of the window (``c_0 … c_{K-1}``).
+    - `window_terms`: K, cosine terms of the window (``c_0 … c_{K-1}``); None (default):
+      :func:`window_terms_for` the gear set, ``2 N + 1`` for N planets.
     - `n_knots`: knots of the sensor frequency response, log-spaced from 0.8 N f_c to the top
       of the pass band (the spec's ``[sensor] passband`` × the rate).
     - `mesh_harmonics`: mesh harmonics with a fitted excitation, at most
@@ -53,7 +71,7 @@ class CalibrationSettings:
       docstring, "Linearisation").
     """
 
-    window_terms: int = 7
+    window_terms: int | None = None
     n_knots: int = 5
     mesh_harmonics: int | None = None
     discard: float = 0.3
@@ -76,9 +94,9 @@ class CalibrationSettings:
         if self.load_sharing not in ("auto", "on", "off"):
             raise SpecError([("load_sharing", "must be 'auto', 'on' or 'off', got "
                               f"{self.load_sharing!r}")])
-        if self.window_terms < 2:
+        if self.window_terms is not None and self.window_terms < 2:
             raise SpecError([("window_terms", "needs at least 2 cosine terms")])
-        if self.window_terms > N_WINDOW_TERMS:
+        if self.window_terms is not None and self.window_terms > N_WINDOW_TERMS:
             raise SpecError([("window_terms", f"at most {N_WINDOW_TERMS} cosine terms (those "
                               f"with a registry name), got {self.window_terms}")])
         if self.mesh_harmonics is not None and not (

@@ -458,4 +458,34 @@ def test_calibration_fits_no_more_mesh_harmonics_than_have_a_registry_name():
         with pytest.raises(SpecError, match="mesh_harmonics"):
             CalibrationSettings(mesh_harmonics=bad)
     with pytest.raises(SpecError, match="window_terms"):
-        CalibrationSettings(window_terms=10)
+        CalibrationSettings(window_terms=14)
+
+
+@pytest.mark.parametrize("n_planets", [3, 4])
+def test_calibrations_window_reaches_the_second_planet_pass(n_planets):
+    """A fixed sensor sees the window of N equal, equally spaced planets only at its harmonics
+    k N (closed form: ``sum_n cos(k (theta + 2 pi n / N)) = N cos(k theta)`` when N divides k,
+    else 0), so the planet-pass lines ``N f_c`` and ``2 N f_c`` need the window terms ``c_N``
+    and ``c_{2N}``. Seven terms, the count once fixed, stop at ``c_6``: a four-planet gear set's
+    ``8 f_c`` line went unmodelled (its held-out low band 10 dB). The default count follows the
+    spec: ``2 N + 1``."""
+    from dtwin.identify.calibrate import CalibrationSettings
+    from dtwin.identify.calibration_model import _prepare_twin
+    from dtwin.identify.calibration_settings import window_terms_for
+    from dtwin.model.registry import N_WINDOW_TERMS
+
+    assert window_terms_for(n_planets) == 2 * n_planets + 1
+    assert window_terms_for(40) == N_WINDOW_TERMS
+    d = spec_to_dict(preset("paper-sim"))
+    d["gears"].update(z_sun=20, z_planet=30, z_ring=80, n_planets=n_planets)
+    spec = load_spec(d)
+    twin, i_path, _, layout = _prepare_twin(spec, 30.0, "torsional", CalibrationSettings(), 4)
+    assert layout.n_window == 2 * n_planets  # c_1 … c_{2N} free
+    # the twin's own window of equal static forces over one carrier turn: its harmonics
+    path = twin.parts[i_path]
+    c = np.ones(len(path.window_harmonics))
+    theta = np.linspace(0.0, 2 * np.pi, 256, endpoint=False)
+    phi = theta[:, None] + np.asarray(twin.lp.planet_angles)[None, :] - float(path.sensor_angle)
+    seen = np.abs(np.fft.rfft((np.cos(phi[..., None] * np.arange(c.size)) @ c).sum(axis=1)))
+    orders = [k for k in range(1, c.size + 3) if seen[k] > 1e-9 * seen[0]]
+    assert orders == [n_planets, 2 * n_planets]

@@ -137,7 +137,7 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
 
         ("RECORDS", "{missing}"), ("--spec", "{missing}"), ("--preset", "nope"),
         ("--model", "quantum"), ("--knots", "0"), ("--window-terms", "1"),
-        ("--window-terms", "10"), ("--mesh-harmonics", "0"), ("--mesh-harmonics", "13"),
+        ("--window-terms", "14"), ("--mesh-harmonics", "0"), ("--mesh-harmonics", "13"),
         ("--load-sharing", "maybe"), ("--f-sun", "0"), ("--tacho", "nope"),
         ("--channel", "nope"), ("--sample-rate", "-1"), *OUT_BAD]),
     ("discover", R): (["--preset", "paper-sim"], [

@@ -39,8 +39,10 @@ def calibrate(
                                      "(default: the spec's model.kind)."),
     knots: int = typer.Option(5, "--knots", parser=opts.whole_number,
                               help="Knots of the sensor frequency response."),
-    window_terms: int = typer.Option(7, "--window-terms", parser=opts.whole_number,
-                                     help="Cosine terms of the window."),
+    window_terms: int | None = typer.Option(
+        None, "--window-terms", parser=opts.whole_number,
+        help="Cosine terms of the planet-angle window (default: 2 N + 1 for N planets, the "
+             "window's harmonics up to the second planet pass 2 N f_carrier)."),
     mesh_harmonics: int | None = typer.Option(
         None, "--mesh-harmonics", parser=opts.whole_number,
         help="Mesh harmonics with a fitted transmission error (default: every one below 0.45 × "

@@ -112,9 +112,10 @@ def _zero_carrier_eccentricity():
 
 
 #: Registered cosine terms of the window and mesh harmonics of the excitation (calibration
-#: fits no more than these: every calibrated quantity has a name). Twelve mesh harmonics are
+#: fits no more than these: every calibrated quantity has a name). Thirteen window terms reach
+#: the second planet-pass harmonic ``2 N`` of up to six planets; twelve mesh harmonics are
 #: those of the spec's default stiffness waveform (``mesh.n_harmonics``).
-N_WINDOW_TERMS = 9
+N_WINDOW_TERMS = 13
 N_EXCITATION_HARMONICS = 12
 
 
