@@ -591,6 +591,9 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
     sidebands read its frequency to a few thousandths of a bin. Such a modulation says so
     (:attr:`Modulation.off`).
 
+    When no line below ``fm / 2`` locates a modulation, its sidebands may
+    (:func:`_from_sidebands`): a record need not hold the line ``f_x`` itself.
+
     **Returns:** the :class:`Modulation`, or ``None``."""
     meas = [r for r in lines if r.side == "measured"]
     trials = []  # (line, its family, the combinations it lies off)
@@ -622,4 +625,69 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
         if ch <= max_chance and (best is None or len(mem) + 1 > len(best.members)):
             best = Modulation(t.frequency, len(fam), len(pool),
                               ((t.frequency, "fx"),) + tuple(mem), ch, off)
+    if best is None:
+        best = _from_sidebands(meas, kin, tolerance, f_max, max_chance, min_members,
+                               len(trials))
+    return best
+
+
+def _sideband_trials(meas: list[ResidualLine], kin: Kinematics, tolerance: float,
+                     f_max: float, carrier: int = 8) -> list[tuple[ResidualLine, float]]:
+    """Trial modulation frequencies read from sidebands (:func:`_from_sidebands`): each
+    measured line above ``fm / 2`` that no combination describes and no comb holds, and its
+    distance to the gearbox lines ``L = m fm + n fc`` on either side of it (sideband rule,
+    |n| ≤ `carrier`); distances within `tolerance` of one tried already are not tried again.
+    **Returns:** ``[(line, f_x)]`` in order of frequency."""
+    fm, fc = kin.f_mesh, kin.f_carrier
+    bases = np.array(sorted(
+        m * fm + n * fc for m in range(1, int(f_max // fm) + 2)
+        for n in range(-carrier, carrier + 1)
+        if m * fm + n * fc > 0 and (kin.z_ring is None or kin.allowed_by_sideband_rule(m, n))))
+    out: list[tuple[ResidualLine, float]] = []
+    for r in sorted(meas, key=lambda r: r.frequency):
+        if r.descriptions or r.comb or r.frequency < 0.5 * fm or bases.size == 0:
+            continue
+        i = int(np.searchsorted(bases, r.frequency))
+        for b in bases[max(i - 1, 0): i + 1]:
+            f_x = abs(r.frequency - float(b))
+            if (2 * tolerance < f_x < 0.5 * fm
+                    and all(abs(f_x - g) > tolerance for _, g in out)):
+                out.append((r, f_x))
+    return out
+
+
+def _from_sidebands(meas: list[ResidualLine], kin: Kinematics, tolerance: float, f_max: float,
+                    max_chance: float, min_members: int, tried: int) -> Modulation | None:
+    """A modulation located from its sidebands alone, when no line below ``fm / 2`` locates
+    one (:func:`find_modulation`): a sensor that does not pass the modulation's own frequency
+    — an accelerometer's high-pass, a housing whose path carries no low frequencies — still
+    shows the sidebands ``L ± j f_x`` of the gearbox lines. Each trial of
+    :func:`_sideband_trials` (one line and its distance to a gearbox line) is scored as a trial
+    line is: its family's lines among the other measured lines, the chance Bonferroni over
+    every frequency tried here and by the caller (`tried`). Each trial's frequency is first
+    read from its whole family (:func:`_readings`), not from the one distance it was found by;
+    ``f_x`` and ``N fc − f_x`` put their first sidebands on the same lines, and on a tie the
+    slower is taken."""
+    trials = _sideband_trials(meas, kin, tolerance, f_max)
+    n_tried = tried + len(trials)
+    best = None
+    refined = []
+    for t, f_x in trials:  # one distance reads f_x to a tolerance; its family, far closer
+        f_ref, _, n = _readings(f_x, _on_family(_modulation_family(kin, f_x, f_max), meas,
+                                                tolerance))
+        refined.append((t, f_ref if n >= min_members else f_x))
+    for t, f_x in sorted(refined, key=lambda x: x[1]):  # the slowest on a tie
+        fam = _modulation_family(kin, f_x, f_max)
+        own = _on_family(fam, [t], tolerance)
+        if not own:
+            continue
+        pool = [r for r in meas if r is not t]
+        mem = [(r.frequency, entry[3]) for r, entry in _on_family(fam, pool, tolerance)]
+        if len(mem) < min_members:
+            continue
+        p = _union_measure(np.array([f for f, *_ in fam]), tolerance, f_max) / f_max
+        ch = min(1.0, n_tried * _binomial_tail(len(mem), len(pool), p))
+        if ch <= max_chance and (best is None or len(mem) + 1 > len(best.members)):
+            best = Modulation(f_x, len(fam), len(pool), ((t.frequency, own[0][1][3]),)
+                              + tuple(mem), ch)
     return best

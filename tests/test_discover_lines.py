@@ -190,11 +190,12 @@ def test_mesh_harmonics_labelled_up_to_nyquist(kin):
     assert describe(7 * kin.f_mesh, kin, 0.05) == []  # the old bound stopped at 4fm
 
 
-def _modulated_records(f_x, seed=3, fs=10_000.0, seconds=4.0):
+def _modulated_records(f_x, seed=3, fs=10_000.0, seconds=4.0, low=True):
     """A four-planet 24/36/96 box at 25 Hz (fm 480 Hz, fc 5 Hz, fp − 2fc = 3.33 Hz), written as
     sums of tones (no twin): a healthy record (mesh harmonics with the carrier sidebands the
     sideband rule allows) and the same with an amplitude modulation at `f_x` — the line f_x,
-    the planet-pass sidebands 4fc ± f_x and m fm ± f_x at every mesh harmonic."""
+    the planet-pass sidebands 4fc ± f_x and m fm ± f_x at every mesh harmonic (`low`: False
+    leaves out the line f_x and the planet-pass sidebands)."""
     rng = np.random.default_rng(seed)
     kin = Kinematics.from_gears(24, 36, 96, 4, 25.0)
     t = np.arange(int(fs * seconds)) / fs
@@ -206,6 +207,8 @@ def _modulated_records(f_x, seed=3, fs=10_000.0, seconds=4.0):
                                   + rng.uniform(0, 2 * np.pi))
     mod = 0.05 * np.sin(2 * np.pi * f_x * t) + 0.01 * np.sin(2 * np.pi * (20 - f_x) * t) \
         + 0.01 * np.sin(2 * np.pi * (20 + f_x) * t)
+    if not low:  # a sensor that passes no low frequencies: the sidebands alone
+        mod = np.zeros_like(t)
     for m in range(1, 10):
         for j in (-1, 1):
             mod += 0.02 / m * np.sin(2 * np.pi * (m * kin.f_mesh + j * f_x) * t
@@ -256,3 +259,33 @@ def test_a_modulation_is_located_off_a_combination_its_line_falls_near():
     assert found is None
     side = [r for r in labelled if r.side == "measured" and abs(r.frequency - 16.70) < 0.05]
     assert side and "added in step 1" in side[0].text, [r.text for r in side]
+
+
+def test_a_modulation_is_located_from_its_sidebands_alone():
+    """A record need not hold the line of a load fluctuation: an accelerometer's high-pass or
+    a housing path that carries no low frequencies leaves only its sidebands m fm ± f_x. Their
+    spacing from the mesh lines locates it (a family of 18 lines, read to a few thousandths
+    of a bin), at the slower of f_x and N fc − f_x, which put their first sidebands on the same
+    lines. Unrelated tones near the mesh lines locate nothing, and a healthy record nothing."""
+    from dtwin.identify.lines import find_combs, find_modulation, label_combs
+
+    kin, f, meas, healthy = _modulated_records(2.10, low=False)
+    tol = 0.25 * (f[1] - f[0])
+    lines = residual_lines(f, meas, healthy, kin, f_max=5000.0)
+    assert not any(r.side == "measured" and r.frequency < 0.5 * kin.f_mesh for r in lines)
+    combs = find_combs(lines, kin, tol, 5000.0)
+    mod = find_modulation(label_combs(lines, combs), kin, tol, 5000.0, combs=combs)
+    assert mod is not None and abs(mod.f_x - 2.10) < 0.01 and mod.chance < 1e-10, mod
+    assert len(mod.members) >= 12
+
+    kin, f, _, healthy = _modulated_records(2.10, low=False)
+    rng = np.random.default_rng(7)
+    t = np.arange(40_000) / 10_000.0
+    tones = sum(0.02 * np.sin(2 * np.pi * fr * t) for fr in
+                kin.f_mesh * np.arange(1, 9) + rng.uniform(1.0, 8.0, 8))
+    _, a = amplitude_spectrum(tones + 1e-4 * rng.normal(size=t.size), 10_000.0, "hann")
+    lines = residual_lines(f, healthy + np.asarray(a), healthy, kin, f_max=5000.0)
+    combs = find_combs(lines, kin, tol, 5000.0)
+    assert find_modulation(label_combs(lines, combs), kin, tol, 5000.0, combs=combs) is None
+    lines = residual_lines(f, healthy, healthy, kin, f_max=5000.0)
+    assert find_modulation(lines, kin, tol, 5000.0) is None
