@@ -17,6 +17,7 @@ machine and over the family follows. Written as ``family.json`` and ``family.md`
 
 Scoring (issue "Right on every machine" and "One fault depth"):
 
+- the calibration on baseline-1: held-out gap ≤ 3 dB;
 - a healthy record (baseline-2): nothing added and reported gap ≤ 3 dB;
 - an effect record: its group (:data:`GROUP`) is the first named and nothing else is added; a
   tone: nothing named;
@@ -188,6 +189,9 @@ def run_machine(name: str, folder: Path, out: Path, records: list[str] | None, s
         if res is not None:
             row.update(gap_before=_gap(res, "gap_before"), gap_after=_gap(res, "gap_heldout"),
                        not_determined=res.get("not_determined", []))
+            if row["right"] and not row["gap_after"] <= GAP_OK_DB:  # nan: not right
+                row.update(right=False, why=f"held-out gap {_f(row['gap_after'])} dB > "
+                                            f"{GAP_OK_DB:g} dB")
         rows.append(row)
         log(row)
     if not cal_spec.exists():

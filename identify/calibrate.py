@@ -45,7 +45,7 @@ reported without any refit.
 **Linearisation.** The response is first order in the excitation and the load shares, and
 the window multiplies the mesh forces, so a fit that moves both departs from it. The
 confirmation measures that: where the calibrated twin's confirmed gap exceeds the linearised
-response's gap at the same values by more than `CalibrationSettings.relinearize_db`, or the
+response's gap at the same values by more than `CalibrationSettings.converge_db`, or the
 calibrated twin is no closer to the records than the spec as written (its confirmed gap not
 below the "before" gap), the response is linearised again at the fitted values and the final
 fit rerun from there (an outer Gauss–Newton iteration, at most
@@ -281,7 +281,7 @@ def _final_fits(c: _Calibration, gap_before: GapResult
         # the response is first order in the excitation and the load shares (and bilinear in
         # them and the window): where the full simulation departs from it, linearise again at
         # the fitted values and refit from there (an outer Gauss–Newton iteration)
-        departs = gap_conf.total > gap_lin.total + settings.relinearize_db
+        departs = gap_conf.total > gap_lin.total + settings.converge_db
         # (no closer than the spec as written: worth another linearisation only where the
         # cross-validation would adopt the values)
         if not departs and (gap_conf.total < gap_before.total
