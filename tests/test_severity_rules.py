@@ -347,10 +347,11 @@ def test_a_planet_fault_is_fitted_on_the_flank_the_record_prefers():
 def test_a_planet_fault_is_fitted_on_every_flank_and_the_record_prefers_the_ring():
     """Full form. The user's spec names no flank, so the severity is fitted on both flanks, on
     the sun's and on the ring's (PLANET_FLANKS): the record rejects the two wrong ones, whose
-    fits read the fault 2.5–6× small, and the ring flank is reported with the truth inside its
-    interval. Measured (2 s record): ring 17.4 % [15.4, 32.2], loss 111.4; both flanks 9.2 %
-    (loss 241.5); sun flank 4.2 % (674.6); truth 23.5 %. Before the flanks were fitted, the
-    both-flank fit was the answer."""
+    fits read the fault 2–4× small, and the ring flank is reported with the truth inside its
+    interval. Measured (2 s record, 2026-11-30): ring 17.0 % [14.1, 33.4], loss 104.4; both
+    flanks 10.9 % (loss 186.0); sun flank 6.0 % (537.8); truth 23.5 % (earlier: ring 17.4 %,
+    both 9.2 %, sun 4.2 %). Before the flanks were fitted, the both-flank fit was the
+    answer."""
     from dtwin.identify.severity import PLANET_FLANKS
 
     est, truth, spec = _planet_pit_estimate()
