@@ -35,12 +35,14 @@ def test_discover_names_the_sun_fault_on_the_bundled_record(calibrated, tmp_path
     them as the best of another group (docs/discovery.md, "Two kinds of explanation per
     step")."""
     # one step (as the family benchmark's CI form, `--quick`): the claim is the effect named
-    # first. A second step here only refits the carrier look-alikes and stops, none
+    # first. A second step here refits a carrier-sideband look-alike and stops, none
     # significant (measured: the same sun_local_fault step, then "no candidate significant
-    # and identified"); stopping when nothing more is significant is checked in `make test`
-    # by the null and healthy records (tests/test_discover_workflow.py,
-    # tests/test_discover_independent.py), the full three-step search by `make test-all`
-    # (test_discover_names_the_sun_fault_alone_on_the_bundled_record below).
+    # and identified", ring_local_fault at p = 0.99), ~20 % of the command's time; stopping
+    # when nothing more is significant is checked in `make test` by the null and healthy
+    # records (tests/test_discover_workflow.py, tests/test_discover_independent.py), the full
+    # three-step search by `make test-all` (test_discover_names_the_sun_fault_alone_on_the_
+    # bundled_record below). If discovery stops naming the sun fault first, or its refit
+    # inside the range, this form fails as the full one does: step 1 is the same step.
     res = _discover_bench(calibrated, tmp_path, "--max-steps", "1")
     steps = res["steps"]
     assert len(steps) == 1 and steps[0]["group"] == "sun_rotation", [s["named"] for s in steps]
