@@ -239,7 +239,9 @@ def test_gain_column_outside_the_ode_is_exact(truth_record, spec):
         assert np.max(np.abs(col - ref)) < 1e-3 * np.max(np.abs(ref)), k
 
 
-def test_cli_identify_json_and_outputs(tmp_path, truth_record, spec, severity_fit):
+def test_cli_identify_json_and_outputs(tmp_path, truth_record):
+    # (it asked for the module's severity fit, which it never read: a worker that ran it alone
+    # paid for that estimate too)
     from dtwin.cli import main
     from dtwin.io.output import OutputFolder
 
