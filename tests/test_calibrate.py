@@ -417,7 +417,8 @@ def test_a_calibration_the_full_twin_does_not_bear_out_is_not_adopted(monkeypatc
     monkeypatch.setattr(cal, "simulate", louder)
     said = []
     res = cal.calibrate([rec], spec, kind="torsional", progress=said.append,
-                        settings=cal.CalibrationSettings(relinearize=1, relinearize_db=50.0))
+                        settings=cal.CalibrationSettings(relinearize=1, relinearize_db=50.0,
+                                                         converge_db=50.0))
     assert res.gap_heldout.total < 0.5 * res.gap_before.total  # cross-validation alone adopts
     assert any("no closer to the records than the spec as written" in m for m in said), said
     assert not res.departs and res.heldout_full_db is None
