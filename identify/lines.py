@@ -667,15 +667,30 @@ def _from_sidebands(meas: list[ResidualLine], kin: Kinematics, tolerance: float,
     every frequency tried here and by the caller (`tried`). Each trial's frequency is first
     read from its whole family (:func:`_readings`), not from the one distance it was found by;
     ``f_x`` and ``N fc − f_x`` put their first sidebands on the same lines, and on a tie the
-    slower is taken."""
+    slower is taken. A trial that a gearbox combination describes (within
+    :data:`OFF_COMBINATION_SE` standard errors of its family's reading, or
+    :data:`OFF_COMBINATION_TOL` of `tolerance`), or that lies as close to an order of ``fc``
+    or of a basis frequency (``fsr``, ``fs/N``, ``fp``, ``fe``) of any order, is no trial:
+    the lines of a tooth fault that breaks the planets' symmetry lie ``k fc`` from the lines
+    the sideband rule allows (a ring profile fault on a 17/26/70 box: 15 ``fc``)."""
     trials = _sideband_trials(meas, kin, tolerance, f_max)
     n_tried = tried + len(trials)
     best = None
     refined = []
+    bounds = band_bounds(kin, f_max)
     for t, f_x in trials:  # one distance reads f_x to a tolerance; its family, far closer
-        f_ref, _, n = _readings(f_x, _on_family(_modulation_family(kin, f_x, f_max), meas,
-                                                tolerance))
-        refined.append((t, f_ref if n >= min_members else f_x))
+        f_ref, se, n = _readings(f_x, _on_family(_modulation_family(kin, f_x, f_max), meas,
+                                                 tolerance))
+        f_x = f_ref if n >= min_members else f_x
+        # a gearbox frequency is no located modulation: the lines its family holds are the
+        # gearbox's own (a ring or planet fault's sidebands beyond the bounded combinations)
+        named = [d.frequency for d in describe(f_x, kin, tolerance, bounds)] + [
+            round(f_x / g) * g for g in (kin.f_carrier, *kin.basis().values())
+            if g and round(f_x / g) >= 1]  # an order of the carrier or a basis, any order
+        if named and min(abs(f_x - f) for f in named) <= max(
+                OFF_COMBINATION_SE * se, OFF_COMBINATION_TOL * tolerance):
+            continue
+        refined.append((t, f_x))
     for t, f_x in sorted(refined, key=lambda x: x[1]):  # the slowest on a tie
         fam = _modulation_family(kin, f_x, f_max)
         own = _on_family(fam, [t], tolerance)

@@ -266,7 +266,9 @@ def test_a_modulation_is_located_from_its_sidebands_alone():
     a housing path that carries no low frequencies leaves only its sidebands m fm ± f_x. Their
     spacing from the mesh lines locates it (a family of 18 lines, read to a few thousandths
     of a bin), at the slower of f_x and N fc − f_x, which put their first sidebands on the same
-    lines. Unrelated tones near the mesh lines locate nothing, and a healthy record nothing."""
+    lines. Unrelated tones near the mesh lines locate nothing, a healthy record nothing, and
+    lines a carrier order off the allowed ones (a fault that breaks the planets' symmetry)
+    nothing."""
     from dtwin.identify.lines import find_combs, find_modulation, label_combs
 
     kin, f, meas, healthy = _modulated_records(2.10, low=False)
@@ -289,3 +291,18 @@ def test_a_modulation_is_located_from_its_sidebands_alone():
     assert find_modulation(label_combs(lines, combs), kin, tol, 5000.0, combs=combs) is None
     lines = residual_lines(f, healthy, healthy, kin, f_max=5000.0)
     assert find_modulation(lines, kin, tol, 5000.0) is None
+    # a fault that breaks the planets' symmetry: lines m fm + n fc that no bounded combination
+    # describes, (n − 8) fc from the nearest line allowed (|n| <= 8): a carrier order, which
+    # no bounded combination names either, is no modulation
+    from dtwin.identify.lines import band_bounds, describe
+
+    bounds = band_bounds(kin, 5000.0)
+    n = next(n for n in range(17, 48) if not describe((n - 8) * kin.f_carrier, kin, tol, bounds)
+             and not any(describe(m * kin.f_mesh + n * kin.f_carrier, kin, tol, bounds)
+                         for m in range(1, 9)))  # (n − 8) fc from m fm + 8 fc, the nearest
+    asym = sum(0.02 * np.sin(2 * np.pi * (m * kin.f_mesh + n * kin.f_carrier) * t)
+               for m in range(1, 9))
+    _, a = amplitude_spectrum(asym + 1e-4 * rng.normal(size=t.size), 10_000.0, "hann")
+    lines = residual_lines(f, healthy + np.asarray(a), healthy, kin, f_max=5000.0)
+    assert sum(r.side == "measured" and not r.descriptions for r in lines) >= 6, n
+    assert find_modulation(lines, kin, tol, 5000.0) is None  # (the lines in no comb)
