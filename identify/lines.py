@@ -594,6 +594,9 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
     When no line below ``fm / 2`` locates a modulation, its sidebands may
     (:func:`_from_sidebands`): a record need not hold the line ``f_x`` itself.
 
+    A trial line at an order of ``fc`` or of a basis frequency, of any order
+    (:func:`_at_gearbox_order`), is none: the gearbox makes lines there.
+
     **Returns:** the :class:`Modulation`, or ``None``."""
     meas = [r for r in lines if r.side == "measured"]
     trials = []  # (line, its family, the combinations it lies off)
@@ -601,7 +604,8 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
         if not 2 * tolerance < r.frequency < 0.5 * kin.f_mesh:
             continue
         if not r.descriptions and not r.comb:
-            trials.append((r, _modulation_family(kin, r.frequency, f_max), ()))
+            if not _at_gearbox_order(r.frequency, kin, tolerance):
+                trials.append((r, _modulation_family(kin, r.frequency, f_max), ()))
             continue
         named = _combination_frequencies(r, kin, combs)
         if not named or (r.comb and combs is None):
@@ -628,6 +632,20 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
     if best is None:
         best = _from_sidebands(meas, kin, tolerance, f_max, max_chance, min_members,
                                len(trials))
+    return best
+
+
+def _at_gearbox_order(f: float, kin: Kinematics, tolerance: float) -> float | None:
+    """The order of ``fc`` or of a basis frequency (``fsr``, ``fs/N``, ``fp``, ``fe``), of any
+    order, nearest `f` (Hz) when it lies within `tolerance` of it, else None: a line there is
+    the gearbox's own (a ring fault's ``15 fc`` on a 17/26/70 box lies beyond the bounded
+    combinations), no frequency of a modulation."""
+    best = None
+    for g in (kin.f_carrier, *kin.basis().values()):
+        k = round(f / g) if g else 0
+        if k >= 1 and abs(f - k * g) <= tolerance and (
+                best is None or abs(f - k * g) < abs(f - best)):
+            best = k * g
     return best
 
 
@@ -685,8 +703,7 @@ def _from_sidebands(meas: list[ResidualLine], kin: Kinematics, tolerance: float,
         # a gearbox frequency is no located modulation: the lines its family holds are the
         # gearbox's own (a ring or planet fault's sidebands beyond the bounded combinations)
         named = [d.frequency for d in describe(f_x, kin, tolerance, bounds)] + [
-            round(f_x / g) * g for g in (kin.f_carrier, *kin.basis().values())
-            if g and round(f_x / g) >= 1]  # an order of the carrier or a basis, any order
+            f for f in [_at_gearbox_order(f_x, kin, float("inf"))] if f]
         if named and min(abs(f_x - f) for f in named) <= max(
                 OFF_COMBINATION_SE * se, OFF_COMBINATION_TOL * tolerance):
             continue
