@@ -64,7 +64,7 @@ class CalibrationSettings:
       (``SolverOptions(periodic="auto")``, which integrates the whole record when the twin is
       not periodic at constant speed), and the confirmation integrates the whole record.
     - `relinearize`, `relinearize_db`: when the confirmation's gap exceeds the linearised
-      response's gap at the fitted values by more than `relinearize_db` (dB), or is not below
+      response's gap at the fitted values by more than `converge_db` (dB), or is not below
       the spec as written's held-out gap, the response is linearised again there and the
       final fit rerun from there, at most `relinearize` times;
       the linearisation whose calibrated twin confirms with the smallest gap is kept (module
