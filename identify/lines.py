@@ -620,12 +620,10 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
     trials.sort(key=lambda x: x[0].frequency)
     best = None
     for t, fam, off in trials:
-        pool = [r for r in meas if r is not t]
-        mem = [(r.frequency, entry[3]) for r, entry in _on_family(fam, pool, tolerance)]
-        if len(mem) < min_members:
+        scored = _scored_family(t, fam, meas, tolerance, f_max, min_members, len(trials))
+        if scored is None:
             continue
-        p = _union_measure(np.array([f for f, *_ in fam]), tolerance, f_max) / f_max
-        ch = min(1.0, len(trials) * _binomial_tail(len(mem), len(pool), p))
+        pool, mem, ch = scored
         if ch <= max_chance and (best is None or len(mem) + 1 > len(best.members)):
             best = Modulation(t.frequency, len(fam), len(pool),
                               ((t.frequency, "fx"),) + tuple(mem), ch, off)
@@ -633,6 +631,19 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
         best = _from_sidebands(meas, kin, tolerance, f_max, max_chance, min_members,
                                len(trials))
     return best
+
+
+def _scored_family(t: ResidualLine, fam, meas: list[ResidualLine], tolerance: float,
+                   f_max: float, min_members: int, n_tried: int):
+    """A trial's family scored against the measured lines other than its own line `t`:
+    ``(pool, members, chance)`` with the chance Bonferroni over `n_tried` frequencies, or None
+    when fewer than `min_members` lines lie on it (:func:`find_modulation`)."""
+    pool = [r for r in meas if r is not t]
+    mem = [(r.frequency, entry[3]) for r, entry in _on_family(fam, pool, tolerance)]
+    if len(mem) < min_members:
+        return None
+    p = _union_measure(np.array([f for f, *_ in fam]), tolerance, f_max) / f_max
+    return pool, mem, min(1.0, n_tried * _binomial_tail(len(mem), len(pool), p))
 
 
 def _at_gearbox_order(f: float, kin: Kinematics, tolerance: float) -> float | None:
@@ -713,12 +724,10 @@ def _from_sidebands(meas: list[ResidualLine], kin: Kinematics, tolerance: float,
         own = _on_family(fam, [t], tolerance)
         if not own:
             continue
-        pool = [r for r in meas if r is not t]
-        mem = [(r.frequency, entry[3]) for r, entry in _on_family(fam, pool, tolerance)]
-        if len(mem) < min_members:
+        scored = _scored_family(t, fam, meas, tolerance, f_max, min_members, n_tried)
+        if scored is None:
             continue
-        p = _union_measure(np.array([f for f, *_ in fam]), tolerance, f_max) / f_max
-        ch = min(1.0, n_tried * _binomial_tail(len(mem), len(pool), p))
+        pool, mem, ch = scored
         if ch <= max_chance and (best is None or len(mem) + 1 > len(best.members)):
             best = Modulation(f_x, len(fam), len(pool), ((t.frequency, own[0][1][3]),)
                               + tuple(mem), ch)
