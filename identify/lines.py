@@ -547,16 +547,41 @@ def _readings(f_x: float, on_family) -> tuple[float, float, int]:
     return med, se, int(e.size)
 
 
+#: At most this many gatherings of a family about its own reading
+#: (:func:`refined_modulation_frequency`); each one that changes the members moves the reading
+#: toward the members' centre, and a family settles in two or three.
+READING_PASSES = 10
+
+
 def refined_modulation_frequency(kin: Kinematics, f_x: float, lines: list[ResidualLine],
                                  tolerance: float, f_max: float) -> tuple[float, float, int]:
-    """The modulation frequency read from the whole family of a trial line at `f_x` (Hz):
-    each measured line within `tolerance` of a line ``L + j f_x`` of the family
+    """The modulation frequency read from the whole family of a trial at `f_x` (Hz): each
+    measured line within `tolerance` of a line ``L + j f_x`` of the family
     (:func:`modulation_lines`; L = 0 for the harmonics ``j f_x``) reads ``(f − L) / j``; the
     median of the readings and its standard error (1.4826 × their median absolute deviation
-    / √n).
+    / √n) (:func:`_readings`).
 
-    **Returns:** ``(f_x, standard error, readings)`` in Hz, Hz and a count."""
-    return _readings(f_x, _on_family(_modulation_family(kin, f_x, f_max), lines, tolerance))
+    The family is gathered again about that reading until its members no longer change (at
+    most :data:`READING_PASSES` gatherings): the reading is the family's own, not the trial's.
+    Each line's interpolated frequency scatters by its noise (about 0.1 bin for a line 12 to
+    20 dB over the floor), so a window of ± `tolerance` put about a first guess that one line
+    read a quarter bin off keeps the lines whose scatter lies toward that guess and drops those
+    on the other side: the median of what is kept is pulled toward the guess by a good part of
+    the scatter, and their spread, and so the standard error, is understated. A family gathered
+    about its own median keeps its lines on both sides.
+
+    **Returns:** ``(f_x, standard error, readings)`` in Hz, Hz and a count; `f_x` with an
+    infinite error when no line lies on its family."""
+    f, se, n = _readings(f_x, [])
+    seen: set[frozenset[int]] = set()
+    for _ in range(READING_PASSES):
+        on = _on_family(_modulation_family(kin, f, f_max), lines, tolerance)
+        members = frozenset(id(r) for r, _ in on)
+        if not on or members in seen:
+            break
+        seen.add(members)
+        f, se, n = _readings(f, on)
+    return f, se, n
 
 
 def _combination_frequencies(r: ResidualLine, kin: Kinematics, combs) -> list[float]:
@@ -595,7 +620,9 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
     (:func:`_from_sidebands`): a record need not hold the line ``f_x`` itself.
 
     A trial line at an order of ``fc`` or of a basis frequency, of any order
-    (:func:`_at_gearbox_order`), is none: the gearbox makes lines there.
+    (:func:`_at_gearbox_order`), is none: the gearbox makes lines there. A line that a
+    combination describes lies off that order as it lies off the combination
+    (:func:`_at_named`).
 
     **Returns:** the :class:`Modulation`, or ``None``."""
     meas = [r for r in lines if r.side == "measured"]
@@ -611,10 +638,9 @@ def find_modulation(lines: list[ResidualLine], kin: Kinematics, tolerance: float
         if not named or (r.comb and combs is None):
             continue
         fam = _modulation_family(kin, r.frequency, f_max)
-        f_ref, se, n_est = _readings(r.frequency, _on_family(fam, meas, tolerance))
-        off = min(abs(f_ref - f) for f in named)
-        if n_est > min_members and off > max(OFF_COMBINATION_SE * se,
-                                             OFF_COMBINATION_TOL * tolerance):
+        f_ref, se, n_est = refined_modulation_frequency(kin, r.frequency, meas, tolerance, f_max)
+        named += [f for f in [_at_gearbox_order(f_ref, kin, float("inf"))] if f]
+        if n_est > min_members and not _at_named(f_ref, se, named, kin, meas, tolerance, f_max):
             trials.append((r, fam, tuple(sorted({d.text for d in r.descriptions} | (
                 {r.comb} if r.comb else set())))))
     trials.sort(key=lambda x: x[0].frequency)
@@ -660,6 +686,35 @@ def _at_gearbox_order(f: float, kin: Kinematics, tolerance: float) -> float | No
     return best
 
 
+def _at_named(f_x: float, se: float, named: list[float], kin: Kinematics,
+              lines: list[ResidualLine], tolerance: float, f_max: float) -> bool:
+    """Whether a family read at `f_x` (Hz) with standard error `se` (Hz)
+    (:func:`refined_modulation_frequency`) is the family of one of the gearbox frequencies
+    `named` (Hz: combinations, orders of ``fc`` or of a basis frequency): `f_x` lies within
+    :data:`OFF_COMBINATION_SE` × `se` or :data:`OFF_COMBINATION_TOL` × `tolerance` of one, or
+    the family gathered once about that gearbox frequency itself reads it, within as many of
+    its own standard errors or the same share of `tolerance`.
+
+    The second reading tests the gearbox frequency where the lines are gathered about it, not
+    about a reading off it. Where the family's lines coincide (``f_x = 3 fc`` on a box whose
+    lines lie 3 fc apart: ``L + f_x`` is ``L' − f_x``), each measured line takes the family
+    line whose reading lies nearer the frequency it is gathered about, and a family gathered
+    about a reading δ off the gearbox frequency reads near δ again, however far its lines
+    scatter (its noise, about 0.1 bin at 12 to 20 dB over the floor); gathered about the
+    gearbox frequency, the same lines read it. A modulation off a gearbox frequency holds its
+    reading either way: its lines read ``(f − L) / j`` wherever they are gathered from."""
+    thr = max(OFF_COMBINATION_SE * se, OFF_COMBINATION_TOL * tolerance)
+    for g in named:
+        if abs(f_x - g) <= thr:
+            return True
+        f_g, se_g, n_g = _readings(g, _on_family(_modulation_family(kin, g, f_max), lines,
+                                                 tolerance))
+        if n_g and abs(f_g - g) <= max(OFF_COMBINATION_SE * se_g,
+                                       OFF_COMBINATION_TOL * tolerance):
+            return True
+    return False
+
+
 def _sideband_trials(meas: list[ResidualLine], kin: Kinematics, tolerance: float,
                      f_max: float, carrier: int = 8) -> list[tuple[ResidualLine, float]]:
     """Trial modulation frequencies read from sidebands (:func:`_from_sidebands`): each
@@ -694,12 +749,12 @@ def _from_sidebands(meas: list[ResidualLine], kin: Kinematics, tolerance: float,
     :func:`_sideband_trials` (one line and its distance to a gearbox line) is scored as a trial
     line is: its family's lines among the other measured lines, the chance Bonferroni over
     every frequency tried here and by the caller (`tried`). Each trial's frequency is first
-    read from its whole family (:func:`_readings`), not from the one distance it was found by;
+    read from its whole family, gathered about its own reading
+    (:func:`refined_modulation_frequency`), not from the one distance it was found by;
     ``f_x`` and ``N fc − f_x`` put their first sidebands on the same lines, and on a tie the
-    slower is taken. A trial that a gearbox combination describes (within
-    :data:`OFF_COMBINATION_SE` standard errors of its family's reading, or
-    :data:`OFF_COMBINATION_TOL` of `tolerance`), or that lies as close to an order of ``fc``
-    or of a basis frequency (``fsr``, ``fs/N``, ``fp``, ``fe``) of any order, is no trial:
+    slower is taken. A trial that a gearbox combination describes, or that lies at an order
+    of ``fc`` or of a basis frequency (``fsr``, ``fs/N``, ``fp``, ``fe``) of any order, as
+    its family reads it (:func:`_at_named`), is no trial:
     the lines of a tooth fault that breaks the planets' symmetry lie ``k fc`` from the lines
     the sideband rule allows (a ring profile fault on a 17/26/70 box: 15 ``fc``)."""
     trials = _sideband_trials(meas, kin, tolerance, f_max)
@@ -708,15 +763,13 @@ def _from_sidebands(meas: list[ResidualLine], kin: Kinematics, tolerance: float,
     refined = []
     bounds = band_bounds(kin, f_max)
     for t, f_x in trials:  # one distance reads f_x to a tolerance; its family, far closer
-        f_ref, se, n = _readings(f_x, _on_family(_modulation_family(kin, f_x, f_max), meas,
-                                                 tolerance))
+        f_ref, se, n = refined_modulation_frequency(kin, f_x, meas, tolerance, f_max)
         f_x = f_ref if n >= min_members else f_x
         # a gearbox frequency is no located modulation: the lines its family holds are the
         # gearbox's own (a ring or planet fault's sidebands beyond the bounded combinations)
         named = [d.frequency for d in describe(f_x, kin, tolerance, bounds)] + [
             f for f in [_at_gearbox_order(f_x, kin, float("inf"))] if f]
-        if named and min(abs(f_x - f) for f in named) <= max(
-                OFF_COMBINATION_SE * se, OFF_COMBINATION_TOL * tolerance):
+        if _at_named(f_x, se, named, kin, meas, tolerance, f_max):
             continue
         refined.append((t, f_x))
     for t, f_x in sorted(refined, key=lambda x: x[1]):  # the slowest on a tie

@@ -306,3 +306,58 @@ def test_a_modulation_is_located_from_its_sidebands_alone():
     lines = residual_lines(f, healthy + np.asarray(a), healthy, kin, f_max=5000.0)
     assert sum(r.side == "measured" and not r.descriptions for r in lines) >= 6, n
     assert find_modulation(lines, kin, tol, 5000.0) is None  # (the lines in no comb)
+
+
+def _ring_fault_lines(seed, sigma_bins, df=0.25, f_max=2500.0):
+    """The residual lines of a ring tooth fault on a 17/26/70 box at 15 Hz (fc 2.93 Hz, fm
+    205 Hz) read from a 4 s record (`df` 0.25 Hz): lines every 3 fc (= fr, all on the grid the
+    sideband rule allows) within 24 fc of every mesh harmonic, about 60 % of them standing
+    over the floor, each read off its grid by its noise (normal, `sigma_bins` bins: about 0.1
+    bin for lines 12 to 20 dB over the floor), and one, ``6fm + 21fc``, read 0.26 bin off:
+    beyond the quarter-bin tolerance, so that neither a combination nor the comb names it.
+    Its distance to the nearest line allowed, ``6fm + 6fc``, is 15 fc + 0.26 bin, a sideband
+    trial. **Returns:** ``(kin, tolerance, lines)``."""
+    from dtwin.identify.lines import ResidualLine, band_bounds
+
+    kin = Kinematics.from_gears(17, 26, 70, 3, 15.0)
+    fc, fm, tol = kin.f_carrier, kin.f_mesh, 0.25 * df
+    bounds = band_bounds(kin, f_max)
+    rng = np.random.default_rng(seed)
+    grid = [k * 3 * fc for k in range(1, int(f_max / (3 * fc)))
+            if min(abs(k * 3 * fc - m * fm) for m in range(1, 13)) <= 24 * fc]
+    freq = [f + sigma_bins * df * rng.normal() for f in grid if rng.uniform() < 0.6]
+    freq.append(6 * fm + 21 * fc + 0.26 * df)
+    chance = chance_match_probability(kin, tol, f_max, bounds)
+    return kin, tol, [ResidualLine("measured", float(f), int(round(f / df)), 15.0, 15.0,
+                                   tuple(describe(f, kin, tol, bounds)), chance) for f in freq]
+
+
+@pytest.mark.parametrize("sigma_bins", [0.1, 0.15])
+def test_a_fault_family_read_from_a_line_off_its_grid_is_no_modulation(sigma_bins):
+    """A ring tooth fault's lines lie on orders of fc; the one read beyond the line tolerance
+    (:func:`_ring_fault_lines`) offers the trial 15 fc + 0.26 bin. Gathered about that trial
+    alone, its family keeps the lines whose noise lies toward it and reads some 0.1 bin off
+    15 fc, over 5 of its understated standard errors; gathered about its own reading until
+    the members settle, it reads 15 fc. The family at 3 fc, whose lines coincide (``L + 3fc``
+    is ``L' − 3fc``), reads 3 fc where it is gathered about 3 fc. No modulation is located on
+    any of five draws of the noise."""
+    from dtwin.identify.lines import (
+        OFF_COMBINATION_SE,
+        OFF_COMBINATION_TOL,
+        find_combs,
+        find_modulation,
+        label_combs,
+        refined_modulation_frequency,
+    )
+
+    for seed in range(5, 10):
+        kin, tol, lines = _ring_fault_lines(seed, sigma_bins)
+        g = 15 * kin.f_carrier
+        assert not lines[-1].descriptions
+        combs = find_combs(lines, kin, tol, 2500.0)
+        assert combs and combs[0].symbol == "3fc", combs
+        mod = find_modulation(label_combs(lines, combs), kin, tol, 2500.0, combs=combs)
+        assert mod is None, (seed, mod.f_x / kin.f_carrier)
+        f_x, se, n = refined_modulation_frequency(kin, g + 0.26 * 0.25, lines, tol, 2500.0)
+        assert n >= 20 and abs(f_x - g) <= max(OFF_COMBINATION_SE * se,
+                                               OFF_COMBINATION_TOL * tol), (seed, f_x - g, se)
