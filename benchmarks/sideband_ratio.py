@@ -2,11 +2,12 @@
 
 A prototype estimator, for comparing with ``dtwin severity`` on the independent family
 (``../shared/independent/``, truth in ``truth.json``), not a product path. Within one band of
-the **faulty** record, the power on the fault's lines over the power on the gearbox's healthy
-lines is a ratio in which the calibration's excitation, window and response cancel (both kinds
-of line pass the same path at nearly the same frequency), and so does any gain. The twin (each
-kind, the machine's calibrated spec) is simulated with the fault at a few depths, the same
-ratio taken on the same bins, and the depth at which the twin's ratio meets the record's is
+the **faulty** record, the power the fault adds on its lines (over the healthy record's) over
+the power on the gearbox's healthy lines is a ratio in which the calibration's excitation,
+window and response cancel (both kinds of line pass the same path at nearly the same
+frequency), and so does any gain. The twin (each kind, the machine's calibrated spec) is
+simulated healthy and with the fault at a few depths, the same ratio taken on the same bins
+(the excess over the healthy twin), and the depth at which the twin's ratio meets the record's is
 read by interpolation in log-depth (held at the grid's ends). Bins: the fault's lines are the
 bins of the faulty record 12 dB over the healthy record's noise floor (a 31-bin running
 median of ``baseline-1``) and 6 dB over the healthy record itself; the healthy lines, the bins
@@ -49,10 +50,16 @@ def _selections(f, p_fault, p_healthy, bands):
     return out
 
 
-def _ratios(p, sel) -> dict[str, float]:
-    """Fault-line power over healthy-line power per band (dB; NaN where a set is empty)."""
-    return {n: (10 * np.log10(p[a].sum() / p[b].sum()) if a.any() and b.any() else np.nan)
-            for n, (a, b) in sel.items()}
+def _ratios(p, p_healthy, sel) -> dict[str, float]:
+    """Per band, the power `p` adds over `p_healthy` on the fault's lines, over the power of
+    `p` on the healthy lines (dB; NaN where a set is empty or nothing is added). The excess,
+    not the power: a ring fault's lines ``k N f_c`` and ``m f_m ± k N f_c`` lie on the
+    healthy gearbox's own planet-pass lines."""
+    out = {}
+    for n, (a, b) in sel.items():
+        e = float(np.clip(p - p_healthy, 0.0, None)[a].sum())
+        out[n] = 10 * np.log10(e / p[b].sum()) if a.any() and b.any() and e > 0 else np.nan
+    return out
 
 
 def depth_from_ratio(record_db: float, twin_db: np.ndarray, depths=DEPTHS) -> float:
@@ -83,13 +90,19 @@ def estimate(machine: str, record: str, calibrations: pathlib.Path, kind: str,
     fs = float(rec.sample_rate)
     chosen = [b for b in _bands(spec, float(spec["operating"]["f_sun"]), fs) if b[0] in bands]
     sel = _selections(f, p_fault, p_healthy, chosen)
-    measured = _ratios(p_fault, sel)
-    twin = []
-    for d in DEPTHS:
-        sev = severity_for_peak_loss(make_fault("missing_tooth", location, 0.5), lp, d)
-        sim, _, _ = run_simulation(spec, faults=[f"{location}:missing_tooth:{sev}"], kind=kind,
-                                   duration=rec.duration, sample_rate=fs, snr_db=80.0)
-        twin.append(_ratios(_power(sim)[1], sel))
+    measured = _ratios(p_fault, p_healthy, sel)
+
+    def simulated(depth):
+        faults = None
+        if depth:
+            sev = severity_for_peak_loss(make_fault("missing_tooth", location, 0.5), lp, depth)
+            faults = [f"{location}:missing_tooth:{sev}"]
+        sim, _, _ = run_simulation(spec, faults=faults, kind=kind, duration=rec.duration,
+                                   sample_rate=fs, snr_db=80.0)
+        return _power(sim)[1]
+
+    p_twin_healthy = simulated(0.0)
+    twin = [_ratios(simulated(d), p_twin_healthy, sel) for d in DEPTHS]
     rows = {}
     for n in sel:
         y = np.array([t[n] for t in twin])
