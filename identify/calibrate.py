@@ -403,7 +403,8 @@ class _Calibration:
         self.rec_idx = np.repeat(np.arange(n_rec), 2)
         self.half_idx = np.tile(np.arange(2), n_rec)
         self.every = np.ones(len(self.half_idx), bool)
-        self.bands = named_bands(kin, band_top)
+        self.bands = named_bands(kin, band_top, sample_rate=fs,
+                                 resolution=float(freqs[1] - freqs[0]))
         self.a_meas = A.reshape(-1, A.shape[-1])
         # before: the spec's twin with its best response level (one gain), scored per half
         self.B1 = knot_basis(freqs, self.knots[:1])
@@ -605,4 +606,5 @@ def heldout_gap(
         a_meas.append(np.abs(Y))
         a_model.append(np.abs(Z))
     return gap(freqs, np.concatenate(a_meas), np.concatenate(a_model),
-               named_bands(kin, float(spec["sensor"]["passband"]) * fs))
+               named_bands(kin, float(spec["sensor"]["passband"]) * fs, sample_rate=fs,
+                           resolution=float(freqs[1] - freqs[0])))

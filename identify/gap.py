@@ -33,6 +33,16 @@ record holds aliases and filter-shaped lines (an independent simulator's 5 f_m =
 above the 2500 Hz Nyquist frequency of a 5 kHz record, appears at 2498.5 Hz) that no twin of the
 gearbox can be held to: calibration and discovery score the same band.
 
+**Aliases are not scored either.** A DAQ's filter attenuates a line above Nyquist by more the
+further it lies past ``(1 − passband) fs``; a mesh line just past it (``m fm + n fc`` between
+fs/2 and ``(2 − 2 ALIAS_ZONE) fs/2``) can come through its transition band and show at
+``fs − f``, in the top part of the scored band (:data:`ALIAS_ZONE`, as discovery labels such
+a line "alias of 11fm"). Given the sampling rate, :func:`named_bands` leaves those alias
+frequencies out of every band, ± the Hann window's main lobe (two bins): a twin of the gearbox
+cannot be held to an acquisition's stop band, and an alias that drifts over a healthy band
+with the speed (an independent record 0.4 % faster than its calibration record: 11 fm at
+5 731.8 Hz, 27 dB over the floor, where on the slower record it fell on 9 fm) is no finding.
+
 **Named bands** (:func:`named_bands`): ``low`` (0 … fm − 10 fc), ``mesh<m>`` (m fm ± 10 fc for
 every mesh harmonic whose band starts below the top of the band), ``between`` (the rest above
 the first mesh band), ``all``.
@@ -49,11 +59,16 @@ import numpy as np
 
 from dtwin.signal.spectrum import noise_floor
 
-__all__ = ["ALPHA", "PASSBAND", "GapResult", "THRESHOLD_DB", "family_threshold_db", "fold_segments", "gap", "named_bands", "levels",
+__all__ = ["ALIAS_ZONE", "ALPHA", "PASSBAND", "alias_frequencies", "GapResult", "THRESHOLD_DB", "family_threshold_db", "fold_segments", "gap", "named_bands", "levels",
            "segment_spectra", "gap_terms"]
 
 #: Top of the band the gap is taken over, as a fraction of the sampling rate (module docs).
 PASSBAND = 0.45
+#: Lines above this fraction of Nyquist may be aliases of mesh lines just above Nyquist (the
+#: top fifth of the band: what a DAQ filter's transition band lets through; module docs).
+ALIAS_ZONE = 0.8
+#: Half-width (bins) of what a line occupies in a Hann spectrum: its main lobe.
+MAIN_LOBE_BINS = 2
 #: Height over the measured noise floor (dB) that puts a bin into the gap's bin set.
 THRESHOLD_DB = 12.0
 #: Family-wise probability that noise alone puts a bin into the gap's set (:func:`gap`'s default).
@@ -83,8 +98,57 @@ def segment_spectra(x: np.ndarray, sample_rate: float, n_folds: int = 2):
     return np.fft.rfftfreq(m, 1.0 / sample_rate), Z
 
 
-def named_bands(kin, f_max: float, half_width_carrier: float = 10.0) -> dict[str, tuple]:
-    """Named frequency bands (Hz) for a gearbox's kinematics (module docstring)."""
+def alias_frequencies(kin, sample_rate: float, f_max: float,
+                      half_width_carrier: float = 10.0) -> np.ndarray:
+    """Where mesh lines just above Nyquist show as aliases inside the scored band (Hz):
+    ``fs − (m fm + n fc)`` for every line the sideband rule allows (|n| ≤
+    `half_width_carrier`) whose alias lies between :data:`ALIAS_ZONE` × Nyquist and `f_max`
+    (module docstring, "Aliases are not scored either")."""
+    fs, fm, fc = float(sample_rate), kin.f_mesh, kin.f_carrier
+    out = []
+    for m in range(int(0.5 * fs // fm), int(fs // fm) + 2):
+        for n in range(-int(half_width_carrier), int(half_width_carrier) + 1):
+            f = m * fm + n * fc
+            if not 0.5 * fs < f < fs or (kin.z_ring is not None
+                                         and not kin.allowed_by_sideband_rule(m, n)):
+                continue
+            if ALIAS_ZONE * 0.5 * fs <= fs - f <= f_max:
+                out.append(fs - f)
+    return np.unique(np.asarray(out, float))
+
+
+def _without(ranges: tuple, holes: np.ndarray, half_width: float) -> tuple:
+    """`ranges` ((lo, hi) pairs, Hz) less ``hole ± half_width`` for every hole."""
+    out = []
+    for lo, hi in ranges:
+        cur = lo
+        for h in holes[(holes + half_width >= lo) & (holes - half_width <= hi)]:
+            if h - half_width > cur:
+                out.append((cur, h - half_width))
+            cur = max(cur, h + half_width)
+        if cur < hi:
+            out.append((cur, hi))
+    return tuple(out)
+
+
+def named_bands(kin, f_max: float, half_width_carrier: float = 10.0,
+                sample_rate: float | None = None, resolution: float = 0.0
+                ) -> dict[str, tuple]:
+    """Named frequency bands (Hz) for a gearbox's kinematics (module docstring). With the
+    `sample_rate` (Hz) and the spectra's bin width `resolution` (Hz), the aliases of mesh lines
+    above Nyquist (:func:`alias_frequencies`) are left out of every band, ± the Hann main lobe
+    (:data:`MAIN_LOBE_BINS` bins)."""
+    bands = _named_bands(kin, f_max, half_width_carrier)
+    if sample_rate is None:
+        return bands
+    holes = alias_frequencies(kin, sample_rate, f_max, half_width_carrier)
+    if not holes.size:
+        return bands
+    w = MAIN_LOBE_BINS * resolution
+    return {name: _without(ranges, holes, w) for name, ranges in bands.items()}
+
+
+def _named_bands(kin, f_max: float, half_width_carrier: float) -> dict[str, tuple]:
     hw = half_width_carrier * kin.f_carrier
     bands: dict[str, tuple] = {"all": ((0.0, f_max),)}
     mesh = []

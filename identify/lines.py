@@ -44,6 +44,8 @@ import numpy as np
 from dtwin.model.kinematics import Kinematics, OrderBounds, combination_text
 from dtwin.signal.spectrum import noise_floor
 
+from .gap import ALIAS_ZONE
+
 __all__ = [
     "Comb", "Description", "Kinematics", "LineBounds", "Modulation", "ResidualLine",
     "band_bounds", "chance_match_probability", "comb_label", "comb_lines", "describe",
@@ -148,11 +150,12 @@ def chance_match_probability(kin: Kinematics, tolerance: float, f_max: float,
 
 def _alias(f: float, kin: Kinematics, tolerance: float, f_nyquist: float
            ) -> tuple[Description, ...]:
-    """Descriptions "alias of 5fm" of a line in the top fifth of the band that is the mirror
+    """Descriptions "alias of 5fm" of a line in the top fifth of the band (:data:`ALIAS_ZONE` of
+    Nyquist; the gap leaves these frequencies unscored, :mod:`dtwin.identify.gap`) that is the mirror
     ``2 f_nyquist − f`` of a carrier-grid line above Nyquist (``m fm + n fc``, m ≥ 1): what a
     DAQ's anti-alias filter lets through in its transition band (the independent records show
     5 fm = 2501.5 Hz at 2498.5 Hz)."""
-    if f < 0.8 * f_nyquist:
+    if f < ALIAS_ZONE * f_nyquist:
         return ()
     fa = 2.0 * f_nyquist - f
     b = dataclasses.replace(LineBounds(), mesh=int(2 * f_nyquist // kin.f_mesh) + 1, fault=0,

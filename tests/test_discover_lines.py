@@ -5,7 +5,15 @@ the significance statistic with a false-alarm rate within a factor 1.5 of nomina
 import numpy as np
 import pytest
 
-from dtwin.identify.gap import fold_segments, gap, named_bands, segment_spectra
+from dtwin.identify.gap import (
+    ALIAS_ZONE,
+    MAIN_LOBE_BINS,
+    alias_frequencies,
+    fold_segments,
+    gap,
+    named_bands,
+    segment_spectra,
+)
 from dtwin.identify.lines import (
     Kinematics,
     chance_match_probability,
@@ -138,6 +146,54 @@ def test_named_bands_and_segments(kin):
     # amplitude scaling as dtwin.signal.spectrum.amplitude_spectrum (independent implementation)
     f2, a2 = amplitude_spectrum(x[:5000], 5000.0, "hann")
     np.testing.assert_allclose(np.abs(Z[0]), a2, atol=1e-12)
+
+
+def test_an_alias_of_a_mesh_line_above_nyquist_is_not_scored():
+    """The four-planet family machine (20/30/80, 4 planets) at 40.16 Hz sampled at 12.8 kHz:
+    11 f_m = 7 068.16 Hz lies above Nyquist and a DAQ's transition band lets it through at
+    12 800 − 7 068.16 = 5 731.84 Hz, inside the scored band (0.45 fs = 5 760 Hz). A record
+    holding that alias and a twin without it: the gap over the bands that know the sampling
+    rate leaves the alias out (only the healthy line is scored, and it fits); without them the
+    alias counts its full height. On a 5 kHz record of the original gearbox (21/30/81) the
+    aliases that reach the scored band are those of 6 f_m's lower sidebands."""
+    from dtwin.model.kinematics import Kinematics
+
+    fs, T = 12800.0, 2.0  # a half of a 4 s record
+    kin = Kinematics.from_gears(20, 30, 80, 4, 40.16)
+    f_alias = fs - 11 * kin.f_mesh
+    assert f_alias == pytest.approx(5731.84, abs=0.01)
+    holes = alias_frequencies(kin, fs, 0.45 * fs)
+    assert np.min(np.abs(holes - f_alias)) < 1e-9
+    assert np.all((holes >= ALIAS_ZONE * fs / 2) & (holes <= 0.45 * fs))
+    freqs = np.arange(0.0, fs / 2 + 1e-9, 1 / T)
+    floor = np.ones((1, freqs.size))
+    meas, model = floor.copy() * 0.0, floor.copy() * 0.0
+    f_line = 8 * kin.f_mesh  # a healthy line both hold
+    for a, f0 in ((meas, f_line), (model, f_line), (meas, f_alias)):
+        a[0, np.argmin(np.abs(freqs - f0))] = 10.0**1.5
+    with_fs = named_bands(kin, 0.45 * fs, sample_rate=fs, resolution=1 / T)
+    plain = named_bands(kin, 0.45 * fs)
+    g = gap(freqs, meas, model, bands=with_fs, floor=floor, threshold_db=12.0)
+    assert g.counts["all"] == 1 and g.total == pytest.approx(0.0, abs=1e-9)
+    g0 = gap(freqs, meas, model, bands=plain, floor=floor, threshold_db=12.0)
+    assert g0.counts["all"] == 2 and g0.total > 10.0
+    # every band keeps its bins but those of the alias (± the Hann main lobe)
+    kept = np.zeros(freqs.size, bool)
+    for lo, hi in with_fs["all"]:
+        kept |= (freqs >= lo) & (freqs <= hi)
+    near = np.abs(freqs - f_alias) <= MAIN_LOBE_BINS / T
+    assert not kept[near].any() and kept[(freqs <= 0.45 * fs) & ~near].mean() > 0.95
+    # the original gearbox at 5 kHz: the allowed sidebands of 6 f_m below 0.6 fs alias into
+    # its 4 f_m band, between that band's own lines (none lies within a main lobe of one)
+    orig = Kinematics.from_gears(21, 30, 81, 3, 30.0)
+    h = alias_frequencies(orig, 5000.0, 2250.0)
+    six = [6 * orig.f_mesh + n * orig.f_carrier for n in range(-10, 0)
+           if orig.allowed_by_sideband_rule(6, n)]
+    np.testing.assert_allclose(np.sort(h), np.sort([5000.0 - f for f in six
+                                                    if 5000.0 - f >= ALIAS_ZONE * 2500.0]))
+    own = np.array([4 * orig.f_mesh + n * orig.f_carrier for n in range(-10, 11)
+                    if orig.allowed_by_sideband_rule(4, n)])
+    assert np.min(np.abs(h[:, None] - own[None, :])) > MAIN_LOBE_BINS * 0.5
 
 
 def _random_lines(rng, n, f_max, df=0.25):

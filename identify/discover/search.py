@@ -190,7 +190,8 @@ def open_search(record, spec, sample_rate, f_sun, settings: DiscoverySettings,
     floor = noise_floor(Y, FLOOR_BINS)
     # the gap over the DAQ's pass band, as calibration's (dtwin.identify.gap): the lines above
     # it are still found and labelled ("alias of 5fm"), not scored
-    bands = named_bands(kin, float(spec["sensor"]["passband"]) * fs)
+    bands = named_bands(kin, float(spec["sensor"]["passband"]) * fs, sample_rate=fs,
+                        resolution=float(freqs[1] - freqs[0]))
     tol_full = settings.tolerance_bins * (freqs_full[1] - freqs_full[0])
     chance = chance_match_probability(kin, tol_full, f_max, band_bounds(kin, f_max))
     return Search(spec, settings, say, x, fs, kin, f_sun, f_max, daq, freqs_full,
