@@ -35,7 +35,7 @@ gearbox can be held to: calibration and discovery score the same band.
 
 **Aliases are not scored either.** A DAQ's filter attenuates a line above Nyquist by more the
 further it lies past ``(1 − passband) fs``; a mesh line just past it (``m fm + n fc`` between
-fs/2 and ``(2 − 2 ALIAS_ZONE) fs/2``) can come through its transition band and show at
+fs/2 and ``(2 − ALIAS_ZONE) fs/2``, 0.6 fs) can come through its transition band and show at
 ``fs − f``, in the top part of the scored band (:data:`ALIAS_ZONE`, as discovery labels such
 a line "alias of 11fm"). Given the sampling rate, :func:`named_bands` leaves those alias
 frequencies out of every band, ± the Hann window's main lobe (two bins): a twin of the gearbox
@@ -149,6 +149,7 @@ def named_bands(kin, f_max: float, half_width_carrier: float = 10.0,
 
 
 def _named_bands(kin, f_max: float, half_width_carrier: float) -> dict[str, tuple]:
+    """The named bands of :func:`named_bands`, aliases not yet left out."""
     hw = half_width_carrier * kin.f_carrier
     bands: dict[str, tuple] = {"all": ((0.0, f_max),)}
     mesh = []
