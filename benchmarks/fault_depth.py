@@ -109,6 +109,23 @@ def _power(record) -> tuple[np.ndarray, np.ndarray]:
             np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2)
 
 
+def twin_power(spec, lp, location: str, kind: str, peak: float, duration: float,
+               sample_rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """The calibrated twin's power spectrum (:func:`_power`), healthy for `peak` 0, else with
+    the twin's default fault (a sharp missing tooth) at `location` of peak stiffness loss `peak`
+    (the truth's terms), simulated for `duration` (s) at `sample_rate` (Hz) without noise."""
+    from dtwin.model.faults import make_fault, severity_for_peak_loss
+    from dtwin.report.analyses import run_simulation
+
+    faults = None
+    if peak:
+        sev = severity_for_peak_loss(make_fault("missing_tooth", location, 0.5), lp, peak)
+        faults = [f"{location}:missing_tooth:{sev}"]
+    rec, _, _ = run_simulation(spec, faults=faults, kind=kind, duration=duration,
+                               sample_rate=sample_rate, snr_db=80.0)
+    return _power(rec)
+
+
 def _excess_db(faulty: np.ndarray, healthy: np.ndarray, lines: np.ndarray) -> float:
     """Power `faulty` adds over `healthy` on the bins `lines`, relative to the healthy band's
     power (dB; −inf when it adds none)."""
@@ -122,8 +139,6 @@ def _signature(folder, record, spec_path, location: str, kind: str, peaks: dict)
     from scipy.ndimage import median_filter
 
     from dtwin.io.readers import read_record
-    from dtwin.model.faults import make_fault, severity_for_peak_loss
-    from dtwin.report.analyses import run_simulation
     from dtwin.spec import load_spec
     from dtwin.spec.build import build_twin
 
@@ -136,13 +151,7 @@ def _signature(folder, record, spec_path, location: str, kind: str, peaks: dict)
     floor = median_filter(p_rh, size=31, mode="nearest")
 
     def twin(peak):
-        faults = None
-        if peak:
-            sev = severity_for_peak_loss(make_fault("missing_tooth", location, 0.5), lp, peak)
-            faults = [f"{location}:missing_tooth:{sev}"]
-        rec, _, _ = run_simulation(spec, faults=faults, kind=kind, duration=record.duration,
-                                   sample_rate=fs, snr_db=80.0)
-        return _power(rec)
+        return twin_power(spec, lp, location, kind, peak, record.duration, fs)
 
     f_t, p_th = twin(0.0)
     p_tf = {k: twin(v)[1] for k, v in peaks.items()}

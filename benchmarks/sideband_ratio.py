@@ -31,7 +31,7 @@ import sys
 
 import numpy as np
 from family import FAULT_LOCATION, effect_kind, machines
-from fault_depth import _bands, _power
+from fault_depth import _bands, _power, twin_power
 
 #: Peak stiffness losses (the truth's terms) the twin is simulated at.
 DEPTHS = (0.05, 0.15, 0.4, 0.9)
@@ -74,8 +74,6 @@ def estimate(machine: str, record: str, calibrations: pathlib.Path, kind: str,
              bands=("low", "mesh1", "mesh2")) -> dict:
     """The record's and the twin's ratios per band and the depth each band reads."""
     from dtwin.io.readers import read_record
-    from dtwin.model.faults import make_fault, severity_for_peak_loss
-    from dtwin.report.analyses import run_simulation
     from dtwin.spec import load_spec
     from dtwin.spec.build import build_twin
 
@@ -93,13 +91,7 @@ def estimate(machine: str, record: str, calibrations: pathlib.Path, kind: str,
     measured = _ratios(p_fault, p_healthy, sel)
 
     def simulated(depth):
-        faults = None
-        if depth:
-            sev = severity_for_peak_loss(make_fault("missing_tooth", location, 0.5), lp, depth)
-            faults = [f"{location}:missing_tooth:{sev}"]
-        sim, _, _ = run_simulation(spec, faults=faults, kind=kind, duration=rec.duration,
-                                   sample_rate=fs, snr_db=80.0)
-        return _power(sim)[1]
+        return twin_power(spec, lp, location, kind, depth, rec.duration, fs)[1]
 
     p_twin_healthy = simulated(0.0)
     twin = [_ratios(simulated(d), p_twin_healthy, sel) for d in DEPTHS]
