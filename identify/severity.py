@@ -15,15 +15,35 @@ paper's degradation-model idea).
 **Peak stiffness loss.** Severity is what the fault type's own geometry measures (face width
 removed, pitted area, crack depth); every estimate is also reported as the fault's peak
 mesh-stiffness loss at the faulty tooth (:func:`dtwin.model.faults.peak_stiffness_loss`), the quantity
-comparable across benches, fault models and twins. The fit sees the stiffness a fault removes
-(N/m); the fraction that is of "the mesh stiffness" depends on the healthy waveform at the
-faulty tooth's contact, which one housing sensor does not determine (the sun meshes'
-excitation is not separable from the ring's, :mod:`dtwin.identify.calibrate`). So the reported
-peak is taken relative to the **mean** mesh stiffness (ISO 6336-1 ``c_γ``, a reference every
-model shares), and its interval runs from the lower severity bound taken relative to the
-waveform's largest value (``1.75 c'``) to the upper bound taken relative to its smallest
-(``c'``): any healthy waveform between the single-pair and double-contact stiffness gives a
-peak inside it.
+comparable across benches, fault models and twins: the largest fractional drop of the faulty
+tooth's mesh stiffness while that tooth is in mesh, relative to the healthy stiffness at the
+same instant (``reference="instant"``; the twin's healthy waveform). The fraction depends on
+the healthy waveform at the faulty tooth's contact, which one housing sensor does not
+determine (the sun meshes' excitation is not separable from the ring's,
+:mod:`dtwin.identify.calibrate`), so its interval runs from the lower severity bound taken
+relative to the waveform's largest value (``1.75 c'``) to the upper bound taken relative to its
+smallest (``c'``): any healthy waveform between the single-pair and double-contact stiffness
+gives a peak inside it.
+
+**The sideband ratio** (``method="ratio"``, the default for one steady record with the
+fault's severity the only free parameter). Within the first mesh band of the record, the
+power the fault adds on its sidebands over the power of the gearbox's own lines is read, and
+the twin is simulated at a grid of severities to find where its ratio meets the record's
+(:mod:`dtwin.identify.line_ratio`). The sensor's gain and transfer path, the window and the
+calibrated excitation cancel in that ratio, so a calibration that reproduces the healthy
+spectrum only roughly, or was made with the other twin, does not bias the depth. A
+least-squares fit of the spectrum's log levels (``method="spectrum"``, below) weighs every
+sideband alone and is pulled by how the twin spreads a fault's power over its lines rather
+than by how much it makes: on records of independent simulators it read sun and planet faults
+2–50× small where the ratio read them within a factor of two (docs/identification.md, "The
+depth of a tooth fault"). With ``ramps`` the ratio is read for each loss shape, the first
+shape's value reported and the interval the hull over all. The interval holds the record's
+noise and the delete-one-slice jackknife of the band's lines (how far the reading rests on one
+part of the band); where no fault line stands over the noise the depth reads 0 with an
+interval up to the detection limit, and where the twin's deepest fault makes less sideband
+power than the record holds the status says the model does not fit the record. The other
+paragraphs below describe the spectrum fit (``method="spectrum"``, and the default with other
+free parameters or a run-up).
 
 **The loss's shape.** How sharply the loss rises and falls as the faulty tooth enters and
 leaves the mesh (``fault.ramp``) and how far beyond its own contact it is felt
@@ -124,6 +144,7 @@ from .excitation_response import (
 )
 from .fit import fit
 from .fit_result import FitResult
+from .line_ratio import SIGNIFICANT_DB, LineRatio, line_ratio
 from .low_band import LOW_BAND_LOCATIONS as LOW_BAND_LOCATIONS
 from .low_band import LOW_BAND_START as LOW_BAND_START
 from .low_band import with_low_band as with_low_band
@@ -133,8 +154,14 @@ from .residuals import point_groups
 from .solve import batched_loss, jacobian_at
 from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, band_jackknife
 
-__all__ = ["RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity",
+__all__ = ["METHODS", "RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity",
            "fault_location", "severity_series"]
+
+#: How a depth is read: ``"ratio"``, from the power of the fault's sidebands over the healthy
+#: mesh lines in the first mesh band (:mod:`dtwin.identify.line_ratio`; the default for a
+#: steady record with no other free parameter), or ``"spectrum"``, by a least-squares fit of
+#: the spectrum's log levels (:func:`dtwin.identify.fit.fit`; the default otherwise).
+METHODS = ("ratio", "spectrum")
 
 #: Shapes of the loss tried with ``ramps="grid"``: edge widths (mesh cycles) from a sharp
 #: loss over the tooth's contact (0.05, the default fault's: 10–90 % in 0.22 cycles) to one
@@ -205,6 +232,8 @@ class SeverityEstimate:
     low_band: bool = False
     excitation: str = ""
     flank: str = ""
+    reason: str = ""
+    readings: tuple[dict[str, Any], ...] = ()
 
     @property
     def status(self) -> str:
@@ -213,6 +242,10 @@ class SeverityEstimate:
         ``unconverged``, ``residuals not white (p = …)``, ``widened by
         the band jackknife`` (the bands disagree beyond their noise: a model-form error, and
         the interval covers it) or ``ok``."""
+        if self.method.startswith("line ratio"):
+            if not self.determined:
+                return f"NOT DETERMINED: {self.reason}" if self.reason else "NOT DETERMINED"
+            return f"ok ({self.reason})" if self.reason else "ok"
         st = self.fit.status(f"{self.location}_fault")
         if not self.determined:  # the model-form failure says so, with the loss over the noise
             return st if st.startswith("NOT DETERMINED:") else "NOT DETERMINED"
@@ -244,6 +277,34 @@ class SeverityEstimate:
                        f"{100 * pk[1]:.1f}]  {verdict}")
         return "\n".join(out)
 
+    def readings_table(self) -> str:
+        """The sideband ratio's readings (``method="ratio"``), a line per band of each loss
+        shape: fault and healthy lines (bins), the record's ratio with its noise and jackknife
+        standard errors, the twin's ratio over the severity grid, and the band's reading; empty
+        for a spectrum fit."""
+        if not self.readings:
+            return ""
+        out = []
+        for r in self.readings:
+            grid = " ".join(f"{g:g}" for g in r["grid"])
+            out.append(f"loss shape: {_shape_name(r['ramp'], r['spread'])} (ramp {r['ramp']:.2f}, "
+                       f"spread {r['spread']:+.2f}); twin at severities {grid}")
+            quiet = [b["name"] for b in r["bands"][1:] if not b["fault_bins"]]
+            for b in r["bands"]:
+                if b["name"] in quiet:
+                    continue
+                twin = " ".join(f"{v:6.1f}" for v in b["twin_db"])
+                read = ("–" if not np.isfinite(b["severity"]) else
+                        f"{b['severity']:.3f} [{b['interval'][0]:.3f}, {b['interval'][1]:.3f}]")
+                out.append(f"  {b['name']:<6} {b['fault_bins']:4d} fault / {b['healthy_bins']:3d} "
+                           f"healthy bins  record {b['record_db']:6.1f} dB "
+                           f"(±{b['record_se_db']:.1f} noise, ±{b['jackknife_db']:.1f} "
+                           f"jackknife)  twin {twin}  → {read} {b['edge']}".rstrip())
+            if quiet:
+                out.append(f"  {', '.join(quiet)}: no fault line {SIGNIFICANT_DB:g} dB over the "
+                           "noise (not read)")
+        return "\n".join(out)
+
     def to_dict(self, with_fit: bool = True) -> dict[str, Any]:
         """The estimate as JSON-ready values; `with_fit`: with the fit's own dictionary under
         ``fit`` (without it where the fit is reported beside it)."""
@@ -256,7 +317,7 @@ class SeverityEstimate:
                 "status": self.status, "shapes": [dict(x) for x in self.shapes],
                 "twin_kind": self.fit.problem.twin.kind, "note": self.note,
                 "low_band": self.low_band, "excitation": self.excitation,
-                "flank": self.flank}
+                "flank": self.flank, "readings": [dict(r) for r in self.readings]}
         if with_fit:
             out["fit"] = self.fit.to_dict()
         return out
@@ -268,9 +329,9 @@ class SeverityEstimate:
         where = {"": "", "both": " (both flanks)"}.get(self.flank, f" ({self.flank} flank)")
         return (f"{self.location} fault{where} severity {self.severity:.3f} 95 % "
                 f"[{lo:.3f}, {hi:.3f}]"
-                f" ({self.method}); peak stiffness loss {100 * self.peak_loss:.1f} % of the mean "
-                f"mesh stiffness, 95 % [{100 * plo:.1f}, {100 * phi:.1f}] % (any healthy "
-                f"waveform); {self.status}")
+                f" ({self.method}); peak stiffness loss {100 * self.peak_loss:.1f} % of the "
+                f"healthy mesh stiffness at that instant, 95 % [{100 * plo:.1f}, "
+                f"{100 * phi:.1f}] % (any healthy waveform); {self.status}")
 
 
 def _shape_name(ramp: float, spread: float) -> str:
@@ -286,7 +347,7 @@ def _fault_index(twin, location: str) -> int | None:
     return lookup(_name(location)).address.index(twin)
 
 
-def _peak(twin, i: int, severity: float, reference: str = "mean") -> float:
+def _peak(twin, i: int, severity: float, reference: str = "instant") -> float:
     """Peak stiffness loss of the twin's fault `i` at `severity` (its own type and shape),
     relative to the healthy mesh's `reference` stiffness
     (:func:`dtwin.model.faults.peak_stiffness_loss`; module docstring, "Peak stiffness loss")."""
@@ -553,18 +614,117 @@ def _estimate(location: str, shapes, jackknife: bool = False, note: str = "",
 
 
 def _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_kwargs,
-                     low_band, jackknife, splits=None, flanks=None) -> SeverityEstimate:
-    """:func:`_fit_shapes` of one record, then :func:`_estimate` from its fits."""
+                     low_band, jackknife, splits=None, flanks=None, method=None,
+                     healthy=None) -> SeverityEstimate:
+    """The depth of one record by `method` (:data:`METHODS`; None: ``"ratio"`` for a steady
+    record with the fault's severity the only free parameter and none of the spectrum fit's
+    own options (`low_band`, `splits`, `flanks`) given, else ``"spectrum"``):
+    :func:`_ratio_estimate`, or :func:`_fit_shapes` and :func:`_estimate` from its fits."""
+    if method is not None and method not in METHODS:
+        raise SettingsError(f"method must be one of {METHODS}, got {method!r}")
+    if method == "ratio" and len(names) > 1:
+        raise SettingsError("the sideband ratio reads a fault's depth alone: leave out the "
+                            f"other free parameters ({', '.join(names[1:])}) or use "
+                            "method='spectrum' (--method spectrum)")
+    if method is None and any(x is not None for x in (low_band, splits, flanks)):
+        method = "spectrum"  # asked for the spectrum fit's own options
+    if method in (None, "ratio") and len(names) == 1:
+        est = _ratio_estimate(record, spec_or_twin, location, names[0], initial, ramps,
+                              fit_kwargs, healthy, required=method == "ratio")
+        if est is not None:
+            return est
     shapes, note, used = _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs,
                                      low_band, splits, flanks)
     return _estimate(location, shapes, jackknife, note, used)
+
+
+def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ramps, fit_kwargs,
+                    healthy=None, required: bool = False) -> SeverityEstimate | None:
+    """The depth from the sideband ratio (module docstring, "The sideband ratio"): one reading
+    per loss shape (``ramps``; None: the twin's fault as it is), the first shape's reported and
+    the interval the hull over all; None where the record is no steady spectrum (a run-up, an
+    order-domain fit) unless `required`, which then raises."""
+    import time
+
+    t0 = time.perf_counter()
+    pk, _ = _split_kwargs(dict(fit_kwargs))
+    pk["kind"], note = _twin_kind(spec_or_twin, pk.get("kind"))
+    with warnings.catch_warnings():
+        if note:
+            warnings.filterwarnings("ignore", "this spec was calibrated with", UserWarning)
+        problem, ops = make_problem(record, spec_or_twin, [name], initial=initial, **pk)
+    obs = problem.observations[0]
+    if obs.kind != "spectrum" or obs.ramp or obs.order_domain or len(problem.observations) > 1:
+        if required:
+            raise SettingsError("the sideband ratio needs one steady record's spectrum: use "
+                                "method='spectrum' (--method spectrum) for a run-up, a "
+                                "spectrogram or an order-domain fit")
+        return None
+    if note:
+        note = (f"read with the {pk['kind']} twin (the {spec_of(spec_or_twin)['model']['kind']} "
+                "twin this spec was calibrated with holds the sun and planets still under a "
+                "tooth fault); the calibrated excitation, window and response cancel in the "
+                "sideband ratio")
+    i = _fault_index(problem.twin, location)
+    readings: list[tuple[Any, LineRatio]] = []
+    for shape in (None,) if ramps is None else _shapes(ramps):
+        prob = problem if shape is None else _with_shape(problem, i, *shape)
+        readings.append((prob, line_ratio(prob, record, 0, channel=pk.get("channel", 0),
+                                          healthy=healthy)))
+    prob, lr = readings[0]
+    twin = prob.twin
+    sev = lr.severity
+    band = lr.bands[0] if lr.bands else None
+    edge = band.edge if band is not None else ""
+    ok = [r for _, r in readings if np.isfinite(r.severity)]
+    lo = min((r.interval[0] for r in ok), default=float("nan"))
+    hi = max((r.interval[1] for r in ok), default=float("nan"))
+    if not np.isfinite(sev):
+        reason = "no band of the record holds the fault's lines and the healthy lines both"
+    elif edge == "above the grid":
+        reason = (f"the model does not fit this record: the twin's fault at severity "
+                  f"{lr.grid[-1]:g} makes less sideband power than the record holds "
+                  f"({band.record_db - band.twin_db[-1]:.1f} dB more in {band.name})")
+    elif edge == "below detection":
+        reason = f"no fault line stands {SIGNIFICANT_DB:g} dB over the noise"
+    else:
+        reason = ""
+    determined = bool(np.isfinite(sev) and edge != "above the grid"
+                      and (edge == "below detection"
+                           or 0.5 * (hi - lo) <= HALF_WIDTH_LIMIT * max(abs(sev), 0.1)))
+    s_rep = sev if np.isfinite(sev) else float(problem.pset.x0[0])
+    theta = np.asarray(problem.pset.theta([min(max(s_rep, 0.0), 1.0)]))
+    res = FitResult(
+        names=(name,), values={name: float(s_rep)}, theta=theta,
+        initial={name: float(problem.pset.x0[0])}, uncertainty=None, loss=float("nan"),
+        loss_history=[], start_losses=np.zeros(0), starts=np.zeros((0, 1)), refined=[],
+        converged=bool(np.isfinite(sev)), at_bound=[name] if edge == "above the grid" else [],
+        message="read from the sideband ratio (dtwin.identify.line_ratio)"
+        + ("; refined by a root find on the twin" if lr.refined else ""),
+        iterations=0, wall_time=time.perf_counter() - t0, operating_points=ops, problem=prob)
+    k = _fault_index(twin, location)
+    method = "line ratio" + (" + loss shapes" if len(readings) > 1 else "")
+    peak = _peak(twin, k, s_rep) if np.isfinite(sev) else float("nan")
+    piv = ((_peak(twin, k, lo, "max"), _peak(twin, k, hi, "min")) if np.isfinite(lo)
+           else (float("nan"), float("nan")))
+    rows = []
+    for p_, r in readings:
+        f = p_.twin.parts[k].fault
+        rows.append({"ramp": float(f.ramp), "spread": float(f.spread), **r.to_dict()})
+    return SeverityEstimate(
+        location, float(s_rep), (float(lo), float(hi)), determined, method, res,
+        peak_loss=peak, peak_interval=(float(piv[0]), float(piv[1])),
+        ramp=float(twin.parts[k].fault.ramp), spread=float(twin.parts[k].fault.spread),
+        note=note, flank=str(getattr(twin.parts[k].fault, "flank", ""))
+        if location == "planet" else "", reason=reason, readings=tuple(rows))
 
 
 def estimate_severity(
     record, spec_or_twin, location: str = "sun", *, free: Sequence[str] = (),
     initial_severity: float = 0.3, ramps: Sequence[float] | str | None = None,
     low_band: bool | None = None, jackknife: bool = True, splits: bool | None = None,
-    flanks: bool | Sequence[str] | None = None, **fit_kwargs: Any,
+    flanks: bool | Sequence[str] | None = None, method: str | None = None, healthy=None,
+    **fit_kwargs: Any,
 ) -> SeverityEstimate:
     """Severity of the fault at `location` from one record, and its peak stiffness loss
     (module docstring).
@@ -580,7 +740,12 @@ def estimate_severity(
     calibration's split");
     `flanks`: for a planet fault, the planet-tooth flanks to fit (True: :data:`PLANET_FLANKS`;
     a sequence of them; False: the fault's own; None: all three unless the spec names the
-    planet fault's flank; module docstring, "A planet fault's flank"); keyword arguments of
+    planet fault's flank; module docstring, "A planet fault's flank"); `method`: how the depth
+    is read (:data:`METHODS`; None: ``"ratio"`` for a steady record with no other free
+    parameter, else ``"spectrum"``; `low_band`, `jackknife`, `splits` and `flanks` are the
+    spectrum fit's, and giving `low_band`, `splits` or `flanks` chooses it); `healthy`: a healthy record of the same machine at the same speed and
+    rate, whose lines the ratio does not count as the fault's
+    (:func:`dtwin.identify.line_ratio.line_ratio`); keyword arguments of
     :func:`dtwin.identify.fit.fit` (``kind``: default :data:`dtwin.spec.build.SEVERITY_KIND` for a
     spec, ``f_sun``, ``features``, ``starts``, ``progress`` …).
     """
@@ -589,7 +754,7 @@ def estimate_severity(
     initial = dict(fit_kwargs.pop("initial", {}) or {})
     initial.setdefault(name, initial_severity)
     return _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_kwargs,
-                            low_band, jackknife, splits, flanks)
+                            low_band, jackknife, splits, flanks, method, healthy)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -632,14 +797,16 @@ def severity_series(
     labels: Sequence[str] | None = None, initial_severity: float = 0.3, warm_start: bool = False,
     ramps: Sequence[float] | str | None = None, low_band: bool | None = None,
     jackknife: bool = True, splits: bool | None = None,
-    flanks: bool | Sequence[str] | None = None, **fit_kwargs: Any,
+    flanks: bool | Sequence[str] | None = None, method: str | None = None, healthy=None,
+    **fit_kwargs: Any,
 ) -> SeveritySeries:
     """Fit every record of a series (module docstring).
 
     **Arguments:** `records` (in time order); `spec_or_twin`; `location`; `free` (further
     parameters); `labels` (default ``record0`` …); `initial_severity`; `warm_start`: start each
     fit from the previous record's values (a slowly evolving machine); `ramps`, `low_band`,
-    `jackknife`, `splits`, `flanks`: as for :func:`estimate_severity`; keyword arguments of
+    `jackknife`, `splits`, `flanks`, `method`, `healthy`: as for :func:`estimate_severity`;
+    keyword arguments of
     :func:`dtwin.identify.fit.fit` (``kind`` as for :func:`estimate_severity`).
     """
     name = _name(location)
@@ -652,7 +819,8 @@ def severity_series(
     ests = []
     for rec in records:
         est = _fitted_estimate(rec, spec_or_twin, location, names, init, ramps,
-                               dict(fit_kwargs), low_band, jackknife, splits, flanks)
+                               dict(fit_kwargs), low_band, jackknife, splits, flanks, method,
+                               healthy)
         ests.append(est)
         if warm_start:
             init = dict(est.fit.values)

@@ -172,11 +172,12 @@ def _files(result, name: str, report: dict, unit: str | None, headline: dict | N
                                          {"frequency": "Hz", "measured": unit_name(unit),
                                           "fitted": unit_name(unit)})
             figures[f"Measured vs fitted spectrum, record {i}"] = f"{stem}.png"
-        out["loss.png"] = plot_loss_history(result.loss_history)
-        out["loss.csv"] = Columns({"evaluation": list(range(1, len(result.loss_history) + 1)),
-                                   "loss": result.loss_history},
-                                  {"evaluation": "1", "loss": "1"})
-        figures["Loss over the solver's evaluations"] = "loss.png"
+        if result.loss_history:  # none for a depth read from the sideband ratio
+            out["loss.png"] = plot_loss_history(result.loss_history)
+            out["loss.csv"] = Columns(
+                {"evaluation": list(range(1, len(result.loss_history) + 1)),
+                 "loss": result.loss_history}, {"evaluation": "1", "loss": "1"})
+            figures["Loss over the solver's evaluations"] = "loss.png"
         records = report.get("records") or [report.get("record")]
         out["report.html"] = HTMLReport(
             title=f"dtwin {name.split('.')[0]}: {', '.join(Path(str(r)).name for r in records)}",
@@ -347,6 +348,17 @@ def severity(
              "prefers; a planet fault on the wrong flank reads many times small (default: on "
              "unless the spec's [[faults]] entry names the planet fault's flank). Three fits "
              "where there was one."),
+    method: str | None = typer.Option(
+        None, "--method",
+        help="ratio: read the depth from the power of the fault's sidebands over the healthy "
+             "mesh lines (the default with no --free on a steady record); spectrum: fit the "
+             "spectrum's log levels (the default otherwise; --low-band, --jackknife, --splits "
+             "and --flanks are its)."),
+    healthy: Path | None = typer.Option(
+        None, "--healthy",
+        help="A healthy record of the same machine at the same speed and rate (e.g. the one "
+             "calibrated on): lines it already holds are not counted as the fault's "
+             "(--method ratio)."),
     sample_rate: float | None = opts.sample_rate_option(),
     json_out: bool = opts.json_option(),
     out: Path | None = opts.out_option("severity.json, spectrum_fit.png, loss.png"),
@@ -371,13 +383,22 @@ def severity(
     segs = _segments([record], sample_rate, ch, gb.spec, f_sun, window, tacho)
     rec = segs[0].record
     opts.check_speed_against_lines(rec, gb.spec, f_sun, ch, record)
+    if method is not None:
+        opts.choice("--method", method, ("ratio", "spectrum"))
+        if method == "ratio" and extra:
+            raise opts.OptionError("--method", "the sideband ratio reads the fault's depth "
+                                   "alone: leave out --free or use --method spectrum")
+    healthy_rec = None
+    if healthy is not None:
+        healthy_rec = _segments([healthy], sample_rate, ch, gb.spec, f_sun, window,
+                                tacho)[0].record
     from .progress import progress, record_size
 
     with progress("severity", json_out=json_out, size=record_size(rec)):
         est = estimate_severity(rec, gb.spec, location, free=extra, kind=model, f_sun=f_sun,
                                 channel=ch, low_band=low_band, jackknife=jackknife,
                                 ramps="shapes" if shapes else None, splits=splits,
-                                flanks=flanks)
+                                flanks=flanks, method=method, healthy=healthy_rec)
 
     report = {"record": str(record), "gearbox": gb.source, **_window_report(segs),
               **est.to_dict()}
@@ -389,7 +410,7 @@ def severity(
             typer.echo(f"note: {est.note}")
         if est.shapes_table():
             typer.echo(est.shapes_table())
-        typer.echo(est.fit.table())
+        typer.echo(est.readings_table() if est.readings else est.fit.table())
 
     opts.emit(report, json_out=json_out, table=table, out=out, force=force,
               files=_files(est.fit, "severity.json", report, _unit([rec], ch),
@@ -398,4 +419,5 @@ def severity(
               parameters={"location": location, "free": extra,
                           "fit_window": window.text(), "low_band": low_band,
                           "jackknife": jackknife, "shapes": shapes, "splits": splits,
-                          "flanks": flanks})
+                          "flanks": flanks, "method": method,
+                          "healthy": None if healthy is None else str(healthy)})

@@ -1,0 +1,475 @@
+"""A tooth fault's depth from the power of its sidebands over the healthy mesh lines, per band.
+
+A local tooth fault modulates one mesh once per pass of the faulty tooth and so adds lines
+beside every mesh harmonic. Within one band around a mesh harmonic, ``(m ± 1/2) f_m``, the
+power the fault adds on its lines over the power of the gearbox's own (healthy) lines is a
+ratio in which everything the fault does not change cancels: the sensor's gain and its
+transfer path (both kinds of line pass the same path at nearly the same frequency), the window
+of the passing planets, and the calibrated mesh excitation, to the extent that the twin's
+healthy lines already stand where the record's do. What is left is the fault's own dynamics:
+how much sideband power a given loss of mesh stiffness makes. :func:`line_ratio` reads the
+record's ratio in each mesh band, simulates the twin (a :class:`~dtwin.identify.problem.Problem`
+with the fault's severity free, as ``dtwin severity`` builds it) at a grid of severities, and
+reads the severity at which the twin's ratio meets the record's; the first mesh band's reading
+is refined by a root find on the twin itself (``optimistix.Newton``, forward-mode derivative
+through the ODE solve).
+
+Why not the level of every point of the spectrum (:mod:`dtwin.identify.residuals`)? A
+least-squares fit of log levels weighs every sideband alone, and the twin's sidebands are
+spread over the lines differently from a record's (load sharing, the window, the transfer
+path): on records from independent simulators such a fit read tooth faults 2–50× small where
+this ratio read them within a factor of two (docs/identification.md, "The depth of a tooth
+fault").
+
+**The lines** (DFT bins of a Hann-windowed spectrum of the whole record). The fault's lines are
+the bins where the twin with the fault (at :data:`REFERENCE_SEVERITY`) stands
+:data:`FAULT_LINE_DB` over the healthy twin, away from the healthy twin's own lines (below
+:data:`HEALTHY_LINE_DB` under the band's strongest healthy bin), and where the record stands
+:data:`SIGNIFICANT_DB` over its noise floor (a 31-bin running median): the lines the twin
+predicts and the record shows. The healthy lines are the other bins where the record stands
+:data:`SIGNIFICANT_DB` over its floor. The record's excess on a fault line is its power less
+the noise's mean power there (the floor's median over ``ln 2``: a bin of Gaussian noise has an
+exponentially distributed power) or, with a healthy record of the same machine at the same
+speed (`healthy`), less that record's power in the same bin — then lines the healthy gearbox
+already makes there (which the twin may lack) are not counted as the fault's, and the bins
+must also stand :data:`HEALTHY_EXCESS_DB` over the healthy record's. The twin's excess is its
+power with the fault less its power without.
+
+**The interval** of a band's reading is the noise's: the variance of a bin's power with a line
+of power ``L`` in noise of mean power ``μ`` is ``2 L μ + μ²``, summed over the bins of each set
+and carried through the ratio's logarithm and the twin's slope (its ratio against the
+severity). A reading past the grid's upper end is held there and flagged; one below its lower
+end is extrapolated along the twin's own slope there (the fault's sidebands grow with the
+square of a small loss).
+
+Frequencies in Hz, power in the record's units squared (a ratio: the unit cancels).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from dtwin.signal.spectrum import noise_floor
+
+from .operating_point import gear_orders
+from .solve import over_batch
+
+__all__ = ["BandReading", "LineRatio", "SEVERITY_GRID", "line_ratio", "mesh_bands"]
+
+#: Severities (the fault type's own measure, 1) the twin is simulated at.
+SEVERITY_GRID = (0.02, 0.06, 0.18, 0.45, 0.9)
+#: Severity of the twin's fault that marks its lines (a mid-range depth of the grid).
+REFERENCE_SEVERITY = 0.18
+#: A fault line: the faulty twin stands this many dB over the healthy twin in the bin.
+FAULT_LINE_DB = 10.0
+#: ... and the healthy twin stands this many dB below its band's strongest bin there.
+HEALTHY_LINE_DB = 40.0
+#: A line of the record: it stands this many dB over the record's noise floor (false
+#: alarms: a bin of noise passes 12 dB over its median with probability ``2^(-15.8)``).
+SIGNIFICANT_DB = 12.0
+#: With a healthy record: a fault line also stands this many dB over the healthy record's bin
+#: (the power ratio of two noise bins passes 6 dB one time in five).
+HEALTHY_EXCESS_DB = 6.0
+#: Fewest distinct fault lines (runs of bins more than a Hann main lobe apart) a band must
+#: show for a reading: a tooth fault adds a family of sidebands, and a line or two where the
+#: twin predicts them may be a line of the healthy gearbox that the twin lacks.
+MIN_FAULT_LINES = 3
+#: Bins of the running median of the noise floor.
+FLOOR_BINS = 31
+
+
+def power_spectrum(x) -> np.ndarray:
+    """Hann-windowed power spectrum of one signal, its mean removed (numpy, one-sided bins)."""
+    x = np.asarray(x, dtype=np.float64)
+    x = x - x.mean()
+    return np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2
+
+
+def _power_jax(x):
+    x = x - jnp.mean(x)
+    return jnp.abs(jnp.fft.rfft(x * jnp.asarray(np.hanning(x.shape[0])))) ** 2
+
+
+def mesh_bands(f_mesh: float, sample_rate: float, passband: float = 0.45
+               ) -> list[tuple[str, float, float]]:
+    """The bands ``(m − 1/2, m + 1/2) f_mesh`` that lie below ``passband × sample_rate``:
+    ``[("mesh1", lo, hi), …]`` (Hz)."""
+    out, m = [], 1
+    while (m + 0.5) * f_mesh <= passband * sample_rate:
+        out.append((f"mesh{m}", (m - 0.5) * f_mesh, (m + 0.5) * f_mesh))
+        m += 1
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class BandReading:
+    """One band's reading: `name`, `lo_hz`, `hi_hz`; `fault_bins`, `healthy_bins` (counts);
+    `record_db` (the record's ratio, dB; nan where a set is empty) and `record_se_db` (its
+    noise standard error); `twin_db` (the twin's ratio at each severity of the grid);
+    `severity` (where the twin's ratio meets the record's; nan when it cannot be read; 0 below
+    detection) and its 95 % `interval` (noise and jackknife; ``(0, detection limit)`` below
+    detection); `edge`: ``"above the grid"`` (held at the grid's top), ``"below the grid"``
+    (extrapolated), ``"below detection"`` (no fault line stands over the noise) or empty;
+    `jackknife_db`: the delete-one-slice jackknife's standard error of the record's ratio less
+    the twin's (dB; nan with fewer than three slices holding fault lines)."""
+
+    name: str
+    lo_hz: float
+    hi_hz: float
+    fault_bins: int
+    healthy_bins: int
+    record_db: float
+    record_se_db: float
+    twin_db: tuple[float, ...]
+    severity: float = float("nan")
+    interval: tuple[float, float] = (float("nan"), float("nan"))
+    edge: str = ""
+    jackknife_db: float = float("nan")
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class LineRatio:
+    """:func:`line_ratio`'s result: `grid` (severities simulated), `bands` (one
+    :class:`BandReading` each), `severity` and its 95 % noise `interval` from the first mesh
+    band (refined by a root find on the twin where `refined`), `healthy_reference`: whether a
+    healthy record was subtracted."""
+
+    grid: tuple[float, ...]
+    bands: tuple[BandReading, ...]
+    severity: float
+    interval: tuple[float, float]
+    refined: bool = False
+    healthy_reference: bool = False
+
+    def to_dict(self) -> dict:
+        return {"grid": list(self.grid), "bands": [b.to_dict() for b in self.bands],
+                "severity": self.severity, "interval_95": list(self.interval),
+                "refined": self.refined, "healthy_reference": self.healthy_reference}
+
+
+def _signal_of(problem):
+    """The twin's first-record sensor signal as a function of θ (JAX)."""
+    def one(theta):
+        sigs, _ = problem.signals(theta)
+        return sigs[0]
+    return one
+
+
+@eqx.filter_jit
+def _signals(thetas, problem):
+    return over_batch(_signal_of(problem), "map", thetas)
+
+
+def _thetas(problem, index: int, severities: Sequence[float]) -> jnp.ndarray:
+    """θ of `problem` at each severity of its free parameter `index`, the others at their
+    starting values."""
+    x0 = [float(v) for v in np.asarray(problem.pset.x0)]
+    rows = []
+    for s in severities:
+        v = list(x0)
+        v[index] = float(s)
+        rows.append(problem.pset.theta(v))
+    return jnp.asarray(np.stack(rows))
+
+
+#: Slices of a band either side of its mesh harmonic (the jackknife's groups; paired across
+#: the harmonic with ``paired=True``).
+SLICES = 5
+
+
+def _groups(freqs, centre: float, width: float, fault, paired: bool
+            ) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """The fault lines of a band in slices of ``width / (2 SLICES)`` either side of `centre`:
+    ``(mask, None)`` per slice holding fault lines or, `paired`, ``(lower, upper)`` per pair
+    of mirrored slices both holding fault lines."""
+    d = freqs - centre
+    w = 0.5 * width / SLICES
+    out = []
+    for k in range(SLICES):
+        lo_m = fault & (d < -k * w) & (d >= -(k + 1) * w)
+        hi_m = fault & (d >= k * w) & (d < (k + 1) * w)
+        if paired:
+            if lo_m.any() and hi_m.any():
+                out.append((lo_m, hi_m))
+        else:
+            out.extend((m, None) for m in (lo_m, hi_m) if m.any())
+    return out
+
+
+def _group_excess(e: np.ndarray, groups) -> np.ndarray:
+    """The fault's power per group (:func:`_groups`): the sum of `e` over a slice, or over a
+    pair the geometric mean of the two sides' sums, twice (a transfer path's slope across the
+    band, in dB, cancels)."""
+    return np.array([float(e[a].sum()) if b is None
+                     else 2.0 * math.sqrt(float(e[a].sum()) * float(e[b].sum()))
+                     for a, b in groups])
+
+
+def _lines(mask: np.ndarray) -> int:
+    """Distinct lines among the bins of `mask`: runs whose bins lie more than two bins (a Hann
+    main lobe's half-width) apart."""
+    idx = np.flatnonzero(mask)
+    return 0 if idx.size == 0 else 1 + int(np.sum(np.diff(idx) > 2))
+
+
+def _noise_var(line: np.ndarray, mu: np.ndarray) -> float:
+    """Variance of a sum of bin powers, each a line of power `line` in noise of mean `mu`."""
+    return float(np.sum(2.0 * np.clip(line, 0.0, None) * mu + mu * mu))
+
+
+def _read(record_db: float, twin_db: np.ndarray, grid: np.ndarray) -> tuple[float, str]:
+    """The severity at which the twin's ratios `twin_db` (on `grid`) meet `record_db`:
+    interpolation in log severity on the monotone part, held at the top, extrapolated along the
+    lowest segment's slope below."""
+    lg = np.log(grid)
+    if not (np.isfinite(record_db) and np.all(np.isfinite(twin_db))):
+        return float("nan"), ""
+    if record_db >= twin_db[-1]:
+        return float(grid[-1]), "above the grid"
+    if record_db < twin_db[0]:
+        slope = (twin_db[1] - twin_db[0]) / (lg[1] - lg[0])
+        if slope <= 0:
+            return float("nan"), ""
+        return float(np.exp(lg[0] + (record_db - twin_db[0]) / slope)), "below the grid"
+    mono = np.maximum.accumulate(twin_db)  # the ratio rises with the depth; flats held
+    j = int(np.searchsorted(mono, record_db, side="right"))
+    j = min(max(j, 1), grid.size - 1)
+    d = mono[j] - mono[j - 1]
+    u = 0.5 if d <= 0 else (record_db - mono[j - 1]) / d
+    return float(np.exp(lg[j - 1] + u * (lg[j] - lg[j - 1]))), ""
+
+
+def _slope_at(sev: float, twin_db: np.ndarray, grid: np.ndarray) -> float:
+    """d(ratio, dB)/d(log severity) of the twin near `sev` (its grid segment; > 0)."""
+    lg = np.log(grid)
+    j = int(np.clip(np.searchsorted(lg, math.log(max(sev, 1e-12))), 1, grid.size - 1))
+    return float(max((twin_db[j] - twin_db[j - 1]) / (lg[j] - lg[j - 1]), 1e-6))
+
+
+def _band(name, lo, hi, freqs, p_rec, floor, mu, sig_rec, p_ref, p0, p_grid, p_mark, grid,
+          paired):
+    """One band's :class:`BandReading` and its bin sets (module docstring)."""
+    s = (freqs >= lo) & (freqs < hi)
+    quiet0 = p0 < 10 ** (-HEALTHY_LINE_DB / 10) * (p0[s].max() if s.any() else 0.0)
+    candidate = s & quiet0 & (p_mark > 10 ** (FAULT_LINE_DB / 10) * p0)
+    fault = candidate & sig_rec
+    if p_ref is not None:
+        fault &= p_rec > 10 ** (HEALTHY_EXCESS_DB / 10) * p_ref
+    if _lines(fault) < MIN_FAULT_LINES:  # a line or two is no fault's family
+        fault = np.zeros_like(fault)
+    healthy_l = s & sig_rec & ~fault
+    groups = _groups(freqs, 0.5 * (lo + hi), hi - lo, fault, paired)
+    base = mu if p_ref is None else p_ref
+    e_rec = np.clip(p_rec - base, 0.0, None)
+    r_k = _group_excess(e_rec, groups)
+    num, den = float(r_k.sum()), float(p_rec[healthy_l].sum())
+    ex_tw = np.clip(p_grid - p0, 0.0, None)
+    t_k = np.stack([_group_excess(e, groups) for e in ex_tw]) if groups else \
+        np.zeros((len(grid), 0))
+    t_den = np.array([float(p[healthy_l].sum()) for p in p_grid])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_db = 10 * np.log10(t_k.sum(axis=1) / t_den)
+    t_db = np.where(np.isfinite(t_db), t_db, np.nan)
+    if not (num > 0 and den > 0):
+        # no fault line stands over the noise: below detection (module docstring)
+        limit = _detection_limit(candidate, healthy_l, p_rec, floor, p0, p_grid, grid)
+        return (BandReading(name, float(lo), float(hi), 0, int(healthy_l.sum()), float("nan"),
+                            float("nan"), tuple(float(v) for v in t_db), 0.0, (0.0, limit),
+                            "below detection"), fault, healthy_l, groups)
+    rec_db = 10 * math.log10(num / den)
+    var_base = mu if p_ref is None else 2 * mu  # the healthy record's noise too
+    rel2 = (_noise_var(e_rec[fault], var_base[fault]) / num**2
+            + _noise_var(p_rec[healthy_l], mu[healthy_l]) / den**2)
+    se_db = 10 / math.log(10) * math.sqrt(rel2)
+    sev, edge = _read(rec_db, t_db, grid)
+    iv = (float("nan"), float("nan"))
+    jk_db = float("nan")
+    if np.isfinite(sev):
+        jk_db = _jackknife_db(r_k, den, t_k, t_den, grid, sev)
+        se = math.hypot(se_db, jk_db) if np.isfinite(jk_db) else se_db
+        half = 1.96 * se / _slope_at(sev, t_db, grid)
+        iv = (sev * math.exp(-half), float(grid[-1]) if edge == "above the grid"
+              else min(sev * math.exp(half), 1.0))
+    return (BandReading(name, float(lo), float(hi), int(fault.sum()), int(healthy_l.sum()),
+                        rec_db, se_db, tuple(float(v) for v in t_db), sev, iv, edge, jk_db),
+            fault, healthy_l, groups)
+
+
+def _jackknife_db(r_k, den, t_k, t_den, grid, sev) -> float:
+    """Delete-one-group jackknife standard error (dB) of the record's ratio less the twin's at
+    `sev` (the twin's groups interpolated in log severity): how far the reading rests on one
+    part of the band; nan with fewer than three groups."""
+    k = r_k.size
+    if k < 3:
+        return float("nan")
+    lg = np.log(grid)
+    with np.errstate(divide="ignore"):
+        tl = np.log(np.maximum(t_k, 1e-300))
+    t_at = np.exp(np.array([np.interp(math.log(sev), lg, tl[:, j]) for j in range(k)]))
+    d_at = float(np.exp(np.interp(math.log(sev), lg, np.log(t_den))))
+    loo = []
+    for j in range(k):
+        r, t = r_k.sum() - r_k[j], t_at.sum() - t_at[j]
+        if r <= 0 or t <= 0:
+            continue
+        loo.append(10 * math.log10(r / den) - 10 * math.log10(t / d_at))
+    if len(loo) < 3:
+        return float("nan")
+    loo = np.asarray(loo)
+    return float(math.sqrt((loo.size - 1) / loo.size * np.sum((loo - loo.mean()) ** 2)))
+
+
+def _detection_limit(candidate, healthy_l, p_rec, floor, p0, p_grid, grid) -> float:
+    """The smallest severity whose fault lines would stand :data:`SIGNIFICANT_DB` over the
+    record's floor in some bin of `candidate`, the twin scaled to the record by their healthy
+    lines (interpolated in log severity; the grid's top when none would)."""
+    den = float(p_rec[healthy_l].sum())
+    if not candidate.any() or den <= 0:
+        return float(grid[-1])
+    over = []
+    for p in p_grid:
+        d = float(p[healthy_l].sum())
+        e = np.clip(p - p0, 0.0, None)[candidate] * (den / d if d > 0 else 0.0)
+        over.append(float(np.max(e / floor[candidate])) if e.size else 0.0)
+    over_db = 10 * np.log10(np.maximum(np.asarray(over), 1e-300))
+    target = SIGNIFICANT_DB
+    if over_db[-1] < target:
+        return float(grid[-1])
+    if over_db[0] >= target:
+        return float(grid[0])
+    j = int(np.argmax(over_db >= target))
+    u = (target - over_db[j - 1]) / max(over_db[j] - over_db[j - 1], 1e-12)
+    lg = np.log(grid)
+    return float(np.exp(lg[j - 1] + u * (lg[j] - lg[j - 1])))
+
+
+def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healthy=None,
+               grid: Sequence[float] = SEVERITY_GRID, refine: bool = True,
+               passband: float = 0.45, paired: bool = False) -> LineRatio:
+    """Read a tooth fault's severity from the power of its sidebands over the healthy lines
+    (module docstring).
+
+    **Arguments:** `problem` (a :class:`~dtwin.identify.problem.Problem` of one steady record
+    whose free parameter `index` is the fault's severity; the other free parameters are held
+    at their starting values); `record` (the same record); `channel`; `healthy`: a healthy
+    record of the same machine at the same speed and rate, or None (module docstring, "The
+    lines"); `grid`: severities the twin is simulated at (ascending); `refine`: refine the
+    first band's reading by a root find on the twin; `passband`: the highest band's upper edge
+    as a fraction of the sampling rate. **Returns:** :class:`LineRatio`.
+    """
+    obs = problem.observations[0]
+    n, fs = int(obs.n_samples), float(obs.sample_rate)
+    grid = np.asarray(sorted(float(g) for g in grid))
+    x = np.asarray(record.channel(channel), dtype=np.float64)[:n]
+    p_rec = power_spectrum(x)
+    floor = noise_floor(np.sqrt(p_rec), FLOOR_BINS) ** 2  # median power of a noise bin
+    mu = floor / math.log(2.0)
+    p_ref = None
+    if healthy is not None:
+        h = np.asarray(healthy.channel(channel), dtype=np.float64)
+        if h.size >= n and float(healthy.sample_rate) == fs:
+            p_ref = power_spectrum(h[:n])
+    freqs = np.fft.rfftfreq(n, 1.0 / fs)
+    f_mesh = float(obs.speed[0]) * gear_orders(problem.twin)["mesh"]
+
+    sevs = np.concatenate([[0.0], grid, [REFERENCE_SEVERITY]])
+    sigs = np.asarray(_signals(_thetas(problem, index, sevs), problem))
+    p_tw = np.stack([power_spectrum(s) for s in sigs])
+    p0, p_grid, p_mark = p_tw[0], p_tw[1:-1], p_tw[-1]
+
+    bands, sets = [], []
+    sig_rec = p_rec > 10 ** (SIGNIFICANT_DB / 10) * floor
+    for name, lo, hi in mesh_bands(f_mesh, fs, passband):
+        reading, fault, healthy_l, groups = _band(
+            name, lo, hi, freqs, p_rec, floor, mu, sig_rec, p_ref, p0, p_grid, p_mark, grid,
+            paired)
+        bands.append(reading)
+        sets.append((fault, healthy_l, groups))
+
+    if not bands:
+        return LineRatio(tuple(grid), (), float("nan"), (float("nan"), float("nan")))
+    first = bands[0]
+    sev, iv, refined = first.severity, first.interval, False
+    if refine and np.isfinite(sev) and sev > 0 and not first.edge:
+        sev_r = _refine(problem, index, sev, first.record_db, sets[0], p0)
+        if sev_r is not None:
+            f = sev_r / sev
+            sev, iv, refined = sev_r, (iv[0] * f, iv[1] * f), True
+    return LineRatio(tuple(float(g) for g in grid), tuple(bands), float(sev),
+                     (float(iv[0]), float(iv[1])), refined, p_ref is not None)
+
+
+def _refine(problem, index: int, sev0: float, target_db: float, sets, p0) -> float | None:
+    """The severity where the twin's first-band ratio equals `target_db`, by Newton's method in
+    log severity (``optimistix.root_find``) from `sev0`; None when it does not converge inside
+    the severity's range."""
+    import optimistix as optx
+
+    fault, healthy_l, groups = sets
+    paired = [(a, b) for a, b in groups if b is not None]
+    pairs = (np.zeros((0, fault.size), bool), np.zeros((0, fault.size), bool)) if not paired \
+        else (np.stack([a for a, _ in paired]), np.stack([b for _, b in paired]))
+    lo, hi = float(problem.pset.lower[index]), float(problem.pset.upper[index])
+    try:
+        sol = _root_find(jnp.asarray(math.log(sev0)), problem, index, jnp.asarray(target_db),
+                         jnp.asarray(fault), jnp.asarray(healthy_l),
+                         tuple(jnp.asarray(m, jnp.float64) for m in pairs), jnp.asarray(p0))
+    except Exception:  # noqa: BLE001 — the grid's reading stands
+        return None
+    if sol.result != optx.RESULTS.successful:
+        return None
+    s = float(np.exp(np.asarray(sol.value)))
+    return s if lo < s < hi and abs(math.log(s / sev0)) < 1.0 else None
+
+
+def _ratio_db(y, args):
+    """The twin's ratio (dB) at log severity `y` less the record's (`args`)."""
+    problem, index, target_db, fault, healthy_l, (lo_m, hi_m), p0 = args
+    lo, hi = problem.pset.lower[index], problem.pset.upper[index]
+    s = jnp.clip(jnp.exp(y), lo + 1e-6, hi - 1e-6)
+    vals = jnp.asarray(problem.pset.x0, dtype=jnp.float64)
+    theta = _theta_jax(problem, vals.at[index].set(s))
+    p = _power_jax(_signal_of(problem)(theta))
+    ex = jnp.clip(p - p0, 0.0, None)
+    if lo_m.shape[0]:  # mirrored slices (_group_excess)
+        e = jnp.sum(2.0 * jnp.sqrt((lo_m @ ex) * (hi_m @ ex)))
+    else:
+        e = jnp.sum(jnp.where(fault, ex, 0.0))
+    d = jnp.sum(jnp.where(healthy_l, p, 0.0))
+    return 10 * jnp.log10(e / d) - target_db
+
+
+@eqx.filter_jit
+def _root_find(y0, problem, index, target_db, fault, healthy_l, pairs, p0):
+    import optimistix as optx
+
+    return optx.root_find(_ratio_db, optx.Newton(rtol=1e-3, atol=1e-2), y0,
+                          args=(problem, index, target_db, fault, healthy_l, pairs, p0),
+                          max_steps=8, throw=False)
+
+
+def _theta_jax(problem, values):
+    """θ of physical `values` (JAX; the inverse of ``ParameterSet.values``)."""
+    pset = problem.pset
+    out = []
+    for i, tr in enumerate(pset.transforms):
+        x = values[i]
+        if tr == "log":
+            out.append(jnp.log(x / pset.x0[i]))
+        elif tr == "logit":
+            lo, hi = pset.lower[i], pset.upper[i]
+            u = (x - lo) / (hi - lo)
+            out.append(jnp.log(u / (1 - u)) - pset._offset(i))
+        else:
+            out.append((x - pset.x0[i]) / max(abs(float(pset.x0[i])), 1.0))
+    return jnp.stack(out)
+
