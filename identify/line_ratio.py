@@ -17,9 +17,9 @@ through the ODE solve).
 Why not the level of every point of the spectrum (:mod:`dtwin.identify.residuals`)? A
 least-squares fit of log levels weighs every sideband alone, and the twin's sidebands are
 spread over the lines differently from a record's (load sharing, the window, the transfer
-path): on records from independent simulators such a fit read tooth faults 2–50× small where
-this ratio read them within a factor of two (docs/identification.md, "The depth of a tooth
-fault").
+path): on records from independent simulators such a fit read some sun and planet faults
+7–50× small where this ratio read every one 0.98–2.6× (docs/identification.md, "The depth of a
+tooth fault: the sideband ratio").
 
 **The lines** (DFT bins of a Hann-windowed spectrum of the whole record). The fault's lines are
 the bins where the twin with the fault (at :data:`REFERENCE_SEVERITY`) stands

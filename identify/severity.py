@@ -34,9 +34,9 @@ calibrated excitation cancel in that ratio, so a calibration that reproduces the
 spectrum only roughly, or was made with the other twin, does not bias the depth. A
 least-squares fit of the spectrum's log levels (``method="spectrum"``, below) weighs every
 sideband alone and is pulled by how the twin spreads a fault's power over its lines rather
-than by how much it makes: on records of independent simulators it read sun and planet faults
-2–50× small where the ratio read them within a factor of two (docs/identification.md, "The
-depth of a tooth fault"). With ``ramps`` the ratio is read for each loss shape, the first
+than by how much it makes: on records of independent simulators it read some sun and planet
+faults 7–50× small where the ratio read every one 0.98–2.6× (docs/identification.md, "The depth
+of a tooth fault: the sideband ratio"). With ``ramps`` the ratio is read for each loss shape, the first
 shape's value reported and the interval the hull over all. The interval holds the record's
 noise and the delete-one-slice jackknife of the band's lines (how far the reading rests on one
 part of the band); where no fault line stands over the noise the depth reads 0 with an

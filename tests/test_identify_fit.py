@@ -51,7 +51,7 @@ def severity_fit(truth_record, spec):
 
     # the truth is torsional: the severity's default twin is translational (SEVERITY_KIND)
     return estimate_severity(truth_record, spec, "sun", initial_severity=0.35, max_steps=25,
-                             kind="torsional")
+                             kind="torsional", method="spectrum")  # the fit's internals
 
 
 def test_speed_estimated_before_fit(severity_fit):

@@ -81,7 +81,7 @@ def _estimate(name: str, spec, ramps, jackknife=False):
     from dtwin.identify.severity import estimate_severity
 
     est = estimate_severity(read_record(IND / f"{name}.csv"), spec, "sun", ramps=ramps,
-                            initial_severity=0.2, jackknife=jackknife)
+                            initial_severity=0.2, jackknife=jackknife, method="spectrum")
     assert est.fit.problem.twin.kind == "translational" and "calibrated with" in est.note
     assert est.fit.problem.observations[0].freqs[0] < 0.9 * 3 * 30 * 21 / 102  # the low band
     assert est.low_band and est.to_dict()["low_band"] is True
@@ -307,7 +307,7 @@ def test_shape_profile_keeps_the_shapes_a_model_form_error_cannot_reject(monkeyp
             problem=types.SimpleNamespace(twin=twin), widened=1.0,
             status=lambda n: "ok"))
 
-    def peak(ramp, s, reference="mean"):
+    def peak(ramp, s, reference="instant"):
         f = eqx.tree_at(lambda f: f.fault.ramp, tw.parts[k], jnp.asarray(ramp)).fault
         return float(peak_stiffness_loss(eqx.tree_at(lambda f: f.severity, f, jnp.asarray(s)),
                                          tw.lp, reference=reference))
