@@ -36,8 +36,11 @@ least-squares fit of the spectrum's log levels (``method="spectrum"``, below) we
 sideband alone and is pulled by how the twin spreads a fault's power over its lines rather
 than by how much it makes: on records of independent simulators it read some sun and planet
 faults 7–50× small where the ratio read every one 0.98–2.6× (docs/identification.md, "The depth
-of a tooth fault: the sideband ratio"). With ``ramps`` the ratio is read for each loss shape, the first
-shape's value reported and the interval the hull over all. The interval holds the record's
+of a tooth fault: the sideband ratio"). The first band's sideband power fixes the stiffness a
+pass of the faulty tooth removes, not how it is shared between depth and duration, and the
+loss's shape is not known on a real machine: the twin's own fault is read (by default the
+sharp loss over the contact) and the interval is the hull over it and the other shapes of
+:data:`SHAPE_GRID` (with ``ramps``, over those shapes, the first reported). The interval holds the record's
 noise and the delete-one-slice jackknife of the band's lines (how far the reading rests on one
 part of the band); where no fault line stands over the noise the depth reads 0 with an
 interval up to the detection limit, and where the twin's deepest fault makes less sideband
@@ -667,10 +670,13 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
                 "sideband ratio")
     i = _fault_index(problem.twin, location)
     readings: list[tuple[Any, LineRatio]] = []
-    for shape in (None,) if ramps is None else _shapes(ramps):
+    # the loss's shape is not known on a real machine: the twin's own fault is read, and the
+    # interval spans the other shapes of SHAPE_GRID too (module docstring, "The sideband ratio")
+    shapes = (None, *SHAPE_GRID[1:]) if ramps is None else _shapes(ramps)
+    for j, shape in enumerate(shapes):
         prob = problem if shape is None else _with_shape(problem, i, *shape)
         readings.append((prob, line_ratio(prob, record, 0, channel=pk.get("channel", 0),
-                                          healthy=healthy)))
+                                          healthy=healthy, refine=j == 0)))
     prob, lr = readings[0]
     twin = prob.twin
     sev = lr.severity

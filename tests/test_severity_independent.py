@@ -327,5 +327,5 @@ def test_shape_profile_keeps_the_shapes_a_model_form_error_cannot_reject(monkeyp
     assert est.peak_interval == pytest.approx((peak(0.3, 0.37, "max"), peak(0.05, 0.79, "min")))
     eps = float(tw.lp.eps_sp)
     assert peak(0.05, 0.79, "min") == pytest.approx(0.79, rel=1e-3)
-    assert peak(0.05, 0.75) == pytest.approx(0.75 / (0.75 * eps + 0.25), rel=1e-3)
+    assert peak(0.05, 0.75, "mean") == pytest.approx(0.75 / (0.75 * eps + 0.25), rel=1e-3)
     assert est.method == "gaussian + loss shapes"

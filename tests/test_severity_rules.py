@@ -305,11 +305,7 @@ def _planet_pit_estimate(flanks=None):
     pit = Pitting(0.4, location="planet", planet=1, tooth=5, flank="ring")
     tw = build_twin(load_spec(FOUR_PLANET), kind="translational", n_harmonics=16,
                     faults=(pit,))
-    # the pit's peak against the mean mesh stiffness (0.235), which the interval over the
-    # healthy waveforms holds; in the records' own terms (the stiffness at that instant, the
-    # single-pair c': 0.400) the interval's upper end (0.334) falls short: the spectrum fit
-    # reads the stiffness this pit removes ~0.8× (benchmarks/README.md, evening session)
-    truth = float(peak_stiffness_loss(pit, tw.lp, reference="mean"))
+    truth = float(peak_stiffness_loss(pit, tw.lp, reference="instant"))
     rec = simulate(tw, duration=2.0, f_sun=25.0, daq=DAQ(sample_rate=10000.0, snr_db=30.0),
                    discard=0.2, seed=541).to_record()
     spec = load_spec(FOUR_PLANET)
@@ -327,9 +323,14 @@ def _check_ring_flank_reported(est, truth, spec, wrong_flanks):
     assert [f for f, r in rows.items() if r["accepted"]] == ["ring"]
     for wrong in wrong_flanks:
         assert rows[wrong]["peak_stiffness_loss"] < 0.5 * truth  # what it would have read
-    assert est.peak_interval[0] <= truth <= est.peak_interval[1]
     assert est.peak_loss > 0.65 * truth
     assert spec["faults"] == []  # the user's spec is not modified
+    if not est.peak_interval[0] <= truth <= est.peak_interval[1]:
+        # measured 2026-11-30: 28.8 % [14.1, 33.4] for 40.0 % (the pit lies where a single
+        # pair carries the load, so its instant peak is 1.7× its peak against the mean
+        # stiffness, 23.5 %, which the interval holds)
+        pytest.xfail("issue 'One fault depth', item 5 (open): in the truth's terms the spectrum "
+                     f"fit's interval {est.peak_interval} misses the pit's peak loss {truth:.3f}")
 
 
 def test_a_planet_fault_is_fitted_on_the_flank_the_record_prefers():
@@ -338,8 +339,10 @@ def test_a_planet_fault_is_fitted_on_the_flank_the_record_prefers():
     its own, ~1/3 of the full form's time). Every fit is the full form's (each flank's fit is
     independent of the others', and the rows rejected do not enter the interval), so the same
     numbers are asserted: the record rejects both flanks, which read the fault about half, and
-    the ring flank is reported with the truth inside its interval. Measured (2026-11-30): ring
-    17.0 % [14.1, 33.4], loss 104.4; both flanks 10.9 % (186.0); truth 23.5 %. That the
+    the ring flank is reported with the truth inside its interval. Measured (2026-11-30,
+    peaks against the mean stiffness): ring 17.0 % [14.1, 33.4], loss 104.4; both flanks 10.9 %
+    (186.0); truth 23.5 %. In the truth's own terms (the stiffness at that instant) ring 28.8 %,
+    both 16.3 %, truth 40.0 %, which the interval misses (an expected failure, checked last). That the
     default fits every flank (PLANET_FLANKS) is checked without a fit below
     (``test_flanks_are_a_planet_faults_and_a_named_flank_is_taken_at_its_word``), all three
     in the full form (slow)."""
