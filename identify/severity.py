@@ -711,7 +711,10 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
     k = _fault_index(twin, location)
     method = "line ratio" + (" + loss shapes" if len(readings) > 1 else "")
     peak = _peak(twin, k, s_rep) if np.isfinite(sev) else float("nan")
-    piv = ((_peak(twin, k, lo, "max"), _peak(twin, k, hi, "min")) if np.isfinite(lo)
+    # each shape's severities in its own terms: the hull of their peak-loss intervals
+    ends = [(_peak(p_.twin, k, r.interval[0], "max"), _peak(p_.twin, k, r.interval[1], "min"))
+            for p_, r in readings if np.isfinite(r.severity)]
+    piv = ((min(a for a, _ in ends), max(b for _, b in ends)) if ends
            else (float("nan"), float("nan")))
     rows = []
     for p_, r in readings:
