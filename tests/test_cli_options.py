@@ -120,7 +120,7 @@ BAD: dict[tuple[str, ...], tuple[list[str], list[tuple[str, object]]]] = {
         ("--location", "carrier"), ("--free", "nope"), ("--model", "quantum"),
         ("--f-sun", "0"), ("--channel", "nope"), ("--sample-rate", "-1"), ("--out", "{done}"),
         ("--fit-window", "start:4"), ("--fit-window", "0:nan"), ("--fit-window", "1.5:1"),
-        ("--tacho", "nope"), *OUT_BAD]),
+        ("--tacho", "nope"), ("--method", "fit"), ("--healthy", "{missing}"), *OUT_BAD]),
     ("fleet", "identify", R): (["--preset", "paper-sim", "--out", "{done}_fleet"], [
         ("--out", "{file}"), ("--spec", "{missing}"), ("--preset", "nope"),
         ("--free", "nope"), ("--model", "quantum"), ("--f-sun", "0"),

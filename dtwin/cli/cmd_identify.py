@@ -373,6 +373,13 @@ def severity(
     opts.choice("--location", location, ("sun", "planet", "ring"))
     extra = opts.free_names("--free", free) if free.strip() else []
     check_free([f"{location}_fault"])
+    opts.choice("--method", method, ("ratio", "spectrum"))
+    if method == "ratio" and extra:
+        raise opts.OptionError("--method", "the sideband ratio reads the fault's depth alone: "
+                               "leave out --free or use --method spectrum")
+    if healthy is not None and not healthy.is_file():
+        raise opts.OptionError("--healthy", f"{healthy} does not exist; give the path of a "
+                               "healthy record of the same machine")
     _check_common(model, f_sun, out, force)
     window = _parse_window(fit_window)
     opts.tacho_reading(tacho)
@@ -383,11 +390,6 @@ def severity(
     segs = _segments([record], sample_rate, ch, gb.spec, f_sun, window, tacho)
     rec = segs[0].record
     opts.check_speed_against_lines(rec, gb.spec, f_sun, ch, record)
-    if method is not None:
-        opts.choice("--method", method, ("ratio", "spectrum"))
-        if method == "ratio" and extra:
-            raise opts.OptionError("--method", "the sideband ratio reads the fault's depth "
-                                   "alone: leave out --free or use --method spectrum")
     healthy_rec = None
     if healthy is not None:
         healthy_rec = _segments([healthy], sample_rate, ch, gb.spec, f_sun, window,
