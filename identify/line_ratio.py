@@ -35,12 +35,18 @@ already makes there (which the twin may lack) are not counted as the fault's, an
 must also stand :data:`HEALTHY_EXCESS_DB` over the healthy record's. The twin's excess is its
 power with the fault less its power without.
 
-**The interval** of a band's reading is the noise's: the variance of a bin's power with a line
-of power ``L`` in noise of mean power ``μ`` is ``2 L μ + μ²``, summed over the bins of each set
-and carried through the ratio's logarithm and the twin's slope (its ratio against the
-severity). A reading past the grid's upper end is held there and flagged; one below its lower
-end is extrapolated along the twin's own slope there (the fault's sidebands grow with the
-square of a small loss).
+**The interval** of a band's reading holds two terms, added in quadrature in dB and carried
+through the twin's slope (its ratio against the log severity): the noise's (the variance of a
+bin's power with a line of power ``L`` in noise of mean power ``μ`` is ``2 L μ + μ²``, summed
+over the bins of each set and carried through the ratio's logarithm) and the delete-one-group
+jackknife of the record's ratio less the twin's over :data:`SLICES` slices either side of the
+harmonic (how far the reading rests on one part of the band: a path or a dynamics the twin
+lacks shows as slices that disagree). A reading past the grid's upper end is held there and
+flagged; one below its lower end is extrapolated along the twin's own slope there (the
+fault's sidebands grow with the square of a small loss). Where no band holds
+:data:`MIN_FAULT_LINES` fault lines over the noise, the reading is 0 with an interval up to the
+detection limit: the smallest severity whose lines, the twin scaled to the record by the
+healthy lines, would stand :data:`SIGNIFICANT_DB` over the record's floor.
 
 Frequencies in Hz, power in the record's units squared (a ratio: the unit cancels).
 """

@@ -698,6 +698,9 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
     determined = bool(np.isfinite(sev) and edge != "above the grid"
                       and (edge == "below detection"
                            or 0.5 * (hi - lo) <= HALF_WIDTH_LIMIT * max(abs(sev), 0.1)))
+    if np.isfinite(sev) and not determined and not reason:
+        reason = (f"the loss's shapes and the band's lines read {lo:.3f}–{hi:.3f}, wider than "
+                  f"±{100 * HALF_WIDTH_LIMIT:.0f} % of {sev:.3f}")
     s_rep = sev if np.isfinite(sev) else float(problem.pset.x0[0])
     theta = np.asarray(problem.pset.theta([min(max(s_rep, 0.0), 1.0)]))
     res = FitResult(
