@@ -61,6 +61,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from dtwin.errors import RecordError
 from dtwin.signal.spectrum import noise_floor
 
 from .operating_point import gear_orders
@@ -367,8 +368,8 @@ def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healt
     **Arguments:** `problem` (a :class:`~dtwin.identify.problem.Problem` of one steady record
     whose free parameter `index` is the fault's severity; the other free parameters are held
     at their starting values); `record` (the same record); `channel`; `healthy`: a healthy
-    record of the same machine at the same speed and rate, or None (module docstring, "The
-    lines"); `grid`: severities the twin is simulated at (ascending); `refine`: refine the
+    record of the same machine at the same speed and rate, at least as long (a
+    :class:`~dtwin.errors.RecordError` otherwise), or None (module docstring, "The lines"); `grid`: severities the twin is simulated at (ascending); `refine`: refine the
     first band's reading by a root find on the twin; `passband`: the highest band's upper edge
     as a fraction of the sampling rate. **Returns:** :class:`LineRatio`.
     """
@@ -382,8 +383,12 @@ def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healt
     p_ref = None
     if healthy is not None:
         h = np.asarray(healthy.channel(channel), dtype=np.float64)
-        if h.size >= n and float(healthy.sample_rate) == fs:
-            p_ref = power_spectrum(h[:n])
+        if h.size < n or float(healthy.sample_rate) != fs:
+            raise RecordError(
+                f"the healthy record ({h.size} samples at {float(healthy.sample_rate):g} Hz) "
+                f"must have the faulty record's rate ({fs:g} Hz) and at least its length "
+                f"({n} samples): give a healthy record of the same acquisition, or none")
+        p_ref = power_spectrum(h[:n])
     freqs = np.fft.rfftfreq(n, 1.0 / fs)
     f_mesh = float(obs.speed[0]) * gear_orders(problem.twin)["mesh"]
 

@@ -72,6 +72,21 @@ def test_mesh_bands_stop_below_the_pass_band():
     assert bands[0][1:] == (250.0, 750.0) and bands[-1][2] <= 0.45 * 5000.0
 
 
+def test_a_healthy_record_of_another_acquisition_is_refused():
+    """``healthy=`` must match the faulty record's rate and length: a clear error, not a
+    reading made without it."""
+    import types
+
+    from dtwin.errors import RecordError
+
+    obs = types.SimpleNamespace(n_samples=1000, sample_rate=5000.0)
+    problem = types.SimpleNamespace(observations=[obs])
+    rec = types.SimpleNamespace(channel=lambda c: np.zeros(1000), sample_rate=5000.0)
+    short = types.SimpleNamespace(channel=lambda c: np.zeros(500), sample_rate=5000.0)
+    with pytest.raises(RecordError, match="healthy record"):
+        lr.line_ratio(problem, rec, healthy=short)
+
+
 def _truth(record: str) -> float:
     effects = json.loads((IND / "truth.json").read_text())["records"][record]["effects"]
     return float(effects[0]["peak_stiffness_loss"]) if effects else 0.0
