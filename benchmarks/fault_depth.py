@@ -88,25 +88,24 @@ def _loss_profile(record, spec, location: str, kind: str, peaks: np.ndarray) -> 
 
 def _bands(spec, f_sun: float, fs: float) -> list[tuple[str, float, float]]:
     """The low band (``0.8 N f_c`` to ``f_m / 2``, as severity's) and the mesh bands
-    ``(m ± 1/2) f_m`` below the DAQ's pass band (``0.45 fs``), in Hz."""
+    ``(m ± 1/2) f_m`` below the DAQ's pass band (``0.45 fs``;
+    :func:`dtwin.identify.line_ratio.mesh_bands`), in Hz."""
+    from dtwin.identify.line_ratio import mesh_bands
+
     g = spec["gears"]
     fc = f_sun * g["z_sun"] / (g["z_sun"] + g["z_ring"])
     fm = g["z_ring"] * fc
-    out = [("low", 0.8 * g["n_planets"] * fc, 0.5 * fm)]
-    m = 1
-    while (m + 0.5) * fm <= 0.45 * fs:
-        out.append((f"mesh{m}", (m - 0.5) * fm, (m + 0.5) * fm))
-        m += 1
-    return out
+    return [("low", 0.8 * g["n_planets"] * fc, 0.5 * fm), *mesh_bands(fm, fs)]
 
 
 def _power(record) -> tuple[np.ndarray, np.ndarray]:
-    """Hann-windowed power spectrum of a record's first channel: (Hz, power)."""
+    """Hann-windowed power spectrum of a record's first channel
+    (:func:`dtwin.identify.line_ratio.power_spectrum`): (Hz, power)."""
+    from dtwin.identify.line_ratio import power_spectrum
+
     x = np.asarray(record.data)
     x = x.reshape(-1) if min(x.shape) == 1 else x[0]
-    x = x - x.mean()
-    return (np.fft.rfftfreq(x.size, 1.0 / record.sample_rate),
-            np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2)
+    return np.fft.rfftfreq(x.size, 1.0 / record.sample_rate), power_spectrum(x)
 
 
 def twin_power(spec, lp, location: str, kind: str, peak: float, duration: float,

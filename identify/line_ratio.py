@@ -65,6 +65,7 @@ from dtwin.errors import RecordError
 from dtwin.signal.spectrum import noise_floor
 
 from .operating_point import gear_orders
+from .residuals import _amplitude
 from .solve import over_batch
 
 __all__ = ["BandReading", "LineRatio", "SEVERITY_GRID", "line_ratio", "mesh_bands"]
@@ -92,15 +93,10 @@ FLOOR_BINS = 31
 
 
 def power_spectrum(x) -> np.ndarray:
-    """Hann-windowed power spectrum of one signal, its mean removed (numpy, one-sided bins)."""
+    """Hann-windowed power spectrum of one signal, its mean removed (numpy, one-sided bins):
+    the square of the fit's amplitude spectrum (:mod:`dtwin.identify.residuals`)."""
     x = np.asarray(x, dtype=np.float64)
-    x = x - x.mean()
-    return np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2
-
-
-def _power_jax(x):
-    x = x - jnp.mean(x)
-    return jnp.abs(jnp.fft.rfft(x * jnp.asarray(np.hanning(x.shape[0])))) ** 2
+    return _amplitude(x, x.size) ** 2
 
 
 def mesh_bands(f_mesh: float, sample_rate: float, passband: float = 0.45
@@ -392,10 +388,13 @@ def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healt
     freqs = np.fft.rfftfreq(n, 1.0 / fs)
     f_mesh = float(obs.speed[0]) * gear_orders(problem.twin)["mesh"]
 
-    sevs = np.concatenate([[0.0], grid, [REFERENCE_SEVERITY]])
+    # the healthy twin, the grid, and the marking depth where the grid does not hold it
+    extra = [] if np.any(np.isclose(grid, REFERENCE_SEVERITY)) else [REFERENCE_SEVERITY]
+    sevs = np.concatenate([[0.0], grid, extra])
     sigs = np.asarray(_signals(_thetas(problem, index, sevs), problem))
     p_tw = np.stack([power_spectrum(s) for s in sigs])
-    p0, p_grid, p_mark = p_tw[0], p_tw[1:-1], p_tw[-1]
+    p0, p_grid = p_tw[0], p_tw[1: 1 + grid.size]
+    p_mark = p_tw[-1] if extra else p_grid[int(np.argmin(abs(grid - REFERENCE_SEVERITY)))]
 
     bands, sets = [], []
     sig_rec = p_rec > 10 ** (SIGNIFICANT_DB / 10) * floor
@@ -421,35 +420,32 @@ def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healt
 
 def _refine(problem, index: int, sev0: float, target_db: float, sets, p0) -> float | None:
     """The severity where the twin's first-band ratio equals `target_db`, by Newton's method in
-    log severity (``optimistix.root_find``) from `sev0`; None when it does not converge inside
-    the severity's range."""
+    the fit's own coordinate θ of the severity (``optimistix.root_find``) from `sev0`; None when
+    it does not converge or moves more than a factor e from `sev0`."""
     import optimistix as optx
 
     fault, healthy_l, groups = sets
     paired = [(a, b) for a, b in groups if b is not None]
     pairs = (np.zeros((0, fault.size), bool), np.zeros((0, fault.size), bool)) if not paired \
         else (np.stack([a for a, _ in paired]), np.stack([b for _, b in paired]))
-    lo, hi = float(problem.pset.lower[index]), float(problem.pset.upper[index])
+    theta0 = jnp.asarray(_thetas(problem, index, [sev0])[0])
     try:
-        sol = _root_find(jnp.asarray(math.log(sev0)), problem, index, jnp.asarray(target_db),
+        sol = _root_find(theta0[index], problem, index, theta0, jnp.asarray(target_db),
                          jnp.asarray(fault), jnp.asarray(healthy_l),
                          tuple(jnp.asarray(m, jnp.float64) for m in pairs), jnp.asarray(p0))
     except Exception:  # noqa: BLE001 — the grid's reading stands
         return None
     if sol.result != optx.RESULTS.successful:
         return None
-    s = float(np.exp(np.asarray(sol.value)))
-    return s if lo < s < hi and abs(math.log(s / sev0)) < 1.0 else None
+    s = float(problem.pset.values(theta0.at[index].set(sol.value))[index])
+    return s if s > 0 and abs(math.log(s / sev0)) < 1.0 else None
 
 
 def _ratio_db(y, args):
-    """The twin's ratio (dB) at log severity `y` less the record's (`args`)."""
-    problem, index, target_db, fault, healthy_l, (lo_m, hi_m), p0 = args
-    lo, hi = problem.pset.lower[index], problem.pset.upper[index]
-    s = jnp.clip(jnp.exp(y), lo + 1e-6, hi - 1e-6)
-    vals = jnp.asarray(problem.pset.x0, dtype=jnp.float64)
-    theta = _theta_jax(problem, vals.at[index].set(s))
-    p = _power_jax(_signal_of(problem)(theta))
+    """The twin's ratio (dB) at the severity's coordinate `y` less the record's (`args`)."""
+    problem, index, theta0, target_db, fault, healthy_l, (lo_m, hi_m), p0 = args
+    sig = _signal_of(problem)(theta0.at[index].set(y))
+    p = _amplitude(sig, sig.shape[0]) ** 2
     ex = jnp.clip(p - p0, 0.0, None)
     if lo_m.shape[0]:  # mirrored slices (_group_excess)
         e = jnp.sum(2.0 * jnp.sqrt((lo_m @ ex) * (hi_m @ ex)))
@@ -460,27 +456,10 @@ def _ratio_db(y, args):
 
 
 @eqx.filter_jit
-def _root_find(y0, problem, index, target_db, fault, healthy_l, pairs, p0):
+def _root_find(y0, problem, index, theta0, target_db, fault, healthy_l, pairs, p0):
     import optimistix as optx
 
     return optx.root_find(_ratio_db, optx.Newton(rtol=1e-3, atol=1e-2), y0,
-                          args=(problem, index, target_db, fault, healthy_l, pairs, p0),
+                          args=(problem, index, theta0, target_db, fault, healthy_l, pairs, p0),
                           max_steps=8, throw=False)
-
-
-def _theta_jax(problem, values):
-    """θ of physical `values` (JAX; the inverse of ``ParameterSet.values``)."""
-    pset = problem.pset
-    out = []
-    for i, tr in enumerate(pset.transforms):
-        x = values[i]
-        if tr == "log":
-            out.append(jnp.log(x / pset.x0[i]))
-        elif tr == "logit":
-            lo, hi = pset.lower[i], pset.upper[i]
-            u = (x - lo) / (hi - lo)
-            out.append(jnp.log(u / (1 - u)) - pset._offset(i))
-        else:
-            out.append((x - pset.x0[i]) / max(abs(float(pset.x0[i])), 1.0))
-    return jnp.stack(out)
 
