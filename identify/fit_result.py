@@ -38,7 +38,10 @@ class FitResult:
       excitation/response split (:mod:`dtwin.identify.excitation_response`), the one reported
       (:data:`~dtwin.identify.excitation_response.SPLIT_CALIBRATED` or
       :data:`~dtwin.identify.excitation_response.SPLIT_STIFFNESS`), and `splits`: a row per split (loss,
-      values, intervals, accepted); empty otherwise.
+      values, intervals, accepted); empty otherwise;
+    - `read_intervals`, `read_reasons`: for a value read without a covariance (a fault's depth
+      from the sideband ratio, :mod:`dtwin.identify.line_ratio`; `uncertainty` is None), its 95 %
+      interval (name → (low, high)) and, where it is not determined, why (name → reason).
     """
 
     names: tuple[str, ...]
@@ -63,12 +66,24 @@ class FitResult:
     relocations: list[dict[str, Any]] = dataclasses.field(default_factory=list)
     excitation: str = ""
     splits: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    read_intervals: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
+    read_reasons: dict[str, str] = dataclasses.field(default_factory=dict)
 
     @property
     def not_determined(self) -> dict[str, str]:
-        return {} if self.uncertainty is None else dict(self.uncertainty.not_determined)
+        return dict(self.read_reasons) if self.uncertainty is None else \
+            dict(self.uncertainty.not_determined)
+
+    def has_interval(self, name: str) -> bool:
+        """Whether `name` has a 95 % interval (from the covariance or as read)."""
+        return self.uncertainty is not None or name in self.read_intervals
 
     def interval(self, name: str) -> tuple[float, float]:
+        """The 95 % interval of `name` (SI); KeyError when it has none
+        (:meth:`has_interval`)."""
+        if self.uncertainty is None:
+            lo, hi = self.read_intervals[name]
+            return float(lo), float(hi)
         i = self.names.index(name)
         lo, hi = self.uncertainty.interval[i]
         return float(lo), float(hi)
@@ -84,9 +99,14 @@ class FitResult:
         noise)`` above :data:`~dtwin.identify.uncertainty.MODEL_FORM_LIMIT`), ``unconverged``,
         ``widened ×k for lack of fit`` (the loss stands
         well above the noise: a model-form error of that size could move the value, so it is
-        never called ok) or ``ok``; empty without uncertainty."""
+        never called ok) or ``ok``; for a value read without a covariance, ``NOT DETERMINED:
+        reason`` or ``ok``; empty for a value with no interval."""
         if self.uncertainty is None:
-            return ""
+            if name in self.read_reasons:
+                return f"NOT DETERMINED: {self.read_reasons[name]}"
+            if name not in self.read_intervals:
+                return ""
+            return "ok" if self.converged else "unconverged"
         if name in self.uncertainty.not_determined:
             why = self.uncertainty.not_determined[name]
             return f"NOT DETERMINED: {why}" if why.startswith(MODEL_FORM_REASON) else \
@@ -102,9 +122,9 @@ class FitResult:
     def table(self) -> str:
         """A readable table: value, 95 % interval, determined or not."""
         rows = [f"{'parameter':<18} {'initial':>12} {'fitted':>12} {'95 % interval':>28}  status"]
-        for i, n in enumerate(self.names):
-            if self.uncertainty is not None:
-                lo, hi = self.uncertainty.interval[i]
+        for n in self.names:
+            if self.has_interval(n):
+                lo, hi = self.interval(n)
                 iv = f"[{lo:.5g}, {hi:.5g}]"
                 st = self.status(n)
             else:
@@ -153,6 +173,10 @@ class FitResult:
             out["intervals_95"] = {n: list(map(float, self.uncertainty.interval[i]))
                                    for i, n in enumerate(self.names)}
             out["not_determined"] = dict(self.uncertainty.not_determined)
+        elif self.read_intervals:
+            out["intervals_95"] = {n: list(map(float, self.read_intervals[n]))
+                                   for n in self.names if n in self.read_intervals}
+            out["not_determined"] = dict(self.read_reasons)
         return out
 
     def spectra(self):

@@ -710,7 +710,9 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
         converged=bool(np.isfinite(sev)), at_bound=[name] if edge == "above the grid" else [],
         message="read from the sideband ratio (dtwin.identify.line_ratio)"
         + ("; refined by a root find on the twin" if lr.refined else ""),
-        iterations=0, wall_time=time.perf_counter() - t0, operating_points=ops, problem=prob)
+        iterations=0, wall_time=time.perf_counter() - t0, operating_points=ops, problem=prob,
+        read_intervals={name: (float(lo), float(hi))} if np.isfinite(lo) else {},
+        read_reasons={} if determined else {name: reason})
     k = _fault_index(twin, location)
     method = "line ratio" + (" + loss shapes" if len(readings) > 1 else "")
     peak = _peak(twin, k, s_rep) if np.isfinite(sev) else float("nan")
@@ -839,8 +841,10 @@ def severity_series(
     fits = [e.fit for e in ests]
     p = len(names)
     vals = np.array([[f.values[n] for n in names] for f in fits]).reshape(len(fits), p)
-    lo = np.array([[f.interval(n)[0] if f.uncertainty else np.nan for n in names] for f in fits])
-    hi = np.array([[f.interval(n)[1] if f.uncertainty else np.nan for n in names] for f in fits])
+    lo = np.array([[f.interval(n)[0] if f.has_interval(n) else np.nan for n in names]
+                   for f in fits])
+    hi = np.array([[f.interval(n)[1] if f.has_interval(n) else np.nan for n in names]
+                   for f in fits])
     lo, hi = lo.reshape(vals.shape), hi.reshape(vals.shape)
     lo[:, 0] = [e.interval[0] for e in ests]  # the severity: union over the accepted shapes
     hi[:, 0] = [e.interval[1] for e in ests]

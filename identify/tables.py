@@ -32,10 +32,11 @@ def fit_rows(result: Any) -> list[dict[str, Any]]:
     ``FitResult.status``)."""
     rows = []
     nd = result.not_determined
-    for i, n in enumerate(result.names):
+    for n in result.names:
         lo = hi = None
-        if result.uncertainty is not None:
-            lo, hi = (float(v) for v in result.uncertainty.interval[i])
+        if result.has_interval(n) if hasattr(result, "has_interval") else \
+                result.uncertainty is not None:
+            lo, hi = result.interval(n)
         status = (result.status(n) if hasattr(result, "status") else
                   "NOT DETERMINED" if n in nd else "ok" if result.converged else "unconverged")
         rows.append({"parameter": n, "unit": _unit(n), "initial": float(result.initial[n]),

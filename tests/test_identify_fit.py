@@ -247,12 +247,26 @@ def test_cli_identify_json_and_outputs(tmp_path, truth_record):
 
     folder = OutputFolder(tmp_path / "rec", force=True)
     folder.write_record("rec.dtwin.h5", truth_record)
-    out = tmp_path / "fit"
-    main(["identify", str(tmp_path / "rec" / "rec.dtwin.h5"), "--preset", "paper-sim",
-          "--free", "sun_fault", "--max-steps", "3", "--out", str(out)])
+    rec = str(tmp_path / "rec" / "rec.dtwin.h5")
+    # a tooth fault's depth alone: read as `dtwin severity` reads it (the sideband ratio), its
+    # interval reported beside the value, no solver loss to draw
+    out = tmp_path / "depth"
+    main(["identify", rec, "--preset", "paper-sim", "--free", "sun_fault", "--out", str(out)])
     data = json.loads((out / "identify.json").read_text())
     assert data["names"] == ["sun_fault"]
-    assert "intervals_95" in data and "loss_history" in data and "correlation" in data["uncertainty"]
+    assert data["severity"]["interval_method"].startswith("line ratio")
+    assert data["intervals_95"]["sun_fault"] == data["severity"]["interval_95"]
+    assert data["values"]["sun_fault"] == data["severity"]["severity"]
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert {"identify.json", "spectrum_fit.png", "report.html"} <= set(manifest["files"])
+    assert "loss.png" not in manifest["files"]
+    # a parameter the spectrum fit estimates: its covariance, correlations and loss history
+    out = tmp_path / "fit"
+    main(["identify", rec, "--preset", "paper-sim", "--free", "zeta_mesh", "--max-steps", "3",
+          "--out", str(out)])
+    data = json.loads((out / "identify.json").read_text())
+    assert data["names"] == ["zeta_mesh"]
+    assert "intervals_95" in data and data["loss_history"] and "correlation" in data["uncertainty"]
     manifest = json.loads((out / "manifest.json").read_text())
     assert {"identify.json", "spectrum_fit.png", "loss.png"} <= set(manifest["files"])
 
