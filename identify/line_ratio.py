@@ -11,8 +11,11 @@ how much sideband power a given loss of mesh stiffness makes. :func:`line_ratio`
 record's ratio in each mesh band, simulates the twin (a :class:`~dtwin.identify.problem.Problem`
 with the fault's severity free, as ``dtwin severity`` builds it) at a grid of severities, and
 reads the severity at which the twin's ratio meets the record's; the first mesh band's reading
-is refined by a root find on the twin itself (``optimistix.Newton``, forward-mode derivative
-through the ODE solve).
+is refined on the twin itself: simulated at the reading, the bracket about the record's ratio
+narrowed by the secant in log severity until the twin's ratio stands within
+:data:`REFINE_DB` of the record's. Every simulation is a batch through one compiled function
+of θ and the fault's loss shape (:func:`twin_powers`): ``dtwin severity`` simulates the healthy
+twin and the grid of every loss shape it reads in one batch.
 
 Why not the level of every point of the spectrum (:mod:`dtwin.identify.residuals`)? A
 least-squares fit of log levels weighs every sideband alone, and the twin's sidebands are
@@ -58,6 +61,7 @@ import math
 from collections.abc import Sequence
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -66,9 +70,9 @@ from dtwin.signal.spectrum import noise_floor
 
 from .operating_point import gear_orders
 from .residuals import _amplitude
-from .solve import over_batch
 
-__all__ = ["BandReading", "LineRatio", "SEVERITY_GRID", "line_ratio", "mesh_bands"]
+__all__ = ["BandReading", "LineRatio", "SEVERITY_GRID", "line_ratio", "mesh_bands",
+           "twin_powers"]
 
 #: Severities (the fault type's own measure, 1) the twin is simulated at.
 SEVERITY_GRID = (0.02, 0.06, 0.18, 0.45, 0.9)
@@ -90,6 +94,11 @@ HEALTHY_EXCESS_DB = 6.0
 MIN_FAULT_LINES = 3
 #: Bins of the running median of the noise floor.
 FLOOR_BINS = 31
+#: The refinement stops when the twin's ratio stands this close to the record's (dB; 0.6 % in
+#: severity where the sidebands grow with its square) ...
+REFINE_DB = 0.05
+#: ... or after this many simulations.
+REFINE_STEPS = 3
 
 
 def power_spectrum(x) -> np.ndarray:
@@ -143,8 +152,8 @@ class BandReading:
 class LineRatio:
     """:func:`line_ratio`'s result: `grid` (severities simulated), `bands` (one
     :class:`BandReading` each), `severity` and its 95 % noise `interval` from the first mesh
-    band (refined by a root find on the twin where `refined`), `healthy_reference`: whether a
-    healthy record was subtracted."""
+    band (refined on the twin where `refined`), `healthy_reference`: whether a healthy record
+    was subtracted."""
 
     grid: tuple[float, ...]
     bands: tuple[BandReading, ...]
@@ -159,17 +168,41 @@ class LineRatio:
                 "refined": self.refined, "healthy_reference": self.healthy_reference}
 
 
-def _signal_of(problem):
-    """The twin's first-record sensor signal as a function of θ (JAX)."""
-    def one(theta):
-        sigs, _ = problem.signals(theta)
-        return sigs[0]
-    return one
-
-
 @eqx.filter_jit
-def _signals(thetas, problem):
-    return over_batch(_signal_of(problem), "map", thetas)
+def _signals(thetas, ramps, spreads, problem, part):
+    """The twin's first-record sensor signals at each θ (rows of `thetas`), the loss shape of
+    the fault of ``problem.twin.parts[part]`` set to each `ramps`, `spreads` (mesh cycles; no
+    shape is set where `part` is None), one after the other (``jax.lax.map``). The shape is data
+    of the compiled function: every shape of one batch size shares one compilation, and what
+    does not change with θ is computed once per call rather than once per simulation (a batch
+    of four simulates in about two thirds the time per member of single calls on a CPU)."""
+    def one(args):
+        theta, ramp, spread = args
+        p = problem
+        if part is not None:
+            p = eqx.tree_at(lambda q: (q.twin.parts[part].fault.ramp,
+                                       q.twin.parts[part].fault.spread), problem, (ramp, spread))
+        sigs, _ = p.signals(theta)
+        return sigs[0]
+    return jax.lax.map(one, (thetas, ramps, spreads))
+
+
+def twin_powers(problem, index: int, severities: Sequence[float],
+                shapes: Sequence[tuple[float, float]] | None = None,
+                part: int | None = None) -> np.ndarray:
+    """The twin's power spectra (:func:`power_spectrum`, one row per severity) with the free
+    parameter `index` of `problem` at each of `severities`, the others at their starting values,
+    simulated in one batch; with `shapes` (one ``(ramp, spread)`` per severity, mesh cycles) and
+    `part` (the index of the fault's part in ``problem.twin.parts``) each with its own loss
+    shape."""
+    thetas = _thetas(problem, index, severities)
+    n = thetas.shape[0]
+    if shapes is None or part is None:
+        shapes, part = [(0.0, 0.0)] * n, None
+    ramps = jnp.asarray([float(r) for r, _ in shapes], jnp.float64)
+    spreads = jnp.asarray([float(v) for _, v in shapes], jnp.float64)
+    sigs = np.asarray(_signals(thetas, ramps, spreads, problem, part))
+    return np.stack([power_spectrum(x) for x in sigs])
 
 
 def _thetas(problem, index: int, severities: Sequence[float]) -> jnp.ndarray:
@@ -357,7 +390,7 @@ def _detection_limit(candidate, healthy_l, p_rec, floor, p0, p_grid, grid) -> fl
 
 def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healthy=None,
                grid: Sequence[float] = SEVERITY_GRID, refine: bool = True,
-               passband: float = 0.45, paired: bool = False) -> LineRatio:
+               passband: float = 0.45, paired: bool = False, twin=None) -> LineRatio:
     """Read a tooth fault's severity from the power of its sidebands over the healthy lines
     (module docstring).
 
@@ -366,8 +399,11 @@ def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healt
     at their starting values); `record` (the same record); `channel`; `healthy`: a healthy
     record of the same machine at the same speed and rate, at least as long (a
     :class:`~dtwin.errors.RecordError` otherwise), or None (module docstring, "The lines"); `grid`: severities the twin is simulated at (ascending); `refine`: refine the
-    first band's reading by a root find on the twin; `passband`: the highest band's upper edge
-    as a fraction of the sampling rate. **Returns:** :class:`LineRatio`.
+    first band's reading on the twin (module docstring); `passband`: the highest band's upper
+    edge as a fraction of the sampling rate; `paired`: read mirrored slices of a band together
+    (:func:`_group_excess`); `twin`: ``(healthy, at_grid)``, the twin's power spectra
+    (:func:`twin_powers`) without the fault and at each severity of `grid` where they are already
+    simulated (None: simulated here). **Returns:** :class:`LineRatio`.
     """
     obs = problem.observations[0]
     n, fs = int(obs.n_samples), float(obs.sample_rate)
@@ -390,11 +426,17 @@ def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healt
 
     # the healthy twin, the grid, and the marking depth where the grid does not hold it
     extra = [] if np.any(np.isclose(grid, REFERENCE_SEVERITY)) else [REFERENCE_SEVERITY]
-    sevs = np.concatenate([[0.0], grid, extra])
-    sigs = np.asarray(_signals(_thetas(problem, index, sevs), problem))
-    p_tw = np.stack([power_spectrum(s) for s in sigs])
-    p0, p_grid = p_tw[0], p_tw[1: 1 + grid.size]
-    p_mark = p_tw[-1] if extra else p_grid[int(np.argmin(abs(grid - REFERENCE_SEVERITY)))]
+    if twin is None:
+        p_tw = twin_powers(problem, index, [0.0, *grid, *extra])
+        p0, p_grid = p_tw[0], p_tw[1: 1 + grid.size]
+        p_mark = p_tw[-1] if extra else None
+    else:
+        p0, p_grid = (np.asarray(a, dtype=np.float64) for a in twin)
+        if p_grid.shape[0] != grid.size:
+            raise ValueError(f"twin holds {p_grid.shape[0]} spectra for a grid of {grid.size}")
+        p_mark = twin_powers(problem, index, extra)[0] if extra else None
+    if p_mark is None:
+        p_mark = p_grid[int(np.argmin(abs(grid - REFERENCE_SEVERITY)))]
 
     bands, sets = [], []
     sig_rec = p_rec > 10 ** (SIGNIFICANT_DB / 10) * floor
@@ -410,7 +452,8 @@ def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healt
     first = bands[0]
     sev, iv, refined = first.severity, first.interval, False
     if refine and np.isfinite(sev) and sev > 0 and not first.edge:
-        sev_r = _refine(problem, index, sev, first.record_db, sets[0], p0)
+        sev_r = _refine(problem, index, sev, first.record_db, sets[0], p0, grid,
+                        np.asarray(first.twin_db))
         if sev_r is not None:
             f = sev_r / sev
             sev, iv, refined = sev_r, (iv[0] * f, iv[1] * f), True
@@ -418,48 +461,38 @@ def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healt
                      (float(iv[0]), float(iv[1])), refined, p_ref is not None)
 
 
-def _refine(problem, index: int, sev0: float, target_db: float, sets, p0) -> float | None:
-    """The severity where the twin's first-band ratio equals `target_db`, by Newton's method in
-    the fit's own coordinate θ of the severity (``optimistix.root_find``) from `sev0`; None when
-    it does not converge or moves more than a factor e from `sev0`."""
-    import optimistix as optx
+def _twin_db(p: np.ndarray, p0: np.ndarray, healthy_l: np.ndarray, groups) -> float:
+    """The twin's ratio (dB) in a band from its power spectrum `p`, as :func:`_band` reads it:
+    the excess over the healthy twin `p0` on the fault's groups over the healthy lines."""
+    e = float(_group_excess(np.clip(p - p0, 0.0, None), groups).sum())
+    d = float(p[healthy_l].sum())
+    return 10 * math.log10(e / d) if e > 0 and d > 0 else float("nan")
 
-    fault, healthy_l, groups = sets
-    paired = [(a, b) for a, b in groups if b is not None]
-    pairs = (np.zeros((0, fault.size), bool), np.zeros((0, fault.size), bool)) if not paired \
-        else (np.stack([a for a, _ in paired]), np.stack([b for _, b in paired]))
-    theta0 = jnp.asarray(_thetas(problem, index, [sev0])[0])
-    try:
-        sol = _root_find(theta0[index], problem, index, theta0, jnp.asarray(target_db),
-                         jnp.asarray(fault), jnp.asarray(healthy_l),
-                         tuple(jnp.asarray(m, jnp.float64) for m in pairs), jnp.asarray(p0))
-    except Exception:  # noqa: BLE001 — the grid's reading stands
-        return None
-    if sol.result != optx.RESULTS.successful:
-        return None
-    s = float(problem.pset.values(theta0.at[index].set(sol.value))[index])
+
+def _refine(problem, index: int, sev0: float, target_db: float, sets, p0, grid, twin_db
+            ) -> float | None:
+    """The severity where the twin's first-band ratio meets `target_db`: the twin simulated at
+    the reading `sev0`, then at the secant in log severity across the tightest bracket of the
+    record's ratio among the points simulated so far (grid and refinement), until it stands
+    within :data:`REFINE_DB` (at most :data:`REFINE_STEPS` simulations). None where no bracket
+    holds or the result moves more than a factor e from `sev0`."""
+    _, healthy_l, groups = sets
+    pts = [(math.log(g), float(d)) for g, d in zip(grid, twin_db, strict=True)
+           if np.isfinite(d)]
+    s = sev0
+    for _ in range(REFINE_STEPS):
+        d = _twin_db(twin_powers(problem, index, [s])[0], p0, healthy_l, groups)
+        if not np.isfinite(d):
+            return None
+        if abs(d - target_db) <= REFINE_DB:
+            break
+        pts.append((math.log(s), d))
+        below = [q for q in pts if q[1] < target_db]
+        above = [q for q in pts if q[1] > target_db]
+        if not below or not above:
+            return None
+        a, b = max(below), min(above)  # the tightest bracket in log severity
+        if b[1] == a[1]:
+            return None
+        s = math.exp(a[0] + (target_db - a[1]) * (b[0] - a[0]) / (b[1] - a[1]))
     return s if s > 0 and abs(math.log(s / sev0)) < 1.0 else None
-
-
-def _ratio_db(y, args):
-    """The twin's ratio (dB) at the severity's coordinate `y` less the record's (`args`)."""
-    problem, index, theta0, target_db, fault, healthy_l, (lo_m, hi_m), p0 = args
-    sig = _signal_of(problem)(theta0.at[index].set(y))
-    p = _amplitude(sig, sig.shape[0]) ** 2
-    ex = jnp.clip(p - p0, 0.0, None)
-    if lo_m.shape[0]:  # mirrored slices (_group_excess)
-        e = jnp.sum(2.0 * jnp.sqrt((lo_m @ ex) * (hi_m @ ex)))
-    else:
-        e = jnp.sum(jnp.where(fault, ex, 0.0))
-    d = jnp.sum(jnp.where(healthy_l, p, 0.0))
-    return 10 * jnp.log10(e / d) - target_db
-
-
-@eqx.filter_jit
-def _root_find(y0, problem, index, theta0, target_db, fault, healthy_l, pairs, p0):
-    import optimistix as optx
-
-    return optx.root_find(_ratio_db, optx.Newton(rtol=1e-3, atol=1e-2), y0,
-                          args=(problem, index, theta0, target_db, fault, healthy_l, pairs, p0),
-                          max_steps=8, throw=False)
-

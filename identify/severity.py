@@ -147,7 +147,7 @@ from .excitation_response import (
 )
 from .fit import fit
 from .fit_result import FitResult
-from .line_ratio import SIGNIFICANT_DB, LineRatio, line_ratio
+from .line_ratio import SEVERITY_GRID, SIGNIFICANT_DB, LineRatio, line_ratio, twin_powers
 from .low_band import LOW_BAND_LOCATIONS as LOW_BAND_LOCATIONS
 from .low_band import LOW_BAND_START as LOW_BAND_START
 from .low_band import with_low_band as with_low_band
@@ -673,10 +673,18 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
     # the loss's shape is not known on a real machine: the twin's own fault is read, and the
     # interval spans the other shapes of SHAPE_GRID too (module docstring, "The sideband ratio")
     shapes = (None, *SHAPE_GRID[1:]) if ramps is None else _shapes(ramps)
+    # the healthy twin (no fault: any shape) and every shape's grid in one batch
+    f0 = problem.twin.parts[i].fault
+    own = (float(f0.ramp), float(f0.spread))
+    vals = [own if sh is None else (float(sh[0]), float(sh[1])) for sh in shapes]
+    g = len(SEVERITY_GRID)
+    p_tw = twin_powers(problem, 0, [0.0, *SEVERITY_GRID * len(vals)],
+                       shapes=[vals[0], *(v for v in vals for _ in range(g))], part=i)
     for j, shape in enumerate(shapes):
         prob = problem if shape is None else _with_shape(problem, i, *shape)
-        readings.append((prob, line_ratio(prob, record, 0, channel=pk.get("channel", 0),
-                                          healthy=healthy, refine=j == 0)))
+        lr = line_ratio(prob, record, 0, channel=pk.get("channel", 0), healthy=healthy,
+                        refine=j == 0, twin=(p_tw[0], p_tw[1 + j * g: 1 + (j + 1) * g]))
+        readings.append((prob, lr))
     prob, lr = readings[0]
     twin = prob.twin
     sev = lr.severity
@@ -709,7 +717,7 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
         loss_history=[], start_losses=np.zeros(0), starts=np.zeros((0, 1)), refined=[],
         converged=bool(np.isfinite(sev)), at_bound=[name] if edge == "above the grid" else [],
         message="read from the sideband ratio (dtwin.identify.line_ratio)"
-        + ("; refined by a root find on the twin" if lr.refined else ""),
+        + ("; refined on the twin" if lr.refined else ""),
         iterations=0, wall_time=time.perf_counter() - t0, operating_points=ops, problem=prob,
         read_intervals={name: (float(lo), float(hi))} if np.isfinite(lo) else {},
         read_reasons={} if determined else {name: reason})
