@@ -29,19 +29,28 @@ the bins where the twin with the fault (at :data:`REFERENCE_SEVERITY`) stands
 :data:`FAULT_LINE_DB` over the healthy twin, away from the healthy twin's own lines (below
 :data:`HEALTHY_LINE_DB` under the band's strongest healthy bin), and where the record stands
 :data:`SIGNIFICANT_DB` over its noise floor (a 31-bin running median): the lines the twin
-predicts and the record shows. The healthy lines are the other bins where the record stands
-:data:`SIGNIFICANT_DB` over its floor. The record's excess on a fault line is its power less
-the noise's mean power there (the floor's median over ``ln 2``: a bin of Gaussian noise has an
-exponentially distributed power) or, with a healthy record of the same machine at the same
-speed (`healthy`), less that record's power in the same bin — then lines the healthy gearbox
-already makes there (which the twin may lack) are not counted as the fault's, and the bins
-must also stand :data:`HEALTHY_EXCESS_DB` over the healthy record's. The twin's excess is its
-power with the fault less its power without.
+predicts and the record shows; at least :data:`MIN_FAULT_LINES` of them make a reading. The
+healthy lines are the other bins where the record stands :data:`SIGNIFICANT_DB` over its
+floor. The fault's power is then summed over every bin its twin **reaches** — where the twin's
+fault adds power within :data:`REACH_DB` of its strongest bin, away from the healthy lines —
+not over the fault's lines alone: how a fault's power is shared among its sidebands rests on
+what a healthy record cannot fix (for a planet fault, the harmonics of the passing planet's
+window that cancel over the planets of a healthy gearbox), and on records from independent
+simulators the twin put about half its planet-fault power on bins where the record showed no
+line; the sum over the reach read those faults 1.02–1.06× where the lines alone read them
+1.3×. The record's excess in a bin is its power less the noise's mean power there (the floor's
+median over ``ln 2``: a bin of Gaussian noise has an exponentially distributed power; not held
+at 0, so that noise adds as much below as above) or, with a healthy record of the same machine
+at the same speed (`healthy`), less that record's power in the same bin — then lines the
+healthy gearbox already makes there (which the twin may lack) are not counted as the fault's,
+and the fault's lines must also stand :data:`HEALTHY_EXCESS_DB` over the healthy record's. The
+twin's excess is its power with the fault less its power without.
 
 **The interval** of a band's reading holds two terms, added in quadrature in dB and carried
 through the twin's slope (its ratio against the log severity): the noise's (the variance of a
 bin's power with a line of power ``L`` in noise of mean power ``μ`` is ``2 L μ + μ²``, summed
-over the bins of each set and carried through the ratio's logarithm) and the delete-one-group
+over the bins of each set, with the error of the noise's mean subtracted (:func:`_floor_var`),
+and carried through the ratio's logarithm) and the delete-one-group
 jackknife of the record's ratio less the twin's over :data:`SLICES` slices either side of the
 harmonic (how far the reading rests on one part of the band: a path or a dynamics the twin
 lacks shows as slices that disagree). A reading past the grid's upper end is held there and
@@ -94,6 +103,9 @@ HEALTHY_EXCESS_DB = 6.0
 MIN_FAULT_LINES = 3
 #: Bins of the running median of the noise floor.
 FLOOR_BINS = 31
+#: The bins the twin's fault reaches: its excess at :data:`REFERENCE_SEVERITY` stands within
+#: this many dB of its strongest bin in the band (they hold all but about 0.5 % of its power).
+REACH_DB = 30.0
 #: The refinement stops when the twin's ratio stands this close to the record's (dB; 0.6 % in
 #: severity where the sidebands grow with its square) ...
 REFINE_DB = 0.05
@@ -121,7 +133,9 @@ def mesh_bands(f_mesh: float, sample_rate: float, passband: float = 0.45
 
 @dataclasses.dataclass(frozen=True)
 class BandReading:
-    """One band's reading: `name`, `lo_hz`, `hi_hz`; `fault_bins`, `healthy_bins` (counts);
+    """One band's reading: `name`, `lo_hz`, `hi_hz`; `fault_bins` (the fault's bins where the
+    record stands over its noise), `healthy_bins`, `reach_bins` (every bin the twin's fault
+    reaches: the sums run over these) (counts);
     `record_db` (the record's ratio, dB; nan where a set is empty) and `record_se_db` (its
     noise standard error); `twin_db` (the twin's ratio at each severity of the grid);
     `severity` (where the twin's ratio meets the record's; nan when it cannot be read; 0 below
@@ -143,6 +157,7 @@ class BandReading:
     interval: tuple[float, float] = (float("nan"), float("nan"))
     edge: str = ""
     jackknife_db: float = float("nan")
+    reach_bins: int = 0
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -243,10 +258,11 @@ def _groups(freqs, centre: float, width: float, fault, paired: bool
 
 def _group_excess(e: np.ndarray, groups) -> np.ndarray:
     """The fault's power per group (:func:`_groups`): the sum of `e` over a slice, or over a
-    pair the geometric mean of the two sides' sums, twice (a transfer path's slope across the
-    band, in dB, cancels)."""
+    pair the geometric mean of the two sides' sums (each held at 0 or above), twice (a
+    transfer path's slope across the band, in dB, cancels)."""
     return np.array([float(e[a].sum()) if b is None
-                     else 2.0 * math.sqrt(float(e[a].sum()) * float(e[b].sum()))
+                     else 2.0 * math.sqrt(max(float(e[a].sum()), 0.0)
+                                          * max(float(e[b].sum()), 0.0))
                      for a, b in groups])
 
 
@@ -260,6 +276,15 @@ def _lines(mask: np.ndarray) -> int:
 def _noise_var(line: np.ndarray, mu: np.ndarray) -> float:
     """Variance of a sum of bin powers, each a line of power `line` in noise of mean `mu`."""
     return float(np.sum(2.0 * np.clip(line, 0.0, None) * mu + mu * mu))
+
+
+def _floor_var(mu: np.ndarray) -> float:
+    """Variance of the sum of the noise's mean power `mu` over a set of bins, each estimated
+    from the running median of :data:`FLOOR_BINS` bins: the median of ``n`` exponential powers
+    has a standard deviation of about ``μ/√n``, so ``μ̂ = median/ln 2`` one of ``μ/(ln 2 √n)``,
+    and it is shared by the ``n`` bins of one window; summed over the set, about
+    ``Σ μ² / ln² 2`` (an upper bound where the set is sparser than the window)."""
+    return float(np.sum(mu * mu)) / math.log(2.0) ** 2
 
 
 def _read(record_db: float, twin_db: np.ndarray, grid: np.ndarray) -> tuple[float, str]:
@@ -303,9 +328,13 @@ def _band(name, lo, hi, freqs, p_rec, floor, mu, sig_rec, p_ref, p0, p_grid, p_m
     if _lines(fault) < MIN_FAULT_LINES:  # a line or two is no fault's family
         fault = np.zeros_like(fault)
     healthy_l = s & sig_rec & ~fault
-    groups = _groups(freqs, 0.5 * (lo + hi), hi - lo, fault, paired)
+    # the sums run over every bin the twin's fault reaches, where the record shows its lines
+    ex_mark = np.where(candidate, np.clip(p_mark - p0, 0.0, None), 0.0)
+    reach = candidate & (ex_mark >= 10 ** (-REACH_DB / 10) * ex_mark.max()) if fault.any() \
+        else fault
+    groups = _groups(freqs, 0.5 * (lo + hi), hi - lo, reach, paired)
     base = mu if p_ref is None else p_ref
-    e_rec = np.clip(p_rec - base, 0.0, None)
+    e_rec = p_rec - base  # unbiased: a bin of noise alone adds as much below as above
     r_k = _group_excess(e_rec, groups)
     num, den = float(r_k.sum()), float(p_rec[healthy_l].sum())
     ex_tw = np.clip(p_grid - p0, 0.0, None)
@@ -323,8 +352,11 @@ def _band(name, lo, hi, freqs, p_rec, floor, mu, sig_rec, p_ref, p0, p_grid, p_m
                             "below detection"), fault, healthy_l, groups)
     rec_db = 10 * math.log10(num / den)
     var_base = mu if p_ref is None else 2 * mu  # the healthy record's noise too
-    rel2 = (_noise_var(e_rec[fault], var_base[fault]) / num**2
-            + _noise_var(p_rec[healthy_l], mu[healthy_l]) / den**2)
+    # the noise in the bins summed, and the error of the floor subtracted from them
+    var_num = _noise_var(e_rec[reach], var_base[reach])
+    if p_ref is None:
+        var_num += _floor_var(mu[reach])
+    rel2 = var_num / num**2 + _noise_var(p_rec[healthy_l], mu[healthy_l]) / den**2
     se_db = 10 / math.log(10) * math.sqrt(rel2)
     sev, edge = _read(rec_db, t_db, grid)
     iv = (float("nan"), float("nan"))
@@ -336,8 +368,9 @@ def _band(name, lo, hi, freqs, p_rec, floor, mu, sig_rec, p_ref, p0, p_grid, p_m
         iv = (sev * math.exp(-half), float(grid[-1]) if edge == "above the grid"
               else min(sev * math.exp(half), 1.0))
     return (BandReading(name, float(lo), float(hi), int(fault.sum()), int(healthy_l.sum()),
-                        rec_db, se_db, tuple(float(v) for v in t_db), sev, iv, edge, jk_db),
-            fault, healthy_l, groups)
+                        rec_db, se_db, tuple(float(v) for v in t_db), sev, iv, edge, jk_db,
+                        int(reach.sum())),
+            reach, healthy_l, groups)
 
 
 def _jackknife_db(r_k, den, t_k, t_den, grid, sev) -> float:

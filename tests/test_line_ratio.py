@@ -59,6 +59,42 @@ def test_a_reading_follows_the_twin_in_log_severity():
     assert lr._slope_at(0.1, twin_db, grid) == pytest.approx(20 / math.log(10), rel=1e-9)
 
 
+def test_the_fault_power_is_read_wherever_the_twin_puts_it():
+    """A twin that spreads its fault's power evenly over six sidebands, a record that holds the
+    same power on three (how a fault's power is shared among its lines rests on what a healthy
+    record does not fix): the band's sum over every bin the twin's fault reaches reads the true
+    severity exactly (the twin's sidebands grow with its square, the record's noise bins are at
+    their mean), where a sum over the record's lines alone would read it √2 high."""
+    n, centre = 2001, 1000
+    freqs = np.arange(n, dtype=float)
+    grid = np.asarray(lr.SEVERITY_GRID)
+    mu = np.ones(n)
+    floor = mu * math.log(2.0)
+    p0 = np.full(n, 1e-6)
+    p0[centre] = 1e6  # the healthy line, twin and record alike
+    twin_lines = centre + np.array([-150, -100, -50, 50, 100, 150])
+    c = 1e4  # each twin sideband's power at severity 1
+
+    def twin(sev):
+        p = p0.copy()
+        p[twin_lines] += c * sev**2
+        return p
+
+    true = 0.3
+    p_rec = mu.copy()
+    p_rec[centre] = 1e6
+    p_rec[centre + np.array([-50, 50, 100])] += 6 * c * true**2 / 3  # all of it on three lines
+    p_grid = np.stack([twin(g) for g in grid])
+    sig = p_rec > 10 ** (lr.SIGNIFICANT_DB / 10) * floor
+    reading, reach, healthy_l, _ = lr._band(
+        "mesh1", 500.0, 1500.0, freqs, p_rec, floor, mu, sig, None, p0, p_grid,
+        twin(lr.REFERENCE_SEVERITY), grid, False)
+    assert reading.fault_bins == 3 and reading.reach_bins == 6 and reach.sum() == 6
+    assert reading.severity == pytest.approx(true, rel=1e-9) and reading.edge == ""
+    lines_only = (p_rec - mu)[reach & sig].sum() / (c * 3)  # the twin's power on those lines
+    assert math.sqrt(lines_only) == pytest.approx(math.sqrt(2) * true, rel=1e-9)
+
+
 def test_lines_are_runs_more_than_a_main_lobe_apart():
     mask = np.zeros(40, bool)
     mask[[3, 4, 5, 9, 10, 12, 30]] = True  # runs 3–5; 9–12 (gaps of 2 bins join); 30
@@ -115,8 +151,11 @@ def test_the_ratio_reads_an_independent_sun_fault_and_a_healthy_gearbox(
     if truth:
         assert lo <= truth <= hi
         assert 0.5 * truth <= est.peak_loss <= 2.0 * truth
-        assert est.interval[0] > 0.1 and est.determined
-        assert est.readings[0]["bands"][0]["fault_bins"] > 0
+        assert est.interval[0] > 0.1
+        # determined, or not determined for a reason it states (the loss's shapes disagree)
+        assert est.determined or "shapes" in est.status
+        band = est.readings[0]["bands"][0]
+        assert 0 < band["fault_bins"] <= band["reach_bins"]
     else:
         assert est.severity <= 0.02 and est.interval[0] == 0.0 and lo == 0.0
         assert est.status.startswith("ok") and "over the noise" in est.status
