@@ -21,7 +21,7 @@ Why not the level of every point of the spectrum (:mod:`dtwin.identify.residuals
 least-squares fit of log levels weighs every sideband alone, and the twin's sidebands are
 spread over the lines differently from a record's (load sharing, the window, the transfer
 path): on records from independent simulators such a fit read some sun and planet faults
-7–50× small where this ratio read every one 0.98–2.6× (docs/identification.md, "The depth of a
+7–50× small where this ratio read every one 0.97–2.1× (docs/identification.md, "The depth of a
 tooth fault: the sideband ratio").
 
 **The lines** (DFT bins of a Hann-windowed spectrum of the whole record). The fault's lines are
@@ -37,8 +37,9 @@ not over the fault's lines alone: how a fault's power is shared among its sideba
 what a healthy record cannot fix (for a planet fault, the harmonics of the passing planet's
 window that cancel over the planets of a healthy gearbox), and on records from independent
 simulators the twin put about half its planet-fault power on bins where the record showed no
-line; the sum over the reach read those faults 1.02–1.06× where the lines alone read them
-1.3×. The record's excess in a bin is its power less the noise's mean power there (the floor's
+line, and ``dtwin severity`` read those faults 1.09–1.10× from the sum over the reach where it
+read them 1.3× from the lines alone (docs/identification.md, "The depth of a tooth fault").
+The record's excess in a bin is its power less the noise's mean power there (the floor's
 median over ``ln 2``: a bin of Gaussian noise has an exponentially distributed power; not held
 at 0, so that noise adds as much below as above) or, with a healthy record of the same machine
 at the same speed (`healthy`), less that record's power in the same bin — then lines the
