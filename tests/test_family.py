@@ -5,8 +5,9 @@ discover`` on the other records, ``dtwin severity`` on the tooth faults — on e
 ``../shared/independent/`` and scores the rows against ``truth.json``. CI runs it on one
 machine that the twin was never tuned on (``mcfadden-19-38-95``: 19/38/95, 10 240 Hz, its mesh
 frequency cancelled at a fixed sensor), on rows that pass today: the healthy baseline-2 adds
-nothing and stays within 3 dB; a sun tooth fault names its group and nothing else. A row that
-breaks fails the test. The slow form (``make test-all``) runs calibrate and discover on every
+nothing and stays within 3 dB and reads a depth of at most 0.02 with an interval from 0; a sun
+tooth fault names its group and nothing else, and ``dtwin severity`` reads its peak stiffness
+loss (0.36) within 25 % with a 95 % interval that holds it. A row that breaks fails the test. The slow form (``make test-all``) runs calibrate and discover on every
 machine and asserts the rows listed in :data:`PASSING_SLOW`, those right on this code.
 """
 
@@ -63,12 +64,13 @@ def test_family_whole_form(tmp_path):
 @needs_family
 def test_family_reduced_form(tmp_path):
     out = _run(tmp_path, "--machines", "mcfadden-19-38-95", "--records", "baseline-2",
-               "sun-fault-b", "--steps", "calibrate", "discover", "--quick")
+               "sun-fault-b", "--steps", "calibrate", "discover", "severity", "--quick")
     rows = {(r["record"], r["step"]): r for r in out["rows"]}
     assert rows[("baseline-1", "calibrate")]["right"], rows[("baseline-1", "calibrate")]
-    for key in (("baseline-2", "discover"), ("sun-fault-b", "discover")):
+    for key in (("baseline-2", "discover"), ("sun-fault-b", "discover"),
+                ("baseline-2", "severity"), ("sun-fault-b", "severity")):
         assert rows[key]["right"], rows[key]
-    assert len(out["rows"]) == 3
+    assert len(out["rows"]) == 5
     md = (tmp_path / "family.md").read_text()
     for record, step in rows:
         assert f"| mcfadden-19-38-95 | {record} | {step} |" in md, (record, step)
