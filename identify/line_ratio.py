@@ -467,7 +467,8 @@ def line_ratio(problem, record, index: int = 0, *, channel: int | str = 0, healt
     else:
         p0, p_grid = (np.asarray(a, dtype=np.float64) for a in twin)
         if p_grid.shape[0] != grid.size:
-            raise ValueError(f"twin holds {p_grid.shape[0]} spectra for a grid of {grid.size}")
+            raise ValueError(f"twin holds {p_grid.shape[0]} spectra at the fault for a grid of "
+                             f"{grid.size} severities: give one per severity of grid, in order")
         p_mark = twin_powers(problem, index, extra)[0] if extra else None
     if p_mark is None:
         p_mark = p_grid[int(np.argmin(abs(grid - REFERENCE_SEVERITY)))]
