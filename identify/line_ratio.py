@@ -82,7 +82,7 @@ from .operating_point import gear_orders
 from .residuals import _amplitude
 
 __all__ = ["BandReading", "LineRatio", "SEVERITY_GRID", "line_ratio", "mesh_bands",
-           "twin_powers"]
+           "twin_powers", "with_shape"]
 
 #: Severities (the fault type's own measure, 1) the twin is simulated at.
 SEVERITY_GRID = (0.02, 0.06, 0.18, 0.45, 0.9)
@@ -184,6 +184,14 @@ class LineRatio:
                 "refined": self.refined, "healthy_reference": self.healthy_reference}
 
 
+def with_shape(problem, part: int, ramp, spread):
+    """`problem` with the loss shape of its twin's fault ``parts[part]`` set to `ramp` and
+    `spread` (mesh cycles; floats or traced scalars, stored as float64 arrays)."""
+    return eqx.tree_at(lambda q: (q.twin.parts[part].fault.ramp,
+                                  q.twin.parts[part].fault.spread), problem,
+                       (jnp.asarray(ramp, jnp.float64), jnp.asarray(spread, jnp.float64)))
+
+
 @eqx.filter_jit
 def _signals(thetas, ramps, spreads, problem, part):
     """The twin's first-record sensor signals at each θ (rows of `thetas`), the loss shape of
@@ -194,10 +202,7 @@ def _signals(thetas, ramps, spreads, problem, part):
     of four simulates in about two thirds the time per member of single calls on a CPU)."""
     def one(args):
         theta, ramp, spread = args
-        p = problem
-        if part is not None:
-            p = eqx.tree_at(lambda q: (q.twin.parts[part].fault.ramp,
-                                       q.twin.parts[part].fault.spread), problem, (ramp, spread))
+        p = problem if part is None else with_shape(problem, part, ramp, spread)
         sigs, _ = p.signals(theta)
         return sigs[0]
     return jax.lax.map(one, (thetas, ramps, spreads))

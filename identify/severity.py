@@ -148,6 +148,7 @@ from .excitation_response import (
 from .fit import fit
 from .fit_result import FitResult
 from .line_ratio import SEVERITY_GRID, SIGNIFICANT_DB, LineRatio, line_ratio, twin_powers
+from .line_ratio import with_shape as _with_shape
 from .low_band import LOW_BAND_LOCATIONS as LOW_BAND_LOCATIONS
 from .low_band import LOW_BAND_START as LOW_BAND_START
 from .low_band import with_low_band as with_low_band
@@ -442,14 +443,6 @@ def _with_flank(problem, i: int, flank: str | None):
     fault = problem.twin.parts[i].fault
     return eqx.tree_at(lambda p: p.twin.parts[i].fault, problem,
                        dataclasses.replace(fault, flank=flank))
-
-
-def _with_shape(problem, i: int, ramp: float, spread: float):
-    """`problem` with the loss shape of its twin's fault ``parts[i]`` set to `ramp` and
-    `spread` (mesh cycles)."""
-    fault = lambda p: p.twin.parts[i].fault  # noqa: E731
-    problem = eqx.tree_at(lambda p: fault(p).ramp, problem, jnp.asarray(ramp, jnp.float64))
-    return eqx.tree_at(lambda p: fault(p).spread, problem, jnp.asarray(spread, jnp.float64))
 
 
 def _fit_shapes(record, spec_or_twin, names, initial, ramps, fit_kwargs, low_band=None,
