@@ -221,6 +221,9 @@ def run_machine(name: str, folder: Path, out: Path, records: list[str] | None, s
                                             "--location", loc])
             row = dict(machine=name, record=rec, step="severity", location=loc, wall_s=wall,
                        code=code, **score_severity(effects, res if code == 0 else None))
+            if res is not None:  # the whole answer, bands and shapes, for a later look
+                (mout / "severity").mkdir(exist_ok=True)
+                (mout / "severity" / f"{rec}.json").write_text(json.dumps(res, indent=1))
             if code != 0:
                 row["why"] = (err.strip().splitlines() or ["failed"])[-1]
             rows.append(row)

@@ -29,9 +29,9 @@ gives a peak inside it.
 fault's severity the only free parameter). Within the first mesh band of the record, the
 power the fault adds on its sidebands over the power of the gearbox's own lines is read, and
 the twin is simulated at a grid of severities to find where its ratio meets the record's
-(:mod:`dtwin.identify.line_ratio`). The sensor's gain and transfer path, the window and the
-calibrated excitation cancel in that ratio, so a calibration that reproduces the healthy
-spectrum only roughly, or was made with the other twin, does not bias the depth. A
+(:mod:`dtwin.identify.line_ratio`). The sensor's gain and transfer path and the window
+cancel in that ratio; the healthy mesh excitation does not (below, "The healthy lines'
+excitation"). A
 least-squares fit of the spectrum's log levels (``method="spectrum"``, below) weighs every
 sideband alone and is pulled by how the twin spreads a fault's power over its lines rather
 than by how much it makes: on records of independent simulators it read some sun and planet
@@ -44,8 +44,23 @@ sharp loss over the contact) and the interval is the hull over it and the other 
 noise and the delete-one-slice jackknife of the band's lines (how far the reading rests on one
 part of the band); where no fault line stands over the noise the depth reads 0 with an
 interval up to the detection limit, and where the twin's deepest fault makes less sideband
-power than the record holds the status says the model does not fit the record. The other
-paragraphs below describe the spectrum fit (``method="spectrum"``, and the default with other
+power than the record holds the status says the model does not fit the record.
+
+**The healthy lines' excitation.** The ratio weighs the stiffness the fault removes (times the
+static mesh deflection) against the healthy mesh excitation: the stiffness waveform's under
+the load plus any calibrated transmission error. A healthy record at one load measures that
+excitation only in product with the sensor's response (:mod:`dtwin.identify.excitation_response`),
+so a calibrated spec is read at both ends of its split: as calibrated, and with the stiffness
+waveform's excitation alone and a flat response (:func:`~dtwin.identify.excitation_response.stiffness_split`;
+the first loss shape only, its interval widened by the factors the shapes' hull widens the
+calibrated reading's). The calibrated reading is reported; the interval is the hull over both,
+and where the two readings lie further apart than the half-width limit
+(:data:`~dtwin.identify.uncertainty.HALF_WIDTH_LIMIT` of the reading) the status is NOT
+DETERMINED and names both. On an independent four-planet record the two ends read a sun fault 0.63 and
+0.28 (truth 0.15; the calibration's transmission error put the healthy twin's mesh lines 19 dB
+over the stiffness waveform's): one load cannot tell them apart — the stiffness waveform's
+excitation grows with the load and a transmission error does not, so healthy records at two
+loads could. The other paragraphs below describe the spectrum fit (``method="spectrum"``, and the default with other
 free parameters or a run-up).
 
 **The loss's shape.** How sharply the loss rises and falls as the faulty tooth enters and
@@ -144,6 +159,7 @@ from .excitation_response import (
     SPLIT_STIFFNESS,
     model_form_tolerance,
     other_split,
+    stiffness_split,
 )
 from .fit import fit
 from .fit_result import FitResult
@@ -283,7 +299,7 @@ class SeverityEstimate:
 
     def readings_table(self) -> str:
         """The sideband ratio's readings (``method="ratio"``), a line per band of each loss
-        shape: fault and healthy lines (bins), the record's ratio with its noise and jackknife
+        shape (and excitation/response split, where a calibrated spec has two): fault and healthy lines (bins), the record's ratio with its noise and jackknife
         standard errors, the twin's ratio over the severity grid, and the band's reading; empty
         for a spectrum fit."""
         if not self.readings:
@@ -291,8 +307,9 @@ class SeverityEstimate:
         out = []
         for r in self.readings:
             grid = " ".join(f"{g:g}" for g in r["grid"])
-            out.append(f"loss shape: {_shape_name(r['ramp'], r['spread'])} (ramp {r['ramp']:.2f}, "
-                       f"spread {r['spread']:+.2f}); twin at severities {grid}")
+            split = f"excitation: {r['excitation']}; " if "excitation" in r else ""
+            out.append(f"{split}loss shape: {_shape_name(r['ramp'], r['spread'])} (ramp "
+                       f"{r['ramp']:.2f}, spread {r['spread']:+.2f}); twin at severities {grid}")
             quiet = [b["name"] for b in r["bands"][1:] if not b["fault_bins"]]
             for b in r["bands"]:
                 if b["name"] in quiet:
@@ -659,8 +676,7 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
     if note:
         note = (f"read with the {pk['kind']} twin (the {spec_of(spec_or_twin)['model']['kind']} "
                 "twin this spec was calibrated with holds the sun and planets still under a "
-                "tooth fault); the calibrated excitation, window and response cancel in the "
-                "sideband ratio")
+                "tooth fault); the calibrated window and response cancel in the sideband ratio")
     i = _fault_index(problem.twin, location)
     readings: list[tuple[Any, LineRatio]] = []
     # the loss's shape is not known on a real machine: the twin's own fault is read, and the
@@ -686,6 +702,19 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
     ok = [r for _, r in readings if np.isfinite(r.severity)]
     lo = min((r.interval[0] for r in ok), default=float("nan"))
     hi = max((r.interval[1] for r in ok), default=float("nan"))
+    # the other end of the calibration's excitation/response split (module docstring, "The
+    # healthy lines' excitation"): the first shape, its interval widened by the shapes' hull
+    split = _split_reading(record, spec_or_twin, name, initial, pk, note, location, vals[0],
+                           healthy, lr, lo, hi)
+    split_wide = split_off = False
+    if split is not None:
+        s_prob, s_lr, s_iv = split
+        split_wide = s_iv[0] < lo or s_iv[1] > hi
+        lo, hi = min(lo, s_iv[0]), max(hi, s_iv[1])
+        readings.append((s_prob, s_lr))
+        # the two ends read the depth apart by more than the half-width limit
+        split_off = bool(np.isfinite(sev) and np.isfinite(s_lr.severity) and edge == ""
+                         and abs(s_lr.severity - sev) > HALF_WIDTH_LIMIT * max(abs(sev), 0.1))
     if not np.isfinite(sev):
         reason = "no band of the record holds the fault's lines and the healthy lines both"
     elif edge == "above the grid":
@@ -698,9 +727,17 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
         reason = ""
     determined = bool(np.isfinite(sev) and edge != "above the grid"
                       and (edge == "below detection"
-                           or 0.5 * (hi - lo) <= HALF_WIDTH_LIMIT * max(abs(sev), 0.1)))
-    if np.isfinite(sev) and not determined and not reason:
-        reason = (f"the loss's shapes and the band's lines read {lo:.3f}–{hi:.3f}, wider than "
+                           or 0.5 * (hi - lo) <= HALF_WIDTH_LIMIT * max(abs(sev), 0.1))
+                      and not split_off)
+    if split_off and not reason:
+        reason = (f"the healthy lines' excitation is not known: the depth reads {sev:.3f} with "
+                  f"the calibrated transmission error, {split[1].severity:.3f} with the "
+                  "stiffness waveform's excitation alone, and a healthy record at one load "
+                  f"cannot tell them apart (95 % over both: {lo:.3f}–{hi:.3f})")
+    elif np.isfinite(sev) and not determined and not reason:
+        what = "the loss's shapes, the healthy lines' excitation" if split_wide \
+            else "the loss's shapes"
+        reason = (f"{what} and the band's lines read {lo:.3f}–{hi:.3f}, wider than "
                   f"±{100 * HALF_WIDTH_LIMIT:.0f} % of {sev:.3f}")
     s_rep = sev if np.isfinite(sev) else float(problem.pset.x0[0])
     theta = np.asarray(problem.pset.theta([min(max(s_rep, 0.0), 1.0)]))
@@ -719,19 +756,59 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
     peak = _peak(twin, k, s_rep) if np.isfinite(sev) else float("nan")
     # each shape's severities in its own terms: the hull of their peak-loss intervals
     ends = [(_peak(p_.twin, k, r.interval[0], "max"), _peak(p_.twin, k, r.interval[1], "min"))
-            for p_, r in readings if np.isfinite(r.severity)]
+            for p_, r in (readings[:-1] if split is not None else readings)
+            if np.isfinite(r.severity)]
+    if split is not None:  # the split's interval, widened by the shapes' hull
+        k_s = _fault_index(split[0].twin, location)
+        ends.append((_peak(split[0].twin, k_s, split[2][0], "max"),
+                     _peak(split[0].twin, k_s, split[2][1], "min")))
     piv = ((min(a for a, _ in ends), max(b for _, b in ends)) if ends
            else (float("nan"), float("nan")))
     rows = []
-    for p_, r in readings:
-        f = p_.twin.parts[k].fault
-        rows.append({"ramp": float(f.ramp), "spread": float(f.spread), **r.to_dict()})
+    for j, (p_, r) in enumerate(readings):
+        f = p_.twin.parts[_fault_index(p_.twin, location)].fault
+        row = {"ramp": float(f.ramp), "spread": float(f.spread), **r.to_dict()}
+        if split is not None:
+            row["excitation"] = SPLIT_STIFFNESS if j == len(readings) - 1 else SPLIT_CALIBRATED
+        rows.append(row)
     return SeverityEstimate(
         location, float(s_rep), (float(lo), float(hi)), determined, method, res,
         peak_loss=peak, peak_interval=(float(piv[0]), float(piv[1])),
         ramp=float(twin.parts[k].fault.ramp), spread=float(twin.parts[k].fault.spread),
         note=note, flank=str(getattr(twin.parts[k].fault, "flank", ""))
-        if location == "planet" else "", reason=reason, readings=tuple(rows))
+        if location == "planet" else "", reason=reason, readings=tuple(rows),
+        excitation=SPLIT_CALIBRATED if split is not None else "")
+
+
+def _split_reading(record, spec_or_twin, name: str, initial, pk: dict, note: str,
+                   location: str, shape: tuple[float, float], healthy, lr: LineRatio,
+                   lo: float, hi: float):
+    """The sideband ratio read on the other end of a calibrated spec's excitation/response
+    split (:func:`~dtwin.identify.excitation_response.stiffness_split`; module docstring, "The
+    healthy lines' excitation"), the loss `shape` of the reported reading `lr`:
+    ``(problem, LineRatio, interval)``, the interval widened by the factors the loss shapes'
+    hull `lo`, `hi` widens `lr`'s own; None for a spec without a split or a reading that
+    cannot be made."""
+    other = stiffness_split(spec_or_twin)
+    if other is None:
+        return None
+    with warnings.catch_warnings():
+        if note:
+            warnings.filterwarnings("ignore", "this spec was calibrated with", UserWarning)
+        problem, _ = make_problem(record, other, [name], initial=initial, **pk)
+    i = _fault_index(problem.twin, location)
+    problem = _with_shape(problem, i, *shape)
+    g = len(SEVERITY_GRID)
+    p_tw = twin_powers(problem, 0, [0.0, *SEVERITY_GRID], shapes=[shape] * (g + 1), part=i)
+    s_lr = line_ratio(problem, record, 0, channel=pk.get("channel", 0), healthy=healthy,
+                      refine=False, twin=(p_tw[0], p_tw[1:]))
+    a, b = s_lr.interval
+    if not (np.isfinite(a) and np.isfinite(b)):
+        return None
+    o_lo, o_hi = lr.interval
+    f_lo = lo / o_lo if np.isfinite(lo) and o_lo > 0 else 1.0
+    f_hi = hi / o_hi if np.isfinite(hi) and o_hi > 0 else 1.0
+    return problem, s_lr, (a * min(f_lo, 1.0), min(b * max(f_hi, 1.0), 1.0))
 
 
 def estimate_severity(

@@ -138,7 +138,8 @@ def test_the_ratio_reads_an_independent_sun_fault_and_a_healthy_gearbox(
     of 0; the second healthy record reads 0 with an interval from 0 (issue "One fault depth",
     item 4). The twin's own waveform puts the point above the truth here (0.55 against 0.36:
     the record fixes the stiffness removed, the fraction needs the healthy stiffness at that
-    instant), which is why the interval spans the waveforms."""
+    instant), which is why the interval spans the waveforms. Both ends of the calibration's
+    excitation/response split are read, and the interval holds both."""
     from dtwin import read_record
     from dtwin.identify.severity import estimate_severity
 
@@ -159,3 +160,48 @@ def test_the_ratio_reads_an_independent_sun_fault_and_a_healthy_gearbox(
     else:
         assert est.severity <= 0.02 and est.interval[0] == 0.0 and lo == 0.0
         assert est.status.startswith("ok") and "over the noise" in est.status
+    # both ends of the calibration's excitation/response split are read, the calibrated
+    # reported, and the interval holds the other's reading (the healthy excitation does not
+    # cancel in the ratio: dtwin.identify.severity, "The healthy lines' excitation")
+    from dtwin.identify.excitation_response import SPLIT_CALIBRATED, SPLIT_STIFFNESS
+
+    assert {r.get("excitation") for r in est.readings} == {SPLIT_CALIBRATED, SPLIT_STIFFNESS}
+    assert est.excitation == SPLIT_CALIBRATED
+    other = next(r for r in est.readings if r["excitation"] == SPLIT_STIFFNESS)
+    if truth:
+        assert other["severity"] != pytest.approx(est.severity, rel=0.05)
+        assert est.interval[0] <= other["severity"] <= est.interval[1]
+    else:
+        assert other["severity"] == 0.0
+
+
+@needs_independent
+def test_ends_of_the_split_far_apart_leave_the_depth_not_determined(
+        independent_calibrated_spec, monkeypatch):
+    """Where the two ends of the calibration's excitation/response split read a depth further
+    apart than the half-width limit, the status is NOT DETERMINED and names both readings,
+    the reported depth stays the calibrated one and the interval holds both (the rule, with
+    the other end's reading of sun-fault-0.60 moved 3× down: on a four-planet record of an
+    independent simulator the two ends read one sun fault 0.70 and 0.28)."""
+    import dataclasses
+
+    from dtwin import read_record
+    from dtwin.identify import severity as sv
+
+    real = sv._split_reading
+
+    def far(*args, **kwargs):
+        prob, s_lr, iv = real(*args, **kwargs)
+        moved = dataclasses.replace(s_lr, severity=s_lr.severity / 3,
+                                    interval=(s_lr.interval[0] / 3, s_lr.interval[1] / 3))
+        return prob, moved, (iv[0] / 3, iv[1] / 3)
+
+    monkeypatch.setattr(sv, "_split_reading", far)
+    est = sv.estimate_severity(read_record(IND / "sun-fault-0.60.csv"),
+                               independent_calibrated_spec, "sun")
+    print(est.summary())
+    other = next(r for r in est.readings if r["excitation"] != est.excitation)
+    assert not est.determined
+    assert est.status.startswith("NOT DETERMINED: the healthy lines' excitation is not known")
+    assert f"{est.severity:.3f}" in est.status and f"{other['severity']:.3f}" in est.status
+    assert est.interval[0] <= other["severity"] < est.severity <= est.interval[1]
