@@ -245,6 +245,12 @@ def calibrate(
                              departs, bool(why), calibrated_conf, held_full)
 
 
+#: The fit on all data is refitted from each half's values where its gap on those data exceeds
+#: the held-out gap by more than this (dB): a fit scored on its own records cannot be worse than
+#: fits scored on records they never saw, unless it stopped in a poorer minimum.
+STUCK_DB = 1.0
+
+
 def _final_fits(c: _Calibration, gap_before: GapResult
                 ) -> tuple[list[_Attempt], GapResult, list]:
     """``(tried, gap_held, held_fits)``: the final fit on all data, confirmed by a full
@@ -259,9 +265,30 @@ def _final_fits(c: _Calibration, gap_before: GapResult
             f"final fit on all data, linearised at the fitted values ({attempt} of "
             f"{settings.relinearize})")
         d_all = c.data_for(c.rec_idx, c.half_idx, lin)
-        theta, steps, converged, _ = _fit(d_all, lin[2], settings.max_steps, settings.loss_rtol,
-                                          settings.run_steps, settings.restart_rtol)
+        theta, steps, converged, loss = _fit(d_all, lin[2], settings.max_steps,
+                                             settings.loss_rtol, settings.run_steps,
+                                             settings.restart_rtol)
         gap_lin = gap(c.freqs, c.a_meas, c.amp_at(theta, c.every, c.every, lin), c.bands)
+        if attempt == 0:
+            say("cross-validation: fitting on each half, scoring on the other")
+            gap_held, held_fits = c.cross_validated(lin, theta)
+            say(f"held-out gap {gap_before.total:.2f} dB before, {gap_held.total:.2f} dB "
+                "calibrated")
+            if gap_lin.total > gap_held.total + STUCK_DB:
+                # worse on the records it was fitted to than the halves' fits on the records
+                # they were not: the fit on all data stopped in a poorer minimum than its
+                # halves found; it is fitted again from each half's values, the lowest loss kept
+                say(f"the fit on all data ({gap_lin.total:.2f} dB) is worse than the held-out "
+                    f"gap ({gap_held.total:.2f} dB): fitting all data again from each half's "
+                    "values")
+                for theta_h, _ in held_fits:
+                    run = _fit(d_all, theta_h, settings.max_steps, settings.loss_rtol,
+                               settings.run_steps, settings.restart_rtol)
+                    if run[3] < loss:
+                        theta, loss = run[0], run[3]
+                        steps, converged = steps + run[1], run[2]
+                gap_lin = gap(c.freqs, c.a_meas, c.amp_at(theta, c.every, c.every, lin),
+                              c.bands)
         # the calibrated spec, then its confirmation by a full simulation
         _, G = _model_amp(jnp.asarray(theta), d_all)
         data = _calibrated_data(c.spec, theta, np.asarray(G), c.knots, c.layout, c.twin,
@@ -273,11 +300,6 @@ def _final_fits(c: _Calibration, gap_before: GapResult
         say(f"confirmed gap {gap_conf.total:.2f} dB; the linearised twin's "
             f"{gap_lin.total:.2f} dB ({steps} LM steps" + ("" if converged else
                                                           ", stopped at the step limit") + ")")
-        if attempt == 0:
-            say("cross-validation: fitting on each half, scoring on the other")
-            gap_held, held_fits = c.cross_validated(lin, theta)
-            say(f"held-out gap {gap_before.total:.2f} dB before, {gap_held.total:.2f} dB "
-                "calibrated")
         # the response is first order in the excitation and the load shares (and bilinear in
         # them and the window): where the full simulation departs from it, linearise again at
         # the fitted values and refit from there (an outer Gauss–Newton iteration)
