@@ -10,8 +10,9 @@ For each machine (the original gearbox in ``../shared/independent/`` and every f
    (and on baseline-2 at the sun: a healthy record must read ≤ 0.02 with 0 inside its interval).
 
 ``truth.json`` is read only to score. Each row says: machine, record, the groups named, the
-held-out gap before → after (dB; for a calibration also the confirmed gap), for a fault its peak stiffness loss fitted / true with the
-95 % interval and the status, right or wrong, and the wall time of the step. A summary per
+held-out gap before → after (dB; for a calibration also the confirmed gap), for a fault its
+peak stiffness loss fitted / true with the 95 % interval and the status, right or wrong, and
+the wall time of the step. A summary per
 machine and over the family follows. Written as ``family.json`` and ``family.md`` into
 ``--out`` (default ``benchmarks/out/family``).
 

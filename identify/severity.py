@@ -56,12 +56,14 @@ the first loss shape only, its interval widened by the factors the shapes' hull 
 calibrated reading's). The calibrated reading is reported; the interval is the hull over both,
 and where the two readings lie further apart than the half-width limit
 (:data:`~dtwin.identify.uncertainty.HALF_WIDTH_LIMIT` of the reading) the status is NOT
-DETERMINED and names both. On an independent four-planet record the two ends read a sun fault 0.63 and
-0.28 (truth 0.15; the calibration's transmission error put the healthy twin's mesh lines 19 dB
-over the stiffness waveform's): one load cannot tell them apart — the stiffness waveform's
-excitation grows with the load and a transmission error does not, so healthy records at two
-loads could. The other paragraphs below describe the spectrum fit (``method="spectrum"``, and the default with other
-free parameters or a run-up).
+DETERMINED and names both. On an independent four-planet record the two ends read a sun fault
+0.70 and 0.28 (truth 0.15; the calibration's transmission error put the healthy twin's mesh
+lines 19 dB over the stiffness waveform's): one load cannot tell them apart — the stiffness
+waveform's excitation grows with the load and a transmission error does not, so healthy
+records at two loads could.
+
+The other paragraphs below describe the spectrum fit (``method="spectrum"``, and the default
+with other free parameters or a run-up).
 
 **The loss's shape.** How sharply the loss rises and falls as the faulty tooth enters and
 leaves the mesh (``fault.ramp``) and how far beyond its own contact it is felt
@@ -299,9 +301,10 @@ class SeverityEstimate:
 
     def readings_table(self) -> str:
         """The sideband ratio's readings (``method="ratio"``), a line per band of each loss
-        shape (and excitation/response split, where a calibrated spec has two): fault and healthy lines (bins), the record's ratio with its noise and jackknife
-        standard errors, the twin's ratio over the severity grid, and the band's reading; empty
-        for a spectrum fit."""
+        shape (and excitation/response split, where a calibrated spec has two): fault and
+        healthy lines (bins), the record's ratio with its noise and jackknife standard errors,
+        the twin's ratio over the severity grid, and the band's reading; empty for a spectrum
+        fit."""
         if not self.readings:
             return ""
         out = []
