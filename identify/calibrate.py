@@ -270,9 +270,12 @@ def _final_fits(c: _Calibration, gap_before: GapResult
             f"final fit on all data, linearised at the fitted values ({attempt} of "
             f"{settings.relinearize})")
         d_all = c.data_for(c.rec_idx, c.half_idx, lin)
-        theta, steps, converged, loss = _fit(d_all, lin[2], settings.max_steps,
-                                             settings.loss_rtol, settings.run_steps,
-                                             settings.restart_rtol)
+
+        def fit_all(start, d_all=d_all):
+            return _fit(d_all, start, settings.max_steps, settings.loss_rtol,
+                        settings.run_steps, settings.restart_rtol)
+
+        theta, steps, converged, loss = fit_all(lin[2])
         gap_lin = gap(c.freqs, c.a_meas, c.amp_at(theta, c.every, c.every, lin), c.bands)
         if attempt == 0:
             say("cross-validation: fitting on each half, scoring on the other")
@@ -287,8 +290,7 @@ def _final_fits(c: _Calibration, gap_before: GapResult
                     f"gap ({gap_held.total:.2f} dB): fitting all data again from each half's "
                     "values")
                 for theta_h, _ in held_fits:
-                    run = _fit(d_all, theta_h, settings.max_steps, settings.loss_rtol,
-                               settings.run_steps, settings.restart_rtol)
+                    run = fit_all(theta_h)
                     if run[3] < loss:
                         theta, loss = run[0], run[3]
                         steps, converged = steps + run[1], run[2]
