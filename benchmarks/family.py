@@ -19,7 +19,8 @@ machine and over the family follows. Written as ``family.json`` and ``family.md`
 Scoring (issue "Right on every machine" and "One fault depth"):
 
 - the calibration on baseline-1: held-out gap ≤ 3 dB, and the confirmed gap (the calibrated
-  spec's twin simulated in full on baseline-1) ≤ 3 dB too;
+  spec's twin simulated in full on baseline-1) ≤ 3 dB too, with its teeth in contact (its
+  ``contact_margin`` ≥ 0: a healthy gearbox under load does not part them);
 - a healthy record (baseline-2): nothing added and reported gap ≤ 3 dB;
 - an effect record: its group (:data:`GROUP`) is the first named and nothing else is added; a
   tone: nothing named;
@@ -191,8 +192,12 @@ def run_machine(name: str, folder: Path, out: Path, records: list[str] | None, s
         if res is not None:
             row.update(gap_before=_gap(res, "gap_before"), gap_after=_gap(res, "gap_heldout"),
                        gap_confirmed=_gap(res, "gap_confirmed"),
-                       not_determined=res.get("not_determined", []))
-            if row["right"] and not row["gap_after"] <= GAP_OK_DB:  # nan: not right
+                       not_determined=res.get("not_determined", []),
+                       contact_margin=res.get("contact_margin"))
+            if row["right"] and res.get("teeth_part"):  # a healthy loaded gearbox's do not
+                row.update(right=False, why=f"the calibrated twin's teeth part (contact margin "
+                                            f"{_f(row['contact_margin'])})")
+            elif row["right"] and not row["gap_after"] <= GAP_OK_DB:  # nan: not right
                 row.update(right=False, why=f"held-out gap {_f(row['gap_after'])} dB > "
                                             f"{GAP_OK_DB:g} dB")
             # the twin the calibrated spec holds, simulated in full on its own record
@@ -264,6 +269,8 @@ def markdown(rows: list[dict], meta: dict) -> str:
             truth = ""
         else:
             what = f"not determined: {', '.join(r.get('not_determined', []))}"
+            if r.get("contact_margin") is not None:
+                what += f"; contact margin {_f(r['contact_margin'])}"
             gap = f"{_f(r.get('gap_before'))} → {_f(r.get('gap_after'))}"
             if r.get("gap_confirmed") is not None:
                 gap += f" (confirmed {_f(r['gap_confirmed'])})"

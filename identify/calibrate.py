@@ -58,6 +58,12 @@ the gear set is tiled only where the start-up transient has died out within the 
 (the periodicity defect of the linearised simulation, as :func:`dtwin.simulation.simulate.simulate` checks
 it): otherwise a longer settling time, then the whole record.
 
+**Contact.** The fits keep every mesh's least deflection above zero, to first order
+(:mod:`dtwin.identify.calibration_model`, "Contact"); the confirmation measures it on the twin
+simulated in full (:func:`contact_margin`, written as ``[calibration] contact_margin``) and,
+where the teeth part, linearises again at the fitted values; a linearisation whose twin keeps
+its teeth in contact is preferred to one whose twin does not, whatever their gaps.
+
 **Cross-validation.** The held-out gap fits the parameters on each half of each record and
 scores the other half. Each half is fitted twice, from the linearisation point and from the fit
 on all the records, and keeps the fit with the lower loss on its own half: the window and the
@@ -114,6 +120,8 @@ from dtwin.spec.build import build_twin, daq_from_spec
 from .calibration_model import (
     _SHARE_UNIT,
     _TE_UNIT,
+    CONTACT_SAMPLES,
+    CONTACT_TOL,
     _carrier_order_lines,
     _Data,
     _family_bins,
@@ -221,7 +229,10 @@ def calibrate(
     c = _Calibration.of(records, spec, kind, channel, settings, say, f_sun)
     gap_before = c.gap_before()
     tried, gap_held, held_fits = _final_fits(c, gap_before)
-    best = min(range(len(tried)), key=lambda i: tried[i].gap.total)
+    # the confirmed gap decides, among the linearisations whose twin keeps its teeth in contact
+    # where there is one (module docstring, "Contact")
+    best = min(range(len(tried)), key=lambda i: (_teeth_part(tried[i].spec_data),
+                                                  tried[i].gap.total))
     chosen = tried[best]
     if best > 0:
         say("cross-validation again, about the chosen linearisation point")
@@ -311,6 +322,12 @@ def _final_fits(c: _Calibration, gap_before: GapResult
         # them and the window): where the full simulation departs from it, linearise again at
         # the fitted values and refit from there (an outer Gauss–Newton iteration)
         departs = gap_conf.total > gap_lin.total + settings.converge_db
+        if _teeth_part(data):
+            # the full twin's teeth part where the linearised one's held: linearise there, so
+            # that the contact rows see the parting (module docstring, "Contact")
+            say(f"the calibrated twin's teeth part (least mesh deflection "
+                f"{data['calibration']['contact_margin']:.2f} of its mean)")
+            departs = True
         # (no closer than the spec as written: worth another linearisation only where the
         # cross-validation would adopt the values)
         if not departs and (gap_conf.total < gap_before.total
@@ -440,14 +457,19 @@ class _Calibration:
 
     def linearised(self, theta_lin):
         """The model's halves (the same for every record) and their response at `theta_lin`."""
-        y, J = _response(self.twin, self.layout, self.i_path, self.i_exc, self.daq, self.n,
-                         self.f_sun, self.settings, theta_lin)
+        # the meshes' least deflection over one carrier period (every relative position of
+        # the planets), at most CONTACT_SAMPLES samples of it per mesh
+        period = min(self.n, int(math.ceil(self.fs / self.kin.f_carrier)))
+        idx = np.arange(0, period, max(1, int(math.ceil(period / CONTACT_SAMPLES))))
+        y, J, contact = _response(self.twin, self.layout, self.i_path, self.i_exc, self.daq,
+                                  self.n, self.f_sun, self.settings, theta_lin, idx)
         _, Z = segment_spectra(y, self.fs, 2)  # (2, bins)
         _, JZ = segment_spectra(J.T, self.fs, 2)  # (P, 2, bins)
-        return Z, np.moveaxis(JZ, 0, -1), np.asarray(theta_lin)  # JZ: (2, bins, P)
+        # JZ: (2, bins, P)
+        return Z, np.moveaxis(JZ, 0, -1), np.asarray(theta_lin), contact
 
     def data_for(self, rows_rec, rows_half, lin):
-        Z, JZ, theta_lin = lin
+        Z, JZ, theta_lin, contact = lin
         return _Data(
             Z0=jnp.asarray(Z[rows_half]), JZ=jnp.asarray(JZ[rows_half]),
             theta_lin=jnp.asarray(theta_lin),
@@ -455,7 +477,7 @@ class _Calibration:
             S=jnp.asarray(self.S[rows_rec, rows_half].astype(float)),
             W=jnp.asarray(self.Wl[rows_rec, rows_half].astype(float)), B=jnp.asarray(self.B),
             prior_sd=jnp.asarray(self.prior), smooth=self.settings.smooth_db,
-            frf_prior=self.settings.frf_prior_db,
+            frf_prior=self.settings.frf_prior_db, **_contact_fields(contact),
         )
 
     def amp_at(self, theta, fit_rows, score_rows, lin):
@@ -522,10 +544,14 @@ class _Calibration:
         full over the records, nothing refitted."""
         n, fs, f_sun = self.n, self.fs, self.f_sun
         cal_spec = _spec_from_data(data)
-        y = np.asarray(simulate(
+        res = simulate(
             build_twin(cal_spec, kind=self.kind, f_sun=f_sun), duration=n / fs, f_sun=f_sun,
             daq=daq_from_spec(cal_spec, sample_rate=fs, snr_db=None, quantity=self.quantity),
-            discard=self.settings.discard, solver=self.settings.solver).signal[:n])
+            discard=self.settings.discard, solver=self.settings.solver)
+        margin = contact_margin(res)
+        if math.isfinite(margin):
+            data["calibration"]["contact_margin"] = round(margin, 4)
+        y = np.asarray(res.signal[:n])
         a = np.abs(segment_spectra(y, fs, 2)[1])[self.half_idx]
         return a, gap(self.freqs, self.a_meas, a, self.bands)
 
@@ -554,6 +580,34 @@ class _Calibration:
                                          self.band_top)
         data["calibration"]["shortfall_orders"] = [round(o, 6) for o in orders]
         data["calibration"]["shortfall_db"] = [round(e, 2) for e in excess]
+
+
+def _teeth_part(data) -> bool:
+    """Whether the twin of calibrated spec `data`, simulated in full, parts its teeth
+    (``[calibration] contact_margin`` below 0, :func:`contact_margin`)."""
+    return data["calibration"].get("contact_margin", 1.0) < 0
+
+
+def _contact_fields(contact) -> dict:
+    """`_Data`'s contact rows (:func:`~dtwin.identify.calibration_model._contact_rows`) from a
+    linearisation's :class:`~dtwin.identify.calibration_model._Contact` (none without one)."""
+    if contact is None:
+        return {}
+    return dict(contact_d0=jnp.asarray(contact.d0), contact_J=jnp.asarray(contact.J),
+                contact_scale=CONTACT_TOL * contact.mean)
+
+
+def contact_margin(res) -> float:
+    """The least mesh deflection of a simulation (`SimResult`), over the planets, the record
+    and both meshes, each mesh's over its mean deflection (1): below 0 the teeth of some mesh
+    part (module docstring, "Contact")."""
+    out = res.outputs
+    m = []
+    for mesh in ("sun_planet", "ring_planet"):
+        mean = float(np.mean(np.asarray(out[f"deflection_{mesh}"])))
+        if mean > 0:
+            m.append(float(np.min(np.asarray(out[f"least_deflection_{mesh}"]))) / mean)
+    return min(m) if m else float("nan")
 
 
 def _speed(spec: Spec, recs, X, fs: float, f_sun: float | None, channel: int):

@@ -13,6 +13,18 @@ first-order in the latter two. Complex Hann spectra of each record segment then 
 families (``k f_c`` below the first mesh band, ``m f_m + n f_c`` with ``|n| ≤ 10``) and of every
 measured line. Gaussian priors keep undetermined parameters at their initial values.
 
+**Contact.** The linearised response knows nothing of the teeth parting: a transmission error
+larger than the mesh's deflection under load fits the records' mesh lines just as well, to
+first order, while the twin simulated in full then parts its teeth every mesh cycle — a clipped
+contact, whose harmonics reach far above the sampling rate and fold back as lines that move
+with the speed (measured on an independent four-planet gearbox: docs/calibration.md, "Teeth
+that part"). A healthy gearbox under load keeps its teeth in contact, so the fit does too: the
+residuals carry one row per sample of each mesh's least deflection over the planets over one
+carrier period, first order in θ like the signal (``d0 + J_d (θ − θ_lin)``, from the same
+forward-mode solve), ``max(−d, 0) / (CONTACT_TOL d̄)`` with ``d̄`` the mesh's mean deflection —
+zero, and without gradient, while the teeth stay in contact. Where the twin simulated in full
+still parts its teeth, the calibration linearises again at its values, where the rows see it.
+
 **The fits.** Levenberg–Marquardt in coordinates where every Jacobian column has unit norm,
 run in short runs (`CalibrationSettings.run_steps`), each started where the last one ended
 with column scales taken there, until a run no longer lowers the loss: one long run from
@@ -23,6 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -52,6 +65,12 @@ _DB = 20.0 / math.log(10.0)
 _TE_UNIT = 1e-8
 #: Unit of the load-share coordinates in θ (1 % of planet 0's share).
 _SHARE_UNIT = 0.01
+#: The contact rows' scale: a mesh's least deflection falling below zero by this fraction of
+#: the mean deflection costs as much as one prior standard deviation (module docstring,
+#: "Contact").
+CONTACT_TOL = 0.02
+#: Samples of the least deflection (per mesh) the contact rows hold, over one carrier period.
+CONTACT_SAMPLES = 1024
 #: Memory (bytes) the response's tangents may take at once, and what one tangent takes per
 #: sample of the DAQ's oversampled grid (measured: 1.0–1.4 kB on the paper's gearbox, the
 #: torsional twin): the Jacobian is formed in batches of tangents within this budget.
@@ -186,17 +205,38 @@ def _apply(twin, theta, layout: _Layout, i_path: int, i_exc: int):
     return eqx.tree_at(lambda t: t.lp, twin, lp)
 
 
-def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings, theta_lin):
-    """The signal at `theta_lin` and its Jacobian (n, P) by forward mode through the solve."""
+class _Contact(NamedTuple):
+    """The meshes' least deflection over the planets, first order in θ, at the samples
+    `_response` was given (module docstring, "Contact"): ``d0 + J (θ − θ_lin)`` (m), both
+    meshes' samples in a row, and the meshes' mean deflection (m, over the record and the
+    planets: the static deflection under the load)."""
+
+    d0: np.ndarray  # (M,)
+    J: np.ndarray  # (M, P)
+    mean: float
+
+
+def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings, theta_lin,
+              contact_idx=None):
+    """The signal at `theta_lin`, its Jacobian (n, P) by forward mode through the solve, and
+    the sun and ring meshes' least deflection over the planets at the samples `contact_idx`
+    with its Jacobian (a :class:`_Contact`; None without `contact_idx` or where the meshes
+    carry no load)."""
     fs = float(daq.sample_rate)
     solver = settings.solver or SolverOptions(periodic="auto")
+    idx = jnp.asarray(np.arange(0) if contact_idx is None else contact_idx, dtype=jnp.int32)
 
     def linearise(solver):
         def sig(theta):
             tw = _apply(twin, theta, layout, i_path, i_exc)
             res = simulate(tw, duration=n / fs, f_sun=f_sun, daq=daq, discard=settings.discard,
                            solver=solver, check=False)
-            return res.signal[:n], res.periodic_defect
+            o = res.outputs
+            least = jnp.concatenate([o["least_deflection_sun_planet"][idx],
+                                     o["least_deflection_ring_planet"][idx]])
+            mean = jnp.minimum(jnp.mean(o["deflection_sun_planet"]),
+                               jnp.mean(o["deflection_ring_planet"]))
+            return res.signal[:n], res.periodic_defect, least, mean
 
         # evaluated eagerly, not as one compiled program: compiled, it rounds differently, and
         # the calibration's weakly determined directions then lead its fit to another optimum
@@ -207,22 +247,33 @@ def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings, theta_lin):
     # tiles' joins put a broadband hump under the twin's lightly damped modes. Settle longer,
     # then integrate the whole record.
     for option in settling_sequence(solver):
-        (y0, defect), jvp_fn = linearise(option)
+        (y0, defect, least0, mean), jvp_fn = linearise(option)
         if defect is None or float(defect) <= solver.periodic_tolerance:
             break
     # the tangents in batches: all at once, they held ~170 MB each for a 3 s record at 10 kHz
     # (5.9 GB in all for 25 of them); each batch runs the solve again
     eye = jnp.eye(layout.size)
     batch = _tangent_batch(n * daq.oversample)
-    J = np.concatenate([np.asarray(jax.vmap(lambda v: jvp_fn(v)[0], in_axes=1, out_axes=1)(
-        eye[:, i : i + batch])) for i in range(0, layout.size, batch)], axis=1)
+
+    def tangents(v):
+        out = jvp_fn(v)
+        return out[0], out[2]
+
+    parts = [jax.vmap(tangents, in_axes=1, out_axes=1)(eye[:, i: i + batch])
+             for i in range(0, layout.size, batch)]
+    J = np.concatenate([np.asarray(p[0]) for p in parts], axis=1)
     y0 = np.asarray(y0)
     if not (np.all(np.isfinite(y0)) and np.all(np.isfinite(J))):
         raise FitError("the twin's simulation failed at the "
                        + ("spec's values" if not np.any(np.asarray(theta_lin)) else
                           "calibration's values") + " (non-finite signal); check the spec with "
                        "`dtwin spec check`")
-    return y0, J
+    contact = None
+    if contact_idx is not None and float(mean) > 0:
+        Jd = np.concatenate([np.asarray(p[1]) for p in parts], axis=1)
+        if np.all(np.isfinite(Jd)):
+            contact = _Contact(np.asarray(least0), Jd, float(mean))
+    return y0, J, contact
 
 
 def _tangent_batch(n_samples: int) -> int:
@@ -263,6 +314,11 @@ class _Data(eqx.Module):
     prior_sd: jax.Array  # (P,)
     smooth: float = eqx.field(static=True)
     frf_prior: float = eqx.field(static=True)
+    # the teeth stay in contact (module docstring, "Contact"): the meshes' least deflection,
+    # first order in θ, kept above zero; None: no constraint
+    contact_d0: jax.Array | None = None  # (M,) m, at theta_lin
+    contact_J: jax.Array | None = None  # (M, P) m per unit of θ
+    contact_scale: float = 1.0  # m: CONTACT_TOL × the mean deflection
 
 
 def _frf_solve(absZ, data: _Data):
@@ -305,7 +361,18 @@ def _residuals(theta, data: _Data):
     l_meas = jnp.log(data.A + F)
     l_mod = jnp.log(jnp.sqrt(A_mod**2 + F**2) + F)
     r = _DB * (l_meas - l_mod) * data.S
-    return jnp.concatenate([r.ravel(), theta / data.prior_sd])
+    return jnp.concatenate([r.ravel(), _contact_rows(theta, data), theta / data.prior_sd])
+
+
+def _contact_rows(theta, data: _Data):
+    """Rows that keep the teeth in contact (module docstring, "Contact"): ``max(−d, 0) /
+    (CONTACT_TOL d̄)`` at each sample of the meshes' least deflection ``d`` (first order in θ,
+    d̄ its mean); zero, with no gradient, while every mesh stays in contact; none without a
+    loaded mesh."""
+    if data.contact_d0 is None:
+        return jnp.zeros(0)
+    d = data.contact_d0 + data.contact_J @ (theta - data.theta_lin)
+    return jnp.maximum(-d, 0.0) / data.contact_scale
 
 
 @eqx.filter_jit

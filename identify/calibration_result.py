@@ -135,6 +135,20 @@ class CalibrationResult:
                         self.calibrated_confirmed_db, self.heldout_full_db)
 
     @property
+    def contact_margin(self) -> float | None:
+        """The calibrated twin's least mesh deflection over its records, over the mean
+        (``[calibration] contact_margin``; None where not measured): below 0 its teeth part
+        every mesh cycle, which a healthy gearbox under load does not (docs/calibration.md,
+        "Teeth that part")."""
+        v = self.spec_data.get("calibration", {}).get("contact_margin")
+        return None if v is None else float(v)
+
+    @property
+    def teeth_part(self) -> bool:
+        """Whether the calibrated twin's teeth part (:attr:`contact_margin` below 0)."""
+        return self.contact_margin is not None and self.contact_margin < 0
+
+    @property
     def not_determined(self) -> list[str]:
         """Parameters the records determine neither alone nor jointly with the others."""
         return [p.name for p in self.parameters if not (p.determined or p.joint_with)]
@@ -162,6 +176,9 @@ class CalibrationResult:
                    + ("; the spec's values kept, with its fitted level)" if self.kept_spec
                       else ")")),
                 f"final fit: {self.fit_status}",
+                *([f"the calibrated twin's teeth part every mesh cycle (least mesh deflection "
+                   f"{self.contact_margin:.2f} of its mean): see docs/calibration.md, 'Teeth "
+                   "that part'"] if self.teeth_part else []),
                 f"{'parameter':<24} {'value':>12} {'sd':>10} {'unit':<6} status"]
         for p in self.parameters:
             status = p.status
@@ -194,6 +211,7 @@ class CalibrationResult:
             improves=self.improves, kept_spec=self.kept_spec,
             calibrated_confirmed_db=self.calibrated_confirmed_db,
             heldout_full_db=self.heldout_full_db, rejection=self.rejection,
+            contact_margin=self.contact_margin, teeth_part=self.teeth_part,
         )
 
 

@@ -10,10 +10,10 @@ own dynamics â€” how much sideband power a given loss of mesh stiffness makes â€
 mesh excitation: the fault's sidebands are the stiffness it removes times the static mesh
 deflection, the healthy lines the mesh's excitation (the stiffness waveform's under the load,
 and any transmission error). That excitation does **not** cancel, and a healthy record at one
-load cannot split it from the transfer path: on an independent four-planet record the same
-sun fault read 0.70 with the calibrated transmission error and 0.28 with the stiffness
-waveform's excitation alone (the healthy twin's mesh lines 19 dB apart), truth 0.15
-(:mod:`dtwin.identify.severity` reads both and reports the hull). :func:`line_ratio` reads the
+load cannot split it from the transfer path: on the independent records of the paper's
+gearbox the same sun fault read 0.19 with the calibrated transmission error and 0.33 with the
+stiffness waveform's excitation alone, truth 0.09 (:mod:`dtwin.identify.severity` reads both
+and reports the hull). :func:`line_ratio` reads the
 record's ratio in each mesh band, simulates the twin (a :class:`~dtwin.identify.problem.Problem`
 with the fault's severity free, as ``dtwin severity`` builds it) at a grid of severities, and
 reads the severity at which the twin's ratio meets the record's; the first mesh band's reading

@@ -56,9 +56,8 @@ the first loss shape only, its interval widened by the factors the shapes' hull 
 calibrated reading's). The calibrated reading is reported; the interval is the hull over both,
 and where the two readings lie further apart than the half-width limit
 (:data:`~dtwin.identify.uncertainty.HALF_WIDTH_LIMIT` of the reading) the status is NOT
-DETERMINED and names both. On an independent four-planet record the two ends read a sun fault
-0.70 and 0.28 (truth 0.15; the calibration's transmission error put the healthy twin's mesh
-lines 19 dB over the stiffness waveform's): one load cannot tell them apart — the stiffness
+DETERMINED and names both. On the independent records of the paper's gearbox the two ends
+read a sun fault 0.19 and 0.33 (truth 0.09): one load cannot tell them apart — the stiffness
 waveform's excitation grows with the load and a transmission error does not, so healthy
 records at two loads could.
 

@@ -297,7 +297,9 @@ def test_response_tangents_in_batches_are_the_jacobian(monkeypatch):
     differences of the simulated signal: the window's c_3 (the first harmonic of the carrier
     that three equally spaced planets pass on; it acts linearly after the solve) and the first
     mesh harmonic's transmission errors (through the solve; ±100 nm, far above the solver's
-    noise and within the linear range of the engaged contact)."""
+    noise and within the linear range of the engaged contact). The least mesh deflections
+    (calibration's contact rows) are linearised alike: batched as at once, and their columns
+    for the transmission errors equal central differences."""
     import dtwin.identify.calibration_model as cal
     from dtwin.spec.build import daq_from_spec
 
@@ -308,23 +310,32 @@ def test_response_tangents_in_batches_are_the_jacobian(monkeypatch):
     n = 1500  # 0.3 s at 5 kHz
     theta = np.zeros(layout.size)
     args = (twin, layout, i_path, i_exc, daq, n, 30.0, settings)
-    y_all, J_all = cal._response(*args, theta)
+    idx = np.arange(0, 600, 3)  # the least mesh deflections' samples (calibration's contact rows)
+    y_all, J_all, c_all = cal._response(*args, theta, idx)
     monkeypatch.setattr(cal, "_TANGENT_BUDGET", 3 * cal._TANGENT_BYTES_PER_SAMPLE * n * daq.oversample)
     assert cal._tangent_batch(n * daq.oversample) == 3 < layout.size
-    y_b, J_b = cal._response(*args, theta)
+    y_b, J_b, c_b = cal._response(*args, theta, idx)
     np.testing.assert_array_equal(y_b, y_all)
     np.testing.assert_allclose(J_b, J_all, rtol=0, atol=1e-12 * np.abs(J_all).max())
+    np.testing.assert_allclose(c_b.J, c_all.J, rtol=0, atol=1e-12 * np.abs(c_all.J).max())
+    assert c_all.d0.shape == (2 * idx.size,) and 0 < c_all.d0.min() < c_all.mean
     h_te = 100e-9 / cal._TE_UNIT
     for j, h, tol in ((2, 1.0, 1e-4), (layout.n_window, h_te, 3e-3),
                       (layout.n_window + layout.n_harm, h_te, 3e-3)):
-        ys = []
+        ys, ds = [], []
         for s in (h, -h):
             th = theta.copy()
             th[j] = s
-            ys.append(cal._response(*args, th)[0])
+            y, _, c = cal._response(*args, th, idx)
+            ys.append(y)
+            ds.append(c.d0)
         fd = (ys[0] - ys[1]) / (2.0 * h)
         err = np.sqrt(np.mean((fd - J_all[:, j]) ** 2) / np.mean(J_all[:, j] ** 2))
         assert err < tol, (j, err)
+        if j >= layout.n_window:  # the transmission error moves the least deflections
+            fd = (ds[0] - ds[1]) / (2.0 * h)
+            err = np.sqrt(np.mean((fd - c_all.J[:, j]) ** 2) / np.mean(c_all.J[:, j] ** 2))
+            assert err < 3e-2, (j, err)
 
 
 @needs_independent

@@ -67,6 +67,8 @@ def test_family_reduced_form(tmp_path):
                "sun-fault-b", "--steps", "calibrate", "discover", "severity", "--quick")
     rows = {(r["record"], r["step"]): r for r in out["rows"]}
     assert rows[("baseline-1", "calibrate")]["right"], rows[("baseline-1", "calibrate")]
+    # the calibrated twin keeps its teeth in contact (docs/calibration.md, "Teeth that part")
+    assert rows[("baseline-1", "calibrate")]["contact_margin"] > 0
     for key in (("baseline-2", "discover"), ("sun-fault-b", "discover"),
                 ("baseline-2", "severity"), ("sun-fault-b", "severity")):
         assert rows[key]["right"], rows[key]

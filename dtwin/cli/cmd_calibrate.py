@@ -113,6 +113,12 @@ def calibrate(
                     "load shares lie beyond first order (contact loss?); the confirmed gap, "
                     "not the held-out one, is the twin's (docs/calibration.md)",
                     result.departure_db, result.linearisations)
+    if result.teeth_part:
+        log.warning("the calibrated twin's teeth part every mesh cycle (least mesh deflection "
+                    "%.2f of its mean): its excitation exceeds the static deflection under the "
+                    "load, and the clipped contact makes mesh harmonics and aliases that move "
+                    "with the speed, so records at another speed will not fit "
+                    "(docs/calibration.md, 'Teeth that part')", result.contact_margin)
     if not result.fit_converged:
         log.warning("calibration's final fit %s", result.fit_status)
     unit = unit_name(recs[0].units[_channel_index(recs[0], ch)])

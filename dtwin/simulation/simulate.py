@@ -211,7 +211,9 @@ class SimResult(eqx.Module):
       filtered): shaft angles `theta_sun`, `theta_carrier` (rad) and speeds `omega_sun`,
       `omega_carrier` (rad/s), total mesh forces `force_sun_planet`, `force_ring_planet` (N,
       summed over planets), mean mesh deflections `deflection_sun_planet`,
-      `deflection_ring_planet` (m), dissipated powers (W), drive and load outputs (torques N·m,
+      `deflection_ring_planet` (m) and the least over the planets
+      `least_deflection_sun_planet`, `least_deflection_ring_planet` (m: below 0 the teeth of
+      that mesh part), dissipated powers (W), drive and load outputs (torques N·m,
       currents A, powers W …);
     - `num_steps`: accepted solver steps; `f_sun`: nominal input speed (Hz).
     - `method`: ``"full"`` (the whole record integrated) or ``"periodic"`` (one period of the
@@ -397,6 +399,8 @@ def _observe(twin: Twin, ops, quantity, t, y, split: bool = False):
         "force_ring_planet": jnp.sum(mesh.force_rp),
         "deflection_sun_planet": jnp.mean(mesh.delta_sp),
         "deflection_ring_planet": jnp.mean(mesh.delta_rp),
+        "least_deflection_sun_planet": jnp.min(mesh.delta_sp),
+        "least_deflection_ring_planet": jnp.min(mesh.delta_rp),
     }
     for k, v in outputs.items():
         out[k] = jnp.asarray(v)

@@ -203,6 +203,11 @@ SCHEMA: dict[str, dict[str, FieldSpec]] = {
                                           "evidence lies there)"),
         "shortfall_db": FieldSpec("floats", "dB", None, 0.0, 500.0,
                                   doc="each shortfall line's excess over the other spectrum"),
+        "contact_margin": FieldSpec("float", "1", None, -1e6, 1e6,
+                                    doc="the calibrated twin's least mesh deflection over its "
+                                        "records, over its mean (written by dtwin calibrate; "
+                                        "below 0 its teeth part every mesh cycle: a healthy "
+                                        "loaded gearbox's do not)"),
         "kept_spec": FieldSpec("str", "", None,
                                doc="present when the calibrated values were not adopted "
                                    "(dtwin.identify.calibrate.adoption): the spec's own values "
