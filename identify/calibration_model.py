@@ -208,8 +208,8 @@ def _apply(twin, theta, layout: _Layout, i_path: int, i_exc: int):
 class _Contact(NamedTuple):
     """The meshes' least deflection over the planets, first order in θ, at the samples
     `_response` was given (module docstring, "Contact"): ``d0 + J (θ − θ_lin)`` (m), both
-    meshes' samples in a row, and the meshes' mean deflection (m, over the record and the
-    planets: the static deflection under the load)."""
+    meshes' samples in a row, and the smaller of the two meshes' mean deflections (m, over the
+    record and the planets: the static deflection under the load)."""
 
     d0: np.ndarray  # (M,)
     J: np.ndarray  # (M, P)
