@@ -121,6 +121,7 @@ from .calibration_model import (
     _SHARE_UNIT,
     _TE_UNIT,
     CONTACT_SAMPLES,
+    CONTACT_TOL,
     _carrier_order_lines,
     _Data,
     _family_bins,
@@ -139,7 +140,6 @@ from .calibration_result import (
     _spec_from_data,
     _Stamp,
     adoption,
-    teeth_part,
 )
 from .calibration_settings import CalibrationSettings
 from .gap import FLOOR_BINS, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
@@ -231,7 +231,7 @@ def calibrate(
     tried, gap_held, held_fits = _final_fits(c, gap_before)
     # the confirmed gap decides, among the linearisations whose twin keeps its teeth in contact
     # where there is one (module docstring, "Contact")
-    best = min(range(len(tried)), key=lambda i: (teeth_part(tried[i].spec_data),
+    best = min(range(len(tried)), key=lambda i: (_teeth_part(tried[i].spec_data),
                                                   tried[i].gap.total))
     chosen = tried[best]
     if best > 0:
@@ -322,7 +322,7 @@ def _final_fits(c: _Calibration, gap_before: GapResult
         # them and the window): where the full simulation departs from it, linearise again at
         # the fitted values and refit from there (an outer Gauss–Newton iteration)
         departs = gap_conf.total > gap_lin.total + settings.converge_db
-        if teeth_part(data):
+        if _teeth_part(data):
             # the full twin's teeth part where the linearised one's held: linearise there, so
             # that the contact rows see the parting (module docstring, "Contact")
             say(f"the calibrated twin's teeth part (least mesh deflection "
@@ -477,8 +477,7 @@ class _Calibration:
             S=jnp.asarray(self.S[rows_rec, rows_half].astype(float)),
             W=jnp.asarray(self.Wl[rows_rec, rows_half].astype(float)), B=jnp.asarray(self.B),
             prior_sd=jnp.asarray(self.prior), smooth=self.settings.smooth_db,
-            frf_prior=self.settings.frf_prior_db,
-            **({} if contact is None else contact.data_fields()),
+            frf_prior=self.settings.frf_prior_db, **_contact_fields(contact),
         )
 
     def amp_at(self, theta, fit_rows, score_rows, lin):
@@ -581,6 +580,21 @@ class _Calibration:
                                          self.band_top)
         data["calibration"]["shortfall_orders"] = [round(o, 6) for o in orders]
         data["calibration"]["shortfall_db"] = [round(e, 2) for e in excess]
+
+
+def _teeth_part(data) -> bool:
+    """Whether the twin of calibrated spec `data`, simulated in full, parts its teeth
+    (``[calibration] contact_margin`` below 0, :func:`contact_margin`)."""
+    return data["calibration"].get("contact_margin", 1.0) < 0
+
+
+def _contact_fields(contact) -> dict:
+    """`_Data`'s contact rows (:func:`~dtwin.identify.calibration_model._contact_rows`) from a
+    linearisation's :class:`~dtwin.identify.calibration_model._Contact` (none without one)."""
+    if contact is None:
+        return {}
+    return dict(contact_d0=jnp.asarray(contact.d0), contact_J=jnp.asarray(contact.J),
+                contact_scale=CONTACT_TOL * contact.mean)
 
 
 def contact_margin(res) -> float:

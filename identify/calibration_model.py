@@ -215,11 +215,6 @@ class _Contact(NamedTuple):
     J: np.ndarray  # (M, P)
     mean: float
 
-    def data_fields(self) -> dict:
-        """`_Data`'s contact fields (:func:`_contact_rows`)."""
-        return dict(contact_d0=jnp.asarray(self.d0), contact_J=jnp.asarray(self.J),
-                    contact_scale=CONTACT_TOL * self.mean)
-
 
 def _response(twin, layout, i_path, i_exc, daq, n, f_sun, settings, theta_lin,
               contact_idx=None):

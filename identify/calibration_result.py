@@ -146,7 +146,7 @@ class CalibrationResult:
     @property
     def teeth_part(self) -> bool:
         """Whether the calibrated twin's teeth part (:attr:`contact_margin` below 0)."""
-        return teeth_part(self.spec_data)
+        return self.contact_margin is not None and self.contact_margin < 0
 
     @property
     def not_determined(self) -> list[str]:
@@ -242,12 +242,6 @@ class _Stamp(NamedTuple):
     measured: str | None
     names: tuple[str, ...]
     kind: str | None
-
-
-def teeth_part(data: dict[str, Any]) -> bool:
-    """Whether the twin of calibrated spec mapping `data`, simulated in full, parts its teeth:
-    its ``[calibration] contact_margin`` below 0 (False where not measured)."""
-    return data.get("calibration", {}).get("contact_margin", 1.0) < 0
 
 
 def _stamped(data: dict[str, Any], stamp: _Stamp) -> dict[str, Any]:
