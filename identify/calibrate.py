@@ -130,6 +130,7 @@ from .calibration_model import (
     _prepare_twin,
     _response,
     mesh_harmonics,
+    zeta_step,
 )
 from .calibration_result import (
     CalibratedParameter,
@@ -322,6 +323,13 @@ def _final_fits(c: _Calibration, gap_before: GapResult
         # them and the window): where the full simulation departs from it, linearise again at
         # the fitted values and refit from there (an outer Gauss–Newton iteration)
         departs = gap_conf.total > gap_lin.total + settings.converge_db
+        step = zeta_step(settings.relinearize_db)
+        if abs(float(theta[-1] - lin[2][-1])) > 0.99 * step:
+            # the fit went as far in the damping as this linearisation is trusted with
+            # (calibration_model's docstring, "Damping"): linearise there and go on
+            say(f"the fit moved the mesh damping by a factor {math.exp(step):.2f}, as far as "
+                "one linearisation follows it")
+            departs = True
         if _teeth_part(data):
             # the full twin's teeth part where the linearised one's held: linearise there, so
             # that the contact rows see the parting (module docstring, "Contact")
@@ -478,6 +486,7 @@ class _Calibration:
             W=jnp.asarray(self.Wl[rows_rec, rows_half].astype(float)), B=jnp.asarray(self.B),
             prior_sd=jnp.asarray(self.prior), smooth=self.settings.smooth_db,
             frf_prior=self.settings.frf_prior_db, **_contact_fields(contact),
+            zeta_step=zeta_step(self.settings.relinearize_db),
         )
 
     def amp_at(self, theta, fit_rows, score_rows, lin):
