@@ -69,7 +69,9 @@ class CalibrationSettings:
       final fit rerun from there, at most `relinearize` times;
       the linearisation whose calibrated twin confirms with the smallest gap is kept (module
       docstring, "Linearisation"); a kept calibration whose full simulation still departs by
-      more than `relinearize_db` is reported as departing and cross-validated in full.
+      more than `relinearize_db` is reported as departing and cross-validated in full; one
+      linearisation moves ``log zeta_mesh`` by at most
+      :func:`~dtwin.identify.calibration_model.zeta_step` of `relinearize_db`.
     - `converge_db`: the linearisation is repeated (at most `relinearize` times) while the
       confirmation's gap exceeds the linearised response's by more than this (dB; 0.1, the
       resolution every gap is reported to): an outer Gauss–Newton iteration runs until the
