@@ -44,7 +44,13 @@ sharp loss over the contact) and the interval is the hull over it and the other 
 noise and the delete-one-slice jackknife of the band's lines (how far the reading rests on one
 part of the band); where no fault line stands over the noise the depth reads 0 with an
 interval up to the detection limit, and where the twin's deepest fault makes less sideband
-power than the record holds the status says the model does not fit the record.
+power than the record holds the status says the model does not fit the record. The first band
+is read; the others are read alike, and a stiffness loss of one depth makes every band's
+sidebands in the twin's proportions: where two bands' 95 % intervals exclude each other
+(:func:`bands_disagree`; a band held at the grid's top reaches up without end), the record's
+sidebands do not have the shape a stiffness loss makes — a profile deviation, a fault of
+another kind — and the status is NOT DETERMINED and names the two (the "ok" of the spectrum
+fit's band jackknife, below, asks the same).
 
 **The healthy lines' excitation.** The ratio weighs the stiffness the fault removes (times the
 static mesh deflection) against the healthy mesh excitation: the stiffness waveform's under
@@ -142,6 +148,7 @@ three bands there is nothing to leave out.
 from __future__ import annotations
 
 import dataclasses
+import math
 import warnings
 from collections.abc import Sequence
 from typing import Any
@@ -175,8 +182,8 @@ from .residuals import point_groups
 from .solve import batched_loss, jacobian_at
 from .uncertainty import CHI2_95, HALF_WIDTH_LIMIT, band_jackknife
 
-__all__ = ["METHODS", "RAMP_GRID", "SeverityEstimate", "SeveritySeries", "estimate_severity",
-           "fault_location", "severity_series"]
+__all__ = ["METHODS", "RAMP_GRID", "SeverityEstimate", "SeveritySeries", "bands_disagree",
+           "estimate_severity", "fault_location", "severity_series"]
 
 #: How a depth is read: ``"ratio"``, from the power of the fault's sidebands over the healthy
 #: mesh lines in the first mesh band (:mod:`dtwin.identify.line_ratio`; the default for a
@@ -653,6 +660,28 @@ def _fitted_estimate(record, spec_or_twin, location, names, initial, ramps, fit_
     return _estimate(location, shapes, jackknife, note, used)
 
 
+def bands_disagree(bands) -> tuple[Any, Any] | None:
+    """The two bands of a sideband-ratio reading (:class:`~dtwin.identify.line_ratio.BandReading`)
+    whose 95 % intervals exclude each other — the band whose interval starts highest and the
+    one whose interval ends lowest — or None where every band holding fault lines over the
+    noise admits one depth (module docstring, "The sideband ratio"). A band held at the grid's
+    top (``"above the grid"``) reads at least its interval's lower end."""
+    read = [b for b in bands if b.fault_bins > 0 and b.edge != "below detection"
+            and np.isfinite(b.severity) and np.all(np.isfinite(b.interval))]
+    if len(read) < 2:
+        return None
+    high = max(read, key=lambda b: b.interval[0])
+    low = min(read, key=lambda b: math.inf if b.edge == "above the grid" else b.interval[1])
+    top = math.inf if low.edge == "above the grid" else low.interval[1]
+    return (high, low) if high.interval[0] > top else None
+
+
+def _band_text(b) -> str:
+    if b.edge == "above the grid":
+        return f"{b.name} above {b.severity:.3g} (the grid's top)"
+    return f"{b.name} {b.severity:.3g} [{b.interval[0]:.3g}, {b.interval[1]:.3g}]"
+
+
 def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ramps, fit_kwargs,
                     healthy=None, required: bool = False) -> SeverityEstimate | None:
     """The depth from the sideband ratio (module docstring, "The sideband ratio"): one reading
@@ -727,10 +756,15 @@ def _ratio_estimate(record, spec_or_twin, location: str, name: str, initial, ram
         reason = f"no fault line stands {SIGNIFICANT_DB:g} dB over the noise"
     else:
         reason = ""
+    apart = bands_disagree(lr.bands) if np.isfinite(sev) and edge == "" else None
+    if apart is not None:
+        reason = ("the bands disagree: a stiffness loss of one depth does not make this "
+                  f"record's sidebands ({_band_text(apart[0])}, {_band_text(apart[1])}; a "
+                  "profile deviation or a fault of another kind would)")
     determined = bool(np.isfinite(sev) and edge != "above the grid"
                       and (edge == "below detection"
                            or 0.5 * (hi - lo) <= HALF_WIDTH_LIMIT * max(abs(sev), 0.1))
-                      and not split_off)
+                      and not split_off and apart is None)
     if split_off and not reason:
         reason = (f"the healthy lines' excitation is not known: the depth reads {sev:.3f} with "
                   f"the calibrated transmission error, {split[1].severity:.3f} with the "
