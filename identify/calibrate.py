@@ -323,12 +323,12 @@ def _final_fits(c: _Calibration, gap_before: GapResult
         # them and the window): where the full simulation departs from it, linearise again at
         # the fitted values and refit from there (an outer Gauss–Newton iteration)
         departs = gap_conf.total > gap_lin.total + settings.converge_db
-        step = zeta_step(settings.relinearize_db)
-        if abs(float(theta[-1] - lin[2][-1])) > 0.99 * step:
+        i_zeta = c.layout.i_zeta
+        if abs(float(theta[i_zeta] - lin[2][i_zeta])) > 0.99 * c.zeta_step:
             # the fit went as far in the damping as this linearisation is trusted with
             # (calibration_model's docstring, "Damping"): linearise there and go on
-            say(f"the fit moved the mesh damping by a factor {math.exp(step):.2f}, as far as "
-                "one linearisation follows it")
+            say(f"the fit moved the mesh damping by a factor {math.exp(c.zeta_step):.2f}, as "
+                "far as one linearisation follows it")
             departs = True
         if _teeth_part(data):
             # the full twin's teeth part where the linearised one's held: linearise there, so
@@ -385,6 +385,7 @@ class _Calibration:
     B: np.ndarray | None = None
     B1: np.ndarray | None = None
     prior: np.ndarray | None = None
+    zeta_step: float = math.inf
     rec_idx: np.ndarray | None = None
     half_idx: np.ndarray | None = None
     every: np.ndarray | None = None
@@ -454,6 +455,8 @@ class _Calibration:
                                      np.full(2 * n_harm, settings.te_prior / _TE_UNIT),
                                      np.full(layout.n_share, settings.share_prior / _SHARE_UNIT),
                                      [settings.zeta_prior]])
+        # how far one linearisation moves log ζ (calibration_model's docstring, "Damping")
+        self.zeta_step = zeta_step(settings.relinearize_db)
         self.rec_idx = np.repeat(np.arange(n_rec), 2)
         self.half_idx = np.tile(np.arange(2), n_rec)
         self.every = np.ones(len(self.half_idx), bool)
@@ -486,7 +489,7 @@ class _Calibration:
             W=jnp.asarray(self.Wl[rows_rec, rows_half].astype(float)), B=jnp.asarray(self.B),
             prior_sd=jnp.asarray(self.prior), smooth=self.settings.smooth_db,
             frf_prior=self.settings.frf_prior_db, **_contact_fields(contact),
-            zeta_step=zeta_step(self.settings.relinearize_db),
+            zeta_step=self.zeta_step,
         )
 
     def amp_at(self, theta, fit_rows, score_rows, lin):
