@@ -3,7 +3,8 @@
 Among the candidates significant and identified, in order of their linearised held-out gap,
 the first whose full (nonlinear) twin at the joint fit lowers the search's held-out gap and
 does not raise the reported one is kept (:func:`confirm`); one fitted outside its physical
-range is simulated at trial values inside it and the best is taken (:mod:`dtwin.identify.discover.in_range`). The others are marked not kept.
+range is simulated at trial values inside it and the best is taken
+(:mod:`dtwin.identify.discover.in_range`). The others are marked not kept.
 """
 
 from __future__ import annotations
@@ -52,9 +53,8 @@ def _simulated(search: Search, state: State, i_c: int, th):
 def confirm(search: Search, state: State, cur: Current, ok: list[CandidateResult]) -> Kept | None:
     """The first of `ok` (by linearised gap) whose simulated twin lowers the search's held-out
     gap (bins over ``threshold_db``) and does not raise the reported one (the family-wise
-    threshold's bins: what the step prints as "held-out gap A → B"); None when none does.
-    The search's gap alone once kept an effect that moved it by less than 0.01 dB while the
-    reported gap rose, and the step then read "held-out gap lower simulated in full"."""
+    threshold's bins: what the step prints as "held-out gap A → B", and its verdict calls
+    "held-out gap lower simulated in full"); None when none does."""
     for cand in sorted(ok, key=lambda c: c.gap_after):
         i_c = next(i for i, e in enumerate(state.candidates) if e.name == cand.name)
         trials = [cand.theta] if cand.out_of_range is None else \
