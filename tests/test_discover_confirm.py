@@ -15,11 +15,11 @@ import types
 import numpy as np
 
 from dtwin.identify.discover import confirm as cf
+from dtwin.identify.gap import GapResult
 
 
-class _Gap:
-    def __init__(self, total):
-        self.total = float(total)
+def _Gap(total) -> GapResult:
+    return GapResult(float(total), {"all": float(total)}, {"all": 1})
 
 
 class _Model:

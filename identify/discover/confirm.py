@@ -39,15 +39,16 @@ class Kept:
 
 
 def _simulated(search: Search, state: State, i_c: int, th):
-    """The held-out gap (search's) of the twin with candidate `i_c` at `th` (physical units),
-    the values, the model's parameters, signal and held-out fold spectra."""
+    """The held-out gap (search's, a :class:`GapResult`) of the twin with candidate `i_c` at
+    `th` (physical units), the values, the model's parameters, signal and held-out fold
+    spectra."""
     model = state.model
     theta_c = state.theta_units.copy()
     theta_c[model.slice(i_c)] = th / model.scales[model.slice(i_c)]
     sig_c = model.signal(theta_c)
     _, Z1 = segment_spectra(sig_c, search.fs, search.settings.n_folds)
     a1 = search.heldout_spectra(Z1)
-    return search.search_gap(a1).total, th, theta_c, sig_c, a1
+    return search.search_gap(a1), th, theta_c, sig_c, a1
 
 
 def confirm(search: Search, state: State, cur: Current, ok: list[CandidateResult]) -> Kept | None:
@@ -60,10 +61,10 @@ def confirm(search: Search, state: State, cur: Current, ok: list[CandidateResult
         trials = [cand.theta] if cand.out_of_range is None else \
             in_range_trials(cand.theta, [q.bounds for q in state.model.parameters[i_c]])
         tried_c = [_simulated(search, state, i_c, th) for th in trials]
-        g_best, th, theta_c, sig_c, a1 = min(tried_c, key=lambda t: t[0])
-        gap_c = search.search_gap(a1)
+        gap_c, th, theta_c, sig_c, a1 = min(tried_c, key=lambda t: t[0].total)
         if cand.out_of_range is not None:
-            refit_in_range(cand, th, state.candidates[i_c], [t[0] for t in tried_c], search.say)
+            refit_in_range(cand, th, state.candidates[i_c], [t[0].total for t in tried_c],
+                           search.say)
         held_c = search.reported_gap(a1)
         if gap_c.total < cur.gap_now.total and held_c.total <= cur.held_now.total:
             return Kept(cand, i_c, theta_c, sig_c, gap_c, held_c)
