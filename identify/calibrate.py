@@ -145,6 +145,7 @@ from .calibration_result import (
 from .calibration_settings import CalibrationSettings
 from .gap import FLOOR_BINS, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
 from .lines import Kinematics
+from .low_band import LOW_BAND_START
 from .operating_point import resolve_speed
 from .shortfall import shortfall_lines
 
@@ -448,7 +449,8 @@ class _Calibration:
         band = (freqs >= 0.5 * kin.f_carrier) & (freqs <= band_top)
         self.S = (fam[None, None, :] | strong) & band[None, None, :]
         self.Wl = strong & band[None, None, :]
-        self.knots = np.geomspace(0.8 * kin.n_planets * kin.f_carrier, band_top, settings.n_knots)
+        self.knots = np.geomspace(LOW_BAND_START * kin.n_planets * kin.f_carrier, band_top,
+                                  settings.n_knots)
         self.B = knot_basis(freqs, self.knots)
         layout = self.layout
         self.prior = np.concatenate([np.full(layout.n_window, settings.window_prior),
@@ -460,8 +462,9 @@ class _Calibration:
         self.rec_idx = np.repeat(np.arange(n_rec), 2)
         self.half_idx = np.tile(np.arange(2), n_rec)
         self.every = np.ones(len(self.half_idx), bool)
+        # the gap from the lowest knot up, as discovery's (dtwin.identify.gap, "The band")
         self.bands = named_bands(kin, band_top, sample_rate=fs,
-                                 resolution=float(freqs[1] - freqs[0]))
+                                 resolution=float(freqs[1] - freqs[0]), f_min=self.knots[0])
         self.a_meas = A.reshape(-1, A.shape[-1])
         # before: the spec's twin with its best response level (one gain), scored per half
         self.B1 = knot_basis(freqs, self.knots[:1])
@@ -702,4 +705,5 @@ def heldout_gap(
         a_model.append(np.abs(Z))
     return gap(freqs, np.concatenate(a_meas), np.concatenate(a_model),
                named_bands(kin, float(spec["sensor"]["passband"]) * fs, sample_rate=fs,
-                           resolution=float(freqs[1] - freqs[0])))
+                           resolution=float(freqs[1] - freqs[0]),
+                           f_min=LOW_BAND_START * kin.n_planets * kin.f_carrier))

@@ -25,7 +25,12 @@ parameters fitted on one half are scored on the other and vice versa;
 the reported gap pools the squared differences of both folds. Adding parameters cannot shrink
 this by fitting the noise of the scored half.
 
-**The band.** The gap is taken over ``0 … passband × the sampling rate``: the usable band
+**The band.** The gap is taken over ``0.8 N f_c … passband × the sampling rate``. It starts at
+the lowest knot of a calibrated sensor response (``LOW_BAND_START × N f_c``,
+:mod:`dtwin.identify.low_band`): a healthy record leaves ``f_c`` and ``2 f_c`` at the noise
+floor, so a calibration gives the twin's response and planet-angle window there no scale, and
+a line a record holds there (a planet fault's own ``f_c``) is listed, not scored
+(``named_bands(f_min=…)``; calibration and discovery pass it). It ends at the usable band
 of the DAQ, where its anti-aliasing filter's pass band ends (the spec's ``[sensor] passband``,
 :data:`PASSBAND` = 0.45 where none is given: a delta-sigma DAQ; 1/2.56 on a classic analyser).
 The twin's own anti-aliasing filter passes flat to the same edge (:func:`dtwin.simulation.simulate.daq_filter`). Above it a
@@ -43,7 +48,7 @@ cannot be held to an acquisition's stop band, and an alias that drifts over a he
 with the speed (an independent record 0.4 % faster than its calibration record: 11 fm at
 5 731.8 Hz, 27 dB over the floor, where on the slower record it fell on 9 fm) is no finding.
 
-**Named bands** (:func:`named_bands`): ``low`` (0 … fm − 10 fc), ``mesh<m>`` (m fm ± 10 fc for
+**Named bands** (:func:`named_bands`): ``low`` (`f_min` … fm − 10 fc), ``mesh<m>`` (m fm ± 10 fc for
 every mesh harmonic whose band starts below the top of the band), ``between`` (the rest above
 the first mesh band), ``all``.
 """
@@ -132,13 +137,14 @@ def _without(ranges: tuple, holes: np.ndarray, half_width: float) -> tuple:
 
 
 def named_bands(kin, f_max: float, half_width_carrier: float = 10.0,
-                sample_rate: float | None = None, resolution: float = 0.0
-                ) -> dict[str, tuple]:
-    """Named frequency bands (Hz) for a gearbox's kinematics (module docstring). With the
-    `sample_rate` (Hz) and the spectra's bin width `resolution` (Hz), the aliases of mesh lines
-    above Nyquist (:func:`alias_frequencies`) are left out of every band, ± the Hann main lobe
+                sample_rate: float | None = None, resolution: float = 0.0,
+                f_min: float = 0.0) -> dict[str, tuple]:
+    """Named frequency bands (Hz) for a gearbox's kinematics (module docstring), from `f_min`
+    (Hz; ``low`` and ``all`` start there) to `f_max`. With the `sample_rate` (Hz) and the
+    spectra's bin width `resolution` (Hz), the aliases of mesh lines above Nyquist
+    (:func:`alias_frequencies`) are left out of every band, ± the Hann main lobe
     (:data:`MAIN_LOBE_BINS` bins)."""
-    bands = _named_bands(kin, f_max, half_width_carrier)
+    bands = _named_bands(kin, f_max, half_width_carrier, f_min)
     if sample_rate is None:
         return bands
     holes = alias_frequencies(kin, sample_rate, f_max, half_width_carrier)
@@ -148,10 +154,11 @@ def named_bands(kin, f_max: float, half_width_carrier: float = 10.0,
     return {name: _without(ranges, holes, w) for name, ranges in bands.items()}
 
 
-def _named_bands(kin, f_max: float, half_width_carrier: float) -> dict[str, tuple]:
+def _named_bands(kin, f_max: float, half_width_carrier: float,
+                 f_min: float = 0.0) -> dict[str, tuple]:
     """The named bands of :func:`named_bands`, aliases not yet left out."""
     hw = half_width_carrier * kin.f_carrier
-    bands: dict[str, tuple] = {"all": ((0.0, f_max),)}
+    bands: dict[str, tuple] = {"all": ((f_min, f_max),)}
     mesh = []
     m = 1
     while m * kin.f_mesh - hw < f_max:
@@ -159,7 +166,7 @@ def _named_bands(kin, f_max: float, half_width_carrier: float) -> dict[str, tupl
         bands[f"mesh{m}"] = ((lo, hi),)
         mesh.append((lo, hi))
         m += 1
-    bands["low"] = ((0.0, kin.f_mesh - hw),)
+    bands["low"] = ((f_min, kin.f_mesh - hw),)
     between = []
     for (_a0, a1), (b0, _) in zip(mesh[:-1], mesh[1:], strict=True):
         between.append((a1, b0))

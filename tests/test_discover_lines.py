@@ -417,3 +417,55 @@ def test_a_fault_family_read_from_a_line_off_its_grid_is_no_modulation(sigma_bin
         f_x, se, n = refined_modulation_frequency(kin, g + 0.26 * 0.25, lines, tol, 2500.0)
         assert n >= 20 and abs(f_x - g) <= max(OFF_COMBINATION_SE * se,
                                                OFF_COMBINATION_TOL * tol), (seed, f_x - g, se)
+
+
+def test_lines_below_the_calibrated_response_are_listed_not_scored():
+    """The gap and a candidate's coverage start at the lowest knot of a calibrated sensor
+    response, ``0.8 N f_c`` (14.82 Hz on the original gearbox, 21/30/81 at 30 Hz); a line below
+    (a planet fault's own f_c and 2 f_c, which the healthy record leaves at the floor and so
+    the calibration cannot scale) is listed, not scored: it neither counts in the gap nor makes
+    a carrier-order candidate cover the residual. A discovery search opens its bands there."""
+    from dtwin.identify.discover import coverage
+    from dtwin.identify.discover import effects as E
+    from dtwin.identify.discover.search import open_search
+    from dtwin.identify.discover.settings import DiscoverySettings
+    from dtwin.identify.lines import ResidualLine
+    from dtwin.identify.low_band import LOW_BAND_START
+    from dtwin.model.kinematics import Kinematics
+
+    kin = Kinematics.from_gears(21, 30, 81, 3, 30.0)
+    f_lo = LOW_BAND_START * 3 * kin.f_carrier
+    assert f_lo == pytest.approx(14.8235, abs=1e-4)
+    b = named_bands(kin, 2250.0, f_min=f_lo)
+    assert b["all"] == ((f_lo, 2250.0),)
+    assert b["low"] == ((f_lo, kin.f_mesh - 10 * kin.f_carrier),)
+    assert named_bands(kin, 2250.0)["all"] == ((0.0, 2250.0),)
+    # a record with f_c (missing from the model) and 3 f_c (in both): only 3 f_c is scored
+    T = 2.0
+    freqs = np.arange(0.0, 2500.0 + 1e-9, 1 / T)
+    floor = np.ones((1, freqs.size))
+    meas, model = np.zeros_like(floor), np.zeros_like(floor)
+    for a, f0 in ((meas, kin.f_carrier), (meas, 3 * kin.f_carrier), (model, 3 * kin.f_carrier)):
+        a[0, np.argmin(np.abs(freqs - f0))] = 10.0**1.5
+    g = gap(freqs, meas, model, bands=b, floor=floor, threshold_db=12.0)
+    assert g.counts["all"] == 1 and g.total == pytest.approx(0.0, abs=1e-9)
+    g0 = gap(freqs, meas, model, bands=named_bands(kin, 2250.0), floor=floor, threshold_db=12.0)
+    assert g0.counts["all"] == 2 and g0.total > 10.0
+    # the planet-fault record's residual after its fault was added (+27 dB at f_c, +19 dB at
+    # 2 f_c) and a weaker mesh line: the 1 f_c load fluctuation covers it only from 0 Hz
+    e = next(x for x in E.registered_effects() if x.name == "load_fluctuation_1fc")
+    lines = [ResidualLine("measured", f, int(f * T), x, x + 10.0, (), 0.0)
+             for f, x in ((kin.f_carrier, 26.9), (2 * kin.f_carrier, 19.0),
+                          (kin.f_mesh + 0.5 * kin.f_carrier, 10.0))]
+    tol = 0.25 / T
+    assert coverage(e, kin, lines, tol, 2500.0)[0] > 0.9
+    cov, matched = coverage(e, kin, lines, tol, 2500.0, f_lo)
+    assert cov == 0.0 and matched == []
+    # discovery's search scores from there
+    fs = 5000.0
+    t = np.arange(int(4 * fs)) / fs
+    x = np.sin(2 * np.pi * kin.f_mesh * t) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    search = open_search(x, preset("paper-sim"), fs, 30.0, DiscoverySettings(), lambda _m: None)
+    assert search.f_lo == pytest.approx(f_lo)
+    assert search.bands["all"][0][0] == pytest.approx(f_lo)
+    assert search.bands["low"][0] == pytest.approx((f_lo, kin.f_mesh - 10 * kin.f_carrier))

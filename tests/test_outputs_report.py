@@ -212,3 +212,24 @@ def test_kurtogram_table_holds_every_band_and_the_picked_one():
     best = int(np.nanargmax(c["kurtosis"]))
     assert (c["f_low"][best], c["f_high"][best]) == pytest.approx(tuple(kg.best_band))
     assert c["f_low"][best] <= 1800.0 <= c["f_high"][best]
+
+
+def test_discover_lists_a_line_below_the_scored_band_as_not_scored():
+    """A line under the lowest knot of the calibrated response (0.8 N fc: 14.26 Hz at 29.7 Hz
+    on 21/31/84) is listed in every output, marked as not scored; a line above is not marked."""
+    import dataclasses
+
+    from dtwin.cli.cmd_discover import markdown_report, screen_summary
+    from dtwin.identify.lines import ResidualLine
+
+    result, _ = _discovery_result()
+    f_lo = 0.8 * 3 * result.kinematics.f_carrier
+    low = ResidualLine("measured", result.kinematics.f_carrier, 24, 26.9, 40.0, (), 0.0)
+    high = ResidualLine("measured", 1111.3, 4445, 20.0, 30.0, (), 0.0)
+    result = dataclasses.replace(result, unexplained=[low, high], scored_from=f_lo)
+    text = [ln for ln in screen_summary(result) if ln.startswith("unexplained")]
+    assert "below the scored band from 14.26 Hz" in text[0] and "below" not in text[1]
+    md = markdown_report(result, "rec.dtwin.h5")
+    assert "lines outside are listed, not scored" in md
+    assert sum("below the scored band" in ln for ln in md.splitlines()) == 1
+    assert result.to_dict()["scored_from_hz"] == pytest.approx(f_lo)

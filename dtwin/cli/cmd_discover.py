@@ -112,8 +112,17 @@ def screen_summary(result) -> list[str]:
         out.append(f"step {k}: screened out (not refit): {', '.join(names)}")
     out.append(f"stopped: {result.stop_reason}")
     out += [f"unexplained: {r.frequency:9.2f} Hz  +{r.excess_db:5.1f} dB  {r.text}"
-            for r in result.unexplained[:15]]
+            + _below(r, result) for r in result.unexplained[:15]]
     return out
+
+
+def _below(r, result) -> str:
+    """" (below the scored band …)" for a line under the lowest knot of the calibrated sensor
+    response (:attr:`~dtwin.identify.discover.DiscoveryResult.scored_from`), else ""."""
+    if r.frequency >= result.scored_from:
+        return ""
+    return (f"  (below the scored band from {result.scored_from:.2f} Hz = 0.8 N fc: listed, "
+            "not scored)")
 
 
 def _label_frequencies(kin) -> dict:
@@ -198,11 +207,15 @@ def markdown_report(result, record_name: str) -> str:
         out += ["## Line families in the last residual (scored as a whole)", ""]
         out += [f"- {c.text}" for c in fams] + [""]
     out += ["## Unexplained lines", ""]
+    if result.scored_from > 0:
+        out += [f"The gap and the search score lines from {result.scored_from:.2f} Hz (0.8 N "
+                "fc, the lowest knot of the calibrated sensor response) up to the DAQ's pass "
+                "band; lines outside are listed, not scored.", ""]
     if result.unexplained:
         out += ["| f (Hz) | excess (dB) | over floor (dB) | kinematic description |",
                 "|---|---|---|---|"]
-        out += [f"| {r.frequency:.2f} | {r.excess_db:.1f} | {r.above_floor_db:.1f} | {r.text} |"
-                for r in result.unexplained]
+        out += [f"| {r.frequency:.2f} | {r.excess_db:.1f} | {r.above_floor_db:.1f} | {r.text}"
+                f"{_below(r, result)} |" for r in result.unexplained]
     else:
         out.append("None.")
     if result.extra_in_model:
@@ -355,7 +368,9 @@ def discover_files(result, report: dict, record_file: Path, channel, unit: str |
                 "Unexplained lines": [{"frequency (Hz)": r.frequency,
                                        "excess (dB)": r.excess_db,
                                        "over floor (dB)": r.above_floor_db,
-                                       "kinematic description": r.text}
+                                       "kinematic description": r.text,
+                                       "scored": "no: below the scored band"
+                                       if r.frequency < result.scored_from else "yes"}
                                       for r in result.unexplained]})
     return out_files
 

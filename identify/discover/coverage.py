@@ -26,11 +26,12 @@ def _dilate(mask, half=1):
     return out
 
 
-def coverage(effect, kin: Kinematics, lines: list[ResidualLine], tol: float, f_max: float):
-    """Fraction of the residual (measured-side) line power an effect's signature covers, and
-    the lines matched."""
+def coverage(effect, kin: Kinematics, lines: list[ResidualLine], tol: float, f_max: float,
+             f_min: float = 0.0):
+    """Fraction of the residual (measured-side) line power from `f_min` (Hz) up that an
+    effect's signature covers, and the lines matched."""
     sig = np.array([s.frequency for s in effect.signature(kin, f_max)])
-    meas = [r for r in lines if r.side == "measured"]
+    meas = [r for r in lines if r.side == "measured" and r.frequency >= f_min]
     total = sum(r.power_excess for r in meas)
     if sig.size == 0 or total <= 0:
         return 0.0, []

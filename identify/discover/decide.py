@@ -95,4 +95,4 @@ def outcome(search: Search, state: State, cur: Current, initial_gap, stop: str,
                            initial_gap, final_gap, unexplained, extra, search.chance, stop,
                            last_cands, search.freqs_full, search.a_full, state.models,
                            state.residual_sets, time.perf_counter() - t_start, cur.combs, cur.modulation,
-                           state.respecialised)
+                           state.respecialised, search.f_lo)

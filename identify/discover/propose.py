@@ -83,7 +83,8 @@ def _covering(search: Search, state: State, lines) -> tuple[list, dict[str, floa
     for i, e in enumerate(state.candidates):
         if e.name in state.added:
             continue
-        cov, matched = coverage(e, search.kin, lines, search.tol_full, search.f_max)
+        cov, matched = coverage(e, search.kin, lines, search.tol_full, search.f_max,
+                                search.f_lo)
         cov_all[e.name] = cov
         if cov >= search.settings.min_coverage:
             covering.append((cov, i, matched))

@@ -187,6 +187,9 @@ class DiscoveryResult:
     #: the steps before which the candidates were specialised again from the current model's
     #: residual and the model rebuilt about it (`DiscoverySettings.respecialise`)
     respecialised: list[int] = dataclasses.field(default_factory=list)
+    #: the bottom of the scored band (Hz): the lowest knot of a calibrated sensor response,
+    #: ``0.8 N f_c``; the lines below are listed, not scored (:mod:`dtwin.identify.gap`)
+    scored_from: float = 0.0
 
     @property
     def named(self) -> list[str]:
@@ -211,6 +214,7 @@ class DiscoveryResult:
             combs=[c.to_dict() for c in self.combs],
             modulation=None if self.modulation is None else self.modulation.to_dict(),
             respecialised=list(self.respecialised), timing_s=self.timing_s,
+            scored_from_hz=self.scored_from,
             candidate_table=self.candidate_table())
 
     def candidate_table(self) -> list[dict]:

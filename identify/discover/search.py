@@ -22,6 +22,7 @@ from dtwin.spec.build import daq_from_spec
 
 from ..gap import FLOOR_BINS, gap, named_bands, segment_spectra
 from ..lines import Kinematics, band_bounds, chance_match_probability
+from ..low_band import LOW_BAND_START
 from ..operating_point import resolve_speed
 from .effects.base import EffectContext
 from .model import ExtendedModel
@@ -75,8 +76,12 @@ class Search:
     freqs: np.ndarray
     Y: np.ndarray
     floor: np.ndarray
-    #: the named bands of the gap over the DAQ's pass band (:func:`dtwin.identify.gap.named_bands`)
+    #: the named bands of the gap from `f_lo` to the DAQ's pass band
+    #: (:func:`dtwin.identify.gap.named_bands`)
     bands: dict
+    #: the bottom of the scored band (Hz): the lowest knot of a calibrated sensor response,
+    #: ``LOW_BAND_START × N f_c`` (:func:`open_search`)
+    f_lo: float
     #: the line tolerance (Hz) on the whole-record spectrum
     tol_full: float
     chance: float
@@ -188,13 +193,14 @@ def open_search(record, spec, sample_rate, f_sun, settings: DiscoverySettings,
     freqs, Yc = segment_spectra(x, fs, settings.n_folds)
     Y = np.abs(Yc)
     floor = noise_floor(Y, FLOOR_BINS)
-    # the gap over the DAQ's pass band, as calibration's (dtwin.identify.gap): the lines above
-    # it are still found and labelled ("alias of 5fm"), not scored
+    # the gap from the lowest knot of the calibrated response to the DAQ's pass band: the lines
+    # outside are still found and labelled ("alias of 5fm", "fc"), not scored
+    f_lo = LOW_BAND_START * kin.n_planets * kin.f_carrier
     bands = named_bands(kin, float(spec["sensor"]["passband"]) * fs, sample_rate=fs,
-                        resolution=float(freqs[1] - freqs[0]))
+                        resolution=float(freqs[1] - freqs[0]), f_min=f_lo)
     tol_full = settings.tolerance_bins * (freqs_full[1] - freqs_full[0])
     chance = chance_match_probability(kin, tol_full, f_max, band_bounds(kin, f_max))
     return Search(spec, settings, say, x, fs, kin, f_sun, f_max, daq, freqs_full,
-                  np.asarray(a_full), freqs, Y, floor, bands, tol_full, chance,
+                  np.asarray(a_full), freqs, Y, floor, bands, f_lo, tol_full, chance,
                   list(spec["calibration"].get("shortfall_orders") or []),
                   normal_quantile(settings.confidence), chi2_quantile(settings.confidence))

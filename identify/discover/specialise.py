@@ -88,7 +88,8 @@ def respecialise(search: Search, state: State, cur: Current, step_no: int) -> Cu
     # only a new candidate that covers the current residual is worth a rebuild: one
     # that does not would be neither scored nor refit in this step
     new = [e for e in again if e.name not in {c.name for c in state.candidates}
-           and coverage(e, kin, cur.lines, search.tol_full, search.f_max)[0]
+           and coverage(e, kin, cur.lines, search.tol_full, search.f_max,
+                        search.f_lo)[0]
            >= settings.min_coverage]
     if not new:
         return cur
