@@ -27,9 +27,9 @@ this by fitting the noise of the scored half.
 
 **The band.** The gap is taken over ``0.8 N f_c … passband × the sampling rate``. It starts at
 the lowest knot of a calibrated sensor response (``LOW_BAND_START × N f_c``,
-:mod:`dtwin.identify.low_band`): a healthy record leaves ``f_c`` and ``2 f_c`` at the noise
-floor, so a calibration gives the twin's response and planet-angle window there no scale, and
-a line a record holds there (a planet fault's own ``f_c``) is listed, not scored
+:mod:`dtwin.identify.low_band`): below it the response has no knot, and a healthy record
+with equally loaded planets leaves ``f_c`` and ``2 f_c`` at the noise floor, so a calibration
+gives the twin little scale there; a line a record holds there (a planet fault's own ``f_c``) is listed, not scored
 (``named_bands(f_min=…)``; calibration and discovery pass it). It ends at the usable band
 of the DAQ, where its anti-aliasing filter's pass band ends (the spec's ``[sensor] passband``,
 :data:`PASSBAND` = 0.45 where none is given: a delta-sigma DAQ; 1/2.56 on a classic analyser).
