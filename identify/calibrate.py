@@ -145,7 +145,7 @@ from .calibration_result import (
 from .calibration_settings import CalibrationSettings
 from .gap import FLOOR_BINS, THRESHOLD_DB, GapResult, gap, named_bands, segment_spectra
 from .lines import Kinematics
-from .low_band import LOW_BAND_START
+from .low_band import lowest_knot
 from .operating_point import resolve_speed
 from .shortfall import shortfall_lines
 
@@ -449,8 +449,7 @@ class _Calibration:
         band = (freqs >= 0.5 * kin.f_carrier) & (freqs <= band_top)
         self.S = (fam[None, None, :] | strong) & band[None, None, :]
         self.Wl = strong & band[None, None, :]
-        self.knots = np.geomspace(LOW_BAND_START * kin.n_planets * kin.f_carrier, band_top,
-                                  settings.n_knots)
+        self.knots = np.geomspace(lowest_knot(kin), band_top, settings.n_knots)
         self.B = knot_basis(freqs, self.knots)
         layout = self.layout
         self.prior = np.concatenate([np.full(layout.n_window, settings.window_prior),
@@ -706,4 +705,4 @@ def heldout_gap(
     return gap(freqs, np.concatenate(a_meas), np.concatenate(a_model),
                named_bands(kin, float(spec["sensor"]["passband"]) * fs, sample_rate=fs,
                            resolution=float(freqs[1] - freqs[0]),
-                           f_min=LOW_BAND_START * kin.n_planets * kin.f_carrier))
+                           f_min=lowest_knot(kin)))

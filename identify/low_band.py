@@ -24,11 +24,19 @@ from dtwin.signal.spectrum import noise_floor
 
 from .residuals import _STRONG_DB, _amplitude
 
-__all__ = ["LOW_BAND_LOCATIONS", "LOW_BAND_START", "with_low_band", "with_low_band_problem"]
+__all__ = ["LOW_BAND_LOCATIONS", "LOW_BAND_START", "lowest_knot", "with_low_band",
+           "with_low_band_problem"]
 
 #: Start of the low band (units of the planet-pass frequency ``N f_c``): the lowest knot of a
 #: calibrated sensor response (:mod:`dtwin.identify.calibrate`).
 LOW_BAND_START = 0.8
+
+def lowest_knot(kin) -> float:
+    """``LOW_BAND_START × N f_c`` (Hz) for a gearbox's kinematics `kin`: the lowest knot of a
+    calibrated sensor response, where the low band and the gap
+    (:func:`dtwin.identify.gap.named_bands`, ``f_min``) start."""
+    return LOW_BAND_START * kin.n_planets * kin.f_carrier
+
 
 #: Fault locations whose severity fits the low band by default (``low_band=None``): the sun's
 #: and the ring's low comb lies where the records put it; a planet fault's the twin places

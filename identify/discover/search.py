@@ -22,7 +22,7 @@ from dtwin.spec.build import daq_from_spec
 
 from ..gap import FLOOR_BINS, gap, named_bands, segment_spectra
 from ..lines import Kinematics, band_bounds, chance_match_probability
-from ..low_band import LOW_BAND_START
+from ..low_band import lowest_knot
 from ..operating_point import resolve_speed
 from .effects.base import EffectContext
 from .model import ExtendedModel
@@ -79,8 +79,8 @@ class Search:
     #: the named bands of the gap from `f_lo` to the DAQ's pass band
     #: (:func:`dtwin.identify.gap.named_bands`)
     bands: dict
-    #: the bottom of the scored band (Hz): the lowest knot of a calibrated sensor response,
-    #: ``LOW_BAND_START × N f_c`` (:func:`open_search`)
+    #: the bottom of the scored band (Hz): the lowest knot of a calibrated sensor response
+    #: (:func:`dtwin.identify.low_band.lowest_knot`)
     f_lo: float
     #: the line tolerance (Hz) on the whole-record spectrum
     tol_full: float
@@ -195,7 +195,7 @@ def open_search(record, spec, sample_rate, f_sun, settings: DiscoverySettings,
     floor = noise_floor(Y, FLOOR_BINS)
     # the gap from the lowest knot of the calibrated response to the DAQ's pass band: the lines
     # outside are still found and labelled ("alias of 5fm", "fc"), not scored
-    f_lo = LOW_BAND_START * kin.n_planets * kin.f_carrier
+    f_lo = lowest_knot(kin)
     bands = named_bands(kin, float(spec["sensor"]["passband"]) * fs, sample_rate=fs,
                         resolution=float(freqs[1] - freqs[0]), f_min=f_lo)
     tol_full = settings.tolerance_bins * (freqs_full[1] - freqs_full[0])
